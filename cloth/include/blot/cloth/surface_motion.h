@@ -1,0 +1,80 @@
+#pragma once
+/// Where the moving mesh comes from: one small interface for every source of
+/// vertex positions with fixed connectivity (static mesh, analytic rigid motion,
+/// mesh-sequence playback, Bullet soft-body cloth). The stain solver reads
+/// positions through it and never sees how they were produced.
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace blot::cloth {
+
+/// What the stain solver may assume about a motion: a static surface needs no
+/// inertial forces; a rigid one never changes its metric and has analytic
+/// frames; a deforming one needs per-vertex frame fits.
+enum class MotionKind { Static, Rigid, Deforming };
+
+class SurfaceMotion {
+ public:
+  virtual ~SurfaceMotion() = default;
+  virtual MotionKind kind() const = 0;
+  virtual int vertexCount() const = 0;
+  /// Current time, seconds.
+  virtual double time() const = 0;
+  /// Vertex positions at time(), #V by 3, metres. Valid until the next advance().
+  virtual const Eigen::MatrixX3d& positions() const = 0;
+  /// Vertex velocities at time(), #V by 3, m/s.
+  virtual const Eigen::MatrixX3d& velocities() const = 0;
+  /// Moves the surface to time() + h (h > 0, seconds).
+  virtual void advance(double h) = 0;
+};
+
+/// A surface that does not move.
+class StaticSurface final : public SurfaceMotion {
+ public:
+  explicit StaticSurface(const Eigen::MatrixX3d& restPositions);
+  MotionKind kind() const override { return MotionKind::Static; }
+  int vertexCount() const override { return static_cast<int>(positions_.rows()); }
+  double time() const override { return time_; }
+  const Eigen::MatrixX3d& positions() const override { return positions_; }
+  const Eigen::MatrixX3d& velocities() const override { return velocities_; }
+  void advance(double h) override;
+
+ private:
+  Eigen::MatrixX3d positions_, velocities_;
+  double time_ = 0;
+};
+
+/// Analytic rigid motion: rotation at constant angular velocity ω (rad/s, world
+/// axis) about a pivot that itself moves with constant velocity v and
+/// acceleration a:  x(t) = c(t) + exp(t [ω]×) (x̄ − c̄),  c(t) = c̄ + v t + ½ a t².
+struct RigidMotionDef {
+  Eigen::Vector3d angularVelocity = Eigen::Vector3d::Zero();     ///< rad/s
+  Eigen::Vector3d pivot = Eigen::Vector3d::Zero();               ///< m, at t = 0
+  Eigen::Vector3d linearVelocity = Eigen::Vector3d::Zero();      ///< m/s of the pivot
+  Eigen::Vector3d linearAcceleration = Eigen::Vector3d::Zero();  ///< m/s² of the pivot
+};
+
+class RigidMotion final : public SurfaceMotion {
+ public:
+  RigidMotion(const Eigen::MatrixX3d& restPositions, const RigidMotionDef& def);
+  MotionKind kind() const override { return MotionKind::Rigid; }
+  int vertexCount() const override { return static_cast<int>(rest_.rows()); }
+  double time() const override { return time_; }
+  const Eigen::MatrixX3d& positions() const override { return positions_; }
+  const Eigen::MatrixX3d& velocities() const override { return velocities_; }
+  void advance(double h) override;
+
+  /// Rotation exp(t [ω]×) at time t.
+  Eigen::Matrix3d rotationAt(double t) const;
+  /// Pivot position c(t).
+  Eigen::Vector3d pivotAt(double t) const;
+  const RigidMotionDef& definition() const { return def_; }
+
+ private:
+  void evaluate();
+  Eigen::MatrixX3d rest_, positions_, velocities_;
+  RigidMotionDef def_;
+  double time_ = 0;
+};
+
+}  // namespace blot::cloth

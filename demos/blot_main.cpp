@@ -1,0 +1,27 @@
+// `blot`: the command line for running scenes, homogenizing weave patterns and
+// inspecting meshes. Each subcommand lives in cli/<name>.cpp.
+#include "commands.h"
+
+#include <blot/engine/version.h>
+
+#include <exception>
+#include <iostream>
+
+int main(int argc, char** argv) {
+  CLI::App app{"Blot: stains forming on moving, deforming cloth"};
+  app.set_version_flag("--version", blot::engine::versionString());
+  app.require_subcommand(1);
+  int exitCode = 0;
+  blot::cli::registerMeshInfoCommand(app, exitCode);
+  blot::cli::registerDemoCommand(app, exitCode);
+  blot::cli::registerHomogenizeCommand(app, exitCode);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const std::exception& e) {
+    std::cerr << "blot: error: " << e.what() << "\n";
+    return 1;
+  }
+  return exitCode;
+}

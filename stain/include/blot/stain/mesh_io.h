@@ -1,0 +1,31 @@
+#pragma once
+/// Reading triangle meshes from OBJ, PLY (ASCII and binary little-endian) and OFF.
+///
+/// Every loader validates what it returns: finite coordinates, indices in range,
+/// no repeated-vertex or zero-area faces, an edge- and vertex-manifold surface
+/// with consistent orientation (via SurfaceTopology), at least one face.
+/// Failures throw MeshError whose message starts with the file path and names
+/// the line, face, edge or vertex at fault, e.g.
+///   "bad.obj: face 12 (line 40): vertex index 97 out of range [1, 96]".
+#include <blot/stain/triangle_mesh.h>
+
+#include <string>
+
+namespace blot::stain {
+
+/// Loads `path`, choosing the format from its extension (.obj, .ply, .off;
+/// case-insensitive). Polygons with more than three corners are fan-triangulated.
+/// PLY: reads `vertex` x,y,z (float/double), optional u,v / s,t, `face`
+/// vertex_indices (or vertex_index) lists, and an optional int face property
+/// `label`. OBJ: `g`/`o`/`usemtl` groups become face labels when present.
+TriangleMesh loadMesh(const std::string& path);
+
+/// Checks geometry and topology of an in-memory mesh; `sourceName` prefixes
+/// every message (a path, or a description such as "generated grid").
+/// Throws MeshError on the first problem found.
+void validateMesh(const TriangleMesh& mesh, const std::string& sourceName);
+
+/// Writes an ASCII PLY of positions and faces (and face labels when present).
+void saveMeshPly(const TriangleMesh& mesh, const std::string& path);
+
+}  // namespace blot::stain

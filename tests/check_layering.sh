@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# The dependency direction is a build fact: stain/ never sees Bullet, cloth/ never
+# sees stain internals, and no module outside cloth/ includes a Bullet header.
+set -euo pipefail
+root=${1:-$(dirname "$0")/..}
+fail=0
+bullet='#include *[<"](bt[A-Z]|btBulletDynamicsCommon|BulletSoftBody/|BulletDynamics/|BulletCollision/|LinearMath/)'
+for dir in stain coupling engine demos; do
+  if hits=$(grep -rEn "$bullet" "$root/$dir" 2>/dev/null); then
+    echo "Bullet header included outside cloth/ (in $dir/):"; echo "$hits"; fail=1
+  fi
+done
+if hits=$(grep -rEn '#include *[<"]blot/(cloth|coupling|engine)/' "$root/stain" 2>/dev/null); then
+  echo "stain/ includes a module above it:"; echo "$hits"; fail=1
+fi
+if hits=$(grep -rEn '#include *[<"]blot/(coupling|engine)/' "$root/cloth" 2>/dev/null); then
+  echo "cloth/ includes a module above it:"; echo "$hits"; fail=1
+fi
+if hits=$(grep -rEn '#include *[<"]blot/engine/' "$root/coupling" 2>/dev/null); then
+  echo "coupling/ includes engine/:"; echo "$hits"; fail=1
+fi
+[ "$fail" = 0 ] && echo "layering OK: engine -> coupling -> {stain, cloth}; Bullet only in cloth/"
+exit $fail
