@@ -1,0 +1,57 @@
+#pragma once
+/// Display colour of stained cloth from the stain densities (Beer–Lambert).
+///
+/// Per RGB channel c, with surface densities in kg/m² (the paper's σ):
+///   colour_c = clamp( base_c · exp(−ε_solute,c · (σ_s + σ_s,p + σ_s,a))
+///                            · exp(−ε_water,c  · σ_f), 0, 1 )
+/// σ_s free solute, σ_s,p absorbed solute, σ_s,a adsorbed solute, σ_f solvent
+/// (free; pass σ_f + σ_p to let absorbed water darken the cloth as well).
+/// ε are absorbances in m²/kg: a layer of density 1/ε_c dims channel c to 1/e.
+/// See docs/rendering.md for the presets and why.
+#include <Eigen/Core>
+
+#include <string>
+#include <vector>
+
+namespace blot::engine {
+
+/// Built-in pigments; absorbances chosen so that σ ≈ 1 kg/m² (the paper's
+/// densities, σ_sat 2–8) gives a clearly visible stain.
+enum class PigmentPreset { Wine, Coffee, Ink };
+
+struct StainColorMapping {
+  /// Reflectance of the dry, clean cloth per channel, [0, 1].
+  Eigen::Array3d clothColor{0.93, 0.91, 0.87};
+  /// ε_solute per channel, m²/kg (>= 0).
+  Eigen::Array3d soluteAbsorbance{0.35, 1.6, 1.1};
+  /// ε_water per channel, m²/kg (>= 0): wet cloth looks darker.
+  Eigen::Array3d solventAbsorbance{0.06, 0.05, 0.045};
+};
+
+/// ε_solute per channel (m²/kg) of a preset.
+Eigen::Array3d pigmentAbsorbance(PigmentPreset preset);
+
+/// Mapping with the preset's pigment, the default wetness and `clothColor`.
+StainColorMapping stainColorMapping(PigmentPreset preset,
+                                    const Eigen::Array3d& clothColor = {0.93, 0.91, 0.87});
+
+/// "wine", "coffee" or "ink" (exact, lower case). Throws std::invalid_argument
+/// listing the valid names otherwise.
+PigmentPreset pigmentPresetFromName(const std::string& name);
+const char* pigmentPresetName(PigmentPreset preset);
+
+/// Colour of one vertex. Densities in kg/m². A negative density (a limiter
+/// not yet applied) can brighten a channel, which the clamp bounds at 1;
+/// non-finite input gives non-finite output (the renderer shows it magenta).
+Eigen::Array3d stainColor(const StainColorMapping& mapping, double solvent, double solute,
+                          double absorbedSolute, double adsorbedSolute);
+
+/// Colours of all vertices into `vertexColors` (#V by 3, resized only if the
+/// row count differs). All density vectors have #V entries (kg/m²); an empty
+/// vector counts as zero everywhere. Throws std::invalid_argument on a length
+/// mismatch.
+void stainColors(const StainColorMapping& mapping, const Eigen::VectorXd& solvent,
+                 const Eigen::VectorXd& solute, const Eigen::VectorXd& absorbedSolute,
+                 const Eigen::VectorXd& adsorbedSolute, Eigen::MatrixX3d& vertexColors);
+
+}  // namespace blot::engine

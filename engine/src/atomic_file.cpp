@@ -1,0 +1,45 @@
+// Atomic whole-file writes for frame caches and previews.
+//
+// Design note: a simulation may be killed at any moment (Ctrl-C, a crash, a
+// time limit), and a tool watching the output folder may read a frame while it
+// is being written. Writing to a sibling temporary file and renaming it over
+// the target makes the switch atomic: readers see the previous file or the
+// complete new one, never a prefix. The temporary lives in the same directory
+// because rename() is only atomic within one filesystem. Rejected alternative:
+// writing in place after truncation (a crash leaves a half-written frame that
+// looks valid up to the header). Not done: fsync before rename; it protects
+// against power loss, not process death, and costs milliseconds per frame.
+#include "atomic_file.h"
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <stdexcept>
+#include <unistd.h>
+
+namespace blot::engine::detail {
+
+void writeFileAtomically(const std::string& path, const void* data, std::size_t size) {
+  const std::string tempPath = path + "." + std::to_string(static_cast<long>(::getpid())) + ".tmp";
+  std::FILE* file = std::fopen(tempPath.c_str(), "wb");
+  if (file == nullptr) {
+    throw std::runtime_error(path + ": cannot create temporary file " + tempPath + ": " +
+                             std::strerror(errno));
+  }
+  const std::size_t written = size == 0 ? 0 : std::fwrite(data, 1, size, file);
+  const int writeErrno = errno;
+  const bool closedOk = std::fclose(file) == 0;
+  if (written != size || !closedOk) {
+    std::remove(tempPath.c_str());
+    throw std::runtime_error(path + ": write failed after " + std::to_string(written) + " of " +
+                             std::to_string(size) + " bytes: " + std::strerror(writeErrno));
+  }
+  if (std::rename(tempPath.c_str(), path.c_str()) != 0) {
+    const int renameErrno = errno;
+    std::remove(tempPath.c_str());
+    throw std::runtime_error(path + ": cannot rename temporary file into place: " +
+                             std::strerror(renameErrno));
+  }
+}
+
+}  // namespace blot::engine::detail

@@ -1,0 +1,361 @@
+// 8-bit images, PNG input/output through libpng, contact sheets and labels.
+//
+// Design note: PNG encoding goes to a memory buffer (png_set_write_fn) and the
+// buffer is written with an atomic rename, so a preview is never seen half
+// written. libpng reports errors by longjmp; the libpng calls therefore sit in
+// small functions that own no C++ objects across setjmp (the image and buffers
+// live in the caller), and the error text is carried out in a plain struct.
+// Rejected: throwing C++ exceptions from the libpng error callback (unwinding
+// through C frames built without -fexceptions is undefined) and stb_image_write
+// (not packaged in Debian, and libpng is already required).
+// The label font is the classic 5x7 dot-matrix set (the shapes of the HD44780
+// LCD character generator), stored as five column bytes per glyph, bit 0 = top.
+#include <blot/engine/image.h>
+
+#include "atomic_file.h"
+
+#include <png.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+
+namespace blot::engine {
+namespace {
+
+// ASCII 32..126, five columns each, least significant bit = top row.
+constexpr std::uint8_t kFont5x7[95][5] = {
+    {0x00, 0x00, 0x00, 0x00, 0x00}, {0x00, 0x00, 0x5F, 0x00, 0x00},  // space !
+    {0x00, 0x07, 0x00, 0x07, 0x00}, {0x14, 0x7F, 0x14, 0x7F, 0x14},  // " #
+    {0x24, 0x2A, 0x7F, 0x2A, 0x12}, {0x23, 0x13, 0x08, 0x64, 0x62},  // $ %
+    {0x36, 0x49, 0x55, 0x22, 0x50}, {0x00, 0x05, 0x03, 0x00, 0x00},  // & '
+    {0x00, 0x1C, 0x22, 0x41, 0x00}, {0x00, 0x41, 0x22, 0x1C, 0x00},  // ( )
+    {0x14, 0x08, 0x3E, 0x08, 0x14}, {0x08, 0x08, 0x3E, 0x08, 0x08},  // * +
+    {0x00, 0x50, 0x30, 0x00, 0x00}, {0x08, 0x08, 0x08, 0x08, 0x08},  // , -
+    {0x00, 0x60, 0x60, 0x00, 0x00}, {0x20, 0x10, 0x08, 0x04, 0x02},  // . /
+    {0x3E, 0x51, 0x49, 0x45, 0x3E}, {0x00, 0x42, 0x7F, 0x40, 0x00},  // 0 1
+    {0x42, 0x61, 0x51, 0x49, 0x46}, {0x21, 0x41, 0x45, 0x4B, 0x31},  // 2 3
+    {0x18, 0x14, 0x12, 0x7F, 0x10}, {0x27, 0x45, 0x45, 0x45, 0x39},  // 4 5
+    {0x3C, 0x4A, 0x49, 0x49, 0x30}, {0x01, 0x71, 0x09, 0x05, 0x03},  // 6 7
+    {0x36, 0x49, 0x49, 0x49, 0x36}, {0x06, 0x49, 0x49, 0x29, 0x1E},  // 8 9
+    {0x00, 0x36, 0x36, 0x00, 0x00}, {0x00, 0x56, 0x36, 0x00, 0x00},  // : ;
+    {0x08, 0x14, 0x22, 0x41, 0x00}, {0x14, 0x14, 0x14, 0x14, 0x14},  // < =
+    {0x00, 0x41, 0x22, 0x14, 0x08}, {0x02, 0x01, 0x51, 0x09, 0x06},  // > ?
+    {0x32, 0x49, 0x79, 0x41, 0x3E}, {0x7E, 0x11, 0x11, 0x11, 0x7E},  // @ A
+    {0x7F, 0x49, 0x49, 0x49, 0x36}, {0x3E, 0x41, 0x41, 0x41, 0x22},  // B C
+    {0x7F, 0x41, 0x41, 0x22, 0x1C}, {0x7F, 0x49, 0x49, 0x49, 0x41},  // D E
+    {0x7F, 0x09, 0x09, 0x09, 0x01}, {0x3E, 0x41, 0x49, 0x49, 0x7A},  // F G
+    {0x7F, 0x08, 0x08, 0x08, 0x7F}, {0x00, 0x41, 0x7F, 0x41, 0x00},  // H I
+    {0x20, 0x40, 0x41, 0x3F, 0x01}, {0x7F, 0x08, 0x14, 0x22, 0x41},  // J K
+    {0x7F, 0x40, 0x40, 0x40, 0x40}, {0x7F, 0x02, 0x0C, 0x02, 0x7F},  // L M
+    {0x7F, 0x04, 0x08, 0x10, 0x7F}, {0x3E, 0x41, 0x41, 0x41, 0x3E},  // N O
+    {0x7F, 0x09, 0x09, 0x09, 0x06}, {0x3E, 0x41, 0x51, 0x21, 0x5E},  // P Q
+    {0x7F, 0x09, 0x19, 0x29, 0x46}, {0x46, 0x49, 0x49, 0x49, 0x31},  // R S
+    {0x01, 0x01, 0x7F, 0x01, 0x01}, {0x3F, 0x40, 0x40, 0x40, 0x3F},  // T U
+    {0x1F, 0x20, 0x40, 0x20, 0x1F}, {0x3F, 0x40, 0x38, 0x40, 0x3F},  // V W
+    {0x63, 0x14, 0x08, 0x14, 0x63}, {0x07, 0x08, 0x70, 0x08, 0x07},  // X Y
+    {0x61, 0x51, 0x49, 0x45, 0x43}, {0x00, 0x7F, 0x41, 0x41, 0x00},  // Z [
+    {0x02, 0x04, 0x08, 0x10, 0x20}, {0x00, 0x41, 0x41, 0x7F, 0x00},  // backslash ]
+    {0x04, 0x02, 0x01, 0x02, 0x04}, {0x40, 0x40, 0x40, 0x40, 0x40},  // ^ _
+    {0x00, 0x01, 0x02, 0x04, 0x00}, {0x20, 0x54, 0x54, 0x54, 0x78},  // ` a
+    {0x7F, 0x48, 0x44, 0x44, 0x38}, {0x38, 0x44, 0x44, 0x44, 0x20},  // b c
+    {0x38, 0x44, 0x44, 0x48, 0x7F}, {0x38, 0x54, 0x54, 0x54, 0x18},  // d e
+    {0x08, 0x7E, 0x09, 0x01, 0x02}, {0x08, 0x54, 0x54, 0x54, 0x3C},  // f g
+    {0x7F, 0x08, 0x04, 0x04, 0x78}, {0x00, 0x44, 0x7D, 0x40, 0x00},  // h i
+    {0x20, 0x40, 0x44, 0x3D, 0x00}, {0x7F, 0x10, 0x28, 0x44, 0x00},  // j k
+    {0x00, 0x41, 0x7F, 0x40, 0x00}, {0x7C, 0x04, 0x18, 0x04, 0x78},  // l m
+    {0x7C, 0x08, 0x04, 0x04, 0x78}, {0x38, 0x44, 0x44, 0x44, 0x38},  // n o
+    {0x7C, 0x14, 0x14, 0x14, 0x08}, {0x08, 0x14, 0x14, 0x14, 0x7C},  // p q
+    {0x7C, 0x08, 0x04, 0x04, 0x08}, {0x48, 0x54, 0x54, 0x54, 0x20},  // r s
+    {0x04, 0x3F, 0x44, 0x40, 0x20}, {0x3C, 0x40, 0x40, 0x20, 0x7C},  // t u
+    {0x1C, 0x20, 0x40, 0x20, 0x1C}, {0x3C, 0x40, 0x30, 0x40, 0x3C},  // v w
+    {0x44, 0x28, 0x10, 0x28, 0x44}, {0x0C, 0x50, 0x50, 0x50, 0x3C},  // x y
+    {0x44, 0x64, 0x54, 0x4C, 0x44}, {0x00, 0x08, 0x36, 0x41, 0x00},  // z {
+    {0x00, 0x00, 0x7F, 0x00, 0x00}, {0x00, 0x41, 0x36, 0x08, 0x00},  // | }
+    {0x10, 0x08, 0x08, 0x10, 0x08},                                  // ~
+};
+
+constexpr int kGlyphWidth = 5;
+constexpr int kGlyphHeight = 7;
+constexpr int kGlyphAdvance = 6;
+
+// ---- libpng glue. No C++ object with a destructor lives across setjmp. ----
+
+struct PngStatus {
+  char message[256] = {0};
+};
+
+void pngError(png_structp png, png_const_charp message) {
+  auto* status = static_cast<PngStatus*>(png_get_error_ptr(png));
+  std::snprintf(status->message, sizeof status->message, "%s", message);
+  png_longjmp(png, 1);
+}
+
+void pngWarning(png_structp, png_const_charp) {}
+
+struct PngWriteBuffer {
+  std::vector<std::uint8_t>* bytes;
+};
+
+void pngWriteToBuffer(png_structp png, png_bytep data, png_size_t length) {
+  auto* buffer = static_cast<PngWriteBuffer*>(png_get_io_ptr(png));
+  try {
+    buffer->bytes->insert(buffer->bytes->end(), data, data + length);
+  } catch (...) {
+    png_error(png, "out of memory while encoding");
+  }
+}
+
+void pngFlush(png_structp) {}
+
+bool encodePng(const Image& image, std::vector<std::uint8_t>& out, PngStatus& status) {
+  PngWriteBuffer buffer{&out};
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &status, pngError, pngWarning);
+  if (png == nullptr) return false;
+  png_infop info = png_create_info_struct(png);
+  if (info == nullptr || setjmp(png_jmpbuf(png))) {
+    png_destroy_write_struct(&png, &info);
+    return false;
+  }
+  png_set_write_fn(png, &buffer, pngWriteToBuffer, pngFlush);
+  png_set_IHDR(png, info, static_cast<png_uint_32>(image.width()),
+               static_cast<png_uint_32>(image.height()), 8,
+               image.channels() == 4 ? PNG_COLOR_TYPE_RGB_ALPHA : PNG_COLOR_TYPE_RGB,
+               PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  png_write_info(png, info);
+  for (int y = 0; y < image.height(); ++y) {
+    png_write_row(png, image.row(y));
+  }
+  png_write_end(png, info);
+  png_destroy_write_struct(&png, &info);
+  return true;
+}
+
+struct PngReadBuffer {
+  const std::vector<std::uint8_t>* bytes;
+  std::size_t offset;
+};
+
+void pngReadFromBuffer(png_structp png, png_bytep data, png_size_t length) {
+  auto* buffer = static_cast<PngReadBuffer*>(png_get_io_ptr(png));
+  if (buffer->offset + length > buffer->bytes->size()) png_error(png, "file is truncated");
+  std::memcpy(data, buffer->bytes->data() + buffer->offset, length);
+  buffer->offset += length;
+}
+
+// Decodes into `image`, which the caller owns (so no destructor is skipped by longjmp).
+bool decodePng(const std::vector<std::uint8_t>& bytes, Image& image, PngStatus& status) {
+  PngReadBuffer buffer{&bytes, 0};
+  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &status, pngError, pngWarning);
+  if (png == nullptr) return false;
+  png_infop info = png_create_info_struct(png);
+  if (info == nullptr || setjmp(png_jmpbuf(png))) {
+    png_destroy_read_struct(&png, &info, nullptr);
+    return false;
+  }
+  png_set_read_fn(png, &buffer, pngReadFromBuffer);
+  png_read_info(png, info);
+  const png_byte colorType = png_get_color_type(png, info);
+  const png_byte bitDepth = png_get_bit_depth(png, info);
+  if (colorType == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(png);
+  if (colorType == PNG_COLOR_TYPE_GRAY || colorType == PNG_COLOR_TYPE_GRAY_ALPHA) {
+    if (bitDepth < 8) png_set_expand_gray_1_2_4_to_8(png);
+    png_set_gray_to_rgb(png);
+  }
+  if (png_get_valid(png, info, PNG_INFO_tRNS)) png_set_tRNS_to_alpha(png);
+  if (bitDepth == 16) png_set_strip_16(png);
+  const int passes = png_set_interlace_handling(png);
+  png_read_update_info(png, info);
+  const int channels = png_get_channels(png, info);
+  if (channels != 3 && channels != 4) png_error(png, "unsupported channel layout");
+  const auto width = static_cast<int>(png_get_image_width(png, info));
+  const auto height = static_cast<int>(png_get_image_height(png, info));
+  image = Image(width, height, channels);
+  // Interlaced images need every row present in each pass.
+  for (int pass = 0; pass < passes; ++pass) {
+    for (int y = 0; y < height; ++y) png_read_row(png, image.row(y), nullptr);
+  }
+  png_read_end(png, nullptr);
+  png_destroy_read_struct(&png, &info, nullptr);
+  return true;
+}
+
+std::uint8_t blendChannel(std::uint8_t source, std::uint8_t target, std::uint8_t alpha) {
+  const int value = source * alpha + target * (255 - alpha);
+  return static_cast<std::uint8_t>((value + 127) / 255);
+}
+
+}  // namespace
+
+Image::Image(int width, int height, int channels, Rgba8 fillColor)
+    : width_(width), height_(height), channels_(channels) {
+  if (width < 0 || height < 0) {
+    throw std::invalid_argument("Image: negative size " + std::to_string(width) + " x " +
+                                std::to_string(height));
+  }
+  if (channels != 3 && channels != 4) {
+    throw std::invalid_argument("Image: channels must be 3 or 4, got " + std::to_string(channels));
+  }
+  bytes_.resize(static_cast<std::size_t>(width) * static_cast<std::size_t>(height) *
+                static_cast<std::size_t>(channels));
+  fill(fillColor);
+}
+
+Rgba8 Image::pixel(int x, int y) const {
+  const std::uint8_t* p = row(y) + static_cast<std::size_t>(x) * channels_;
+  return Rgba8{p[0], p[1], p[2], channels_ == 4 ? p[3] : std::uint8_t{255}};
+}
+
+void Image::setPixel(int x, int y, Rgba8 color) {
+  std::uint8_t* p = row(y) + static_cast<std::size_t>(x) * channels_;
+  p[0] = color.r;
+  p[1] = color.g;
+  p[2] = color.b;
+  if (channels_ == 4) p[3] = color.a;
+}
+
+void Image::setPixelClipped(int x, int y, Rgba8 color) {
+  if (x >= 0 && y >= 0 && x < width_ && y < height_) setPixel(x, y, color);
+}
+
+void Image::fill(Rgba8 color) {
+  for (int y = 0; y < height_; ++y) {
+    for (int x = 0; x < width_; ++x) setPixel(x, y, color);
+  }
+}
+
+void writePng(const Image& image, const std::string& path) {
+  if (image.empty()) throw ImageError(path + ": cannot write an empty image as PNG");
+  std::vector<std::uint8_t> encoded;
+  PngStatus status;
+  if (!encodePng(image, encoded, status)) {
+    throw ImageError(path + ": PNG encoding failed: " + status.message);
+  }
+  try {
+    detail::writeFileAtomically(path, encoded.data(), encoded.size());
+  } catch (const std::runtime_error& error) {
+    throw ImageError(error.what());
+  }
+}
+
+Image readPng(const std::string& path) {
+  std::ifstream file(path, std::ios::binary);
+  if (!file) throw ImageError(path + ": cannot open for reading");
+  const std::vector<std::uint8_t> bytes{std::istreambuf_iterator<char>(file),
+                                        std::istreambuf_iterator<char>()};
+  if (bytes.size() < 8 || png_sig_cmp(bytes.data(), 0, 8) != 0) {
+    throw ImageError(path + ": not a PNG file (bad signature)");
+  }
+  Image image;
+  PngStatus status;
+  if (!decodePng(bytes, image, status)) {
+    throw ImageError(path + ": PNG decoding failed: " + status.message);
+  }
+  return image;
+}
+
+void blit(Image& target, const Image& source, int x, int y) {
+  const int x0 = std::max(0, x);
+  const int y0 = std::max(0, y);
+  const int x1 = std::min(target.width(), x + source.width());
+  const int y1 = std::min(target.height(), y + source.height());
+  for (int ty = y0; ty < y1; ++ty) {
+    for (int tx = x0; tx < x1; ++tx) {
+      const Rgba8 s = source.pixel(tx - x, ty - y);
+      if (source.channels() == 3 || s.a == 255) {
+        target.setPixel(tx, ty, s);
+        continue;
+      }
+      const Rgba8 t = target.pixel(tx, ty);
+      const auto alpha = static_cast<std::uint8_t>(s.a + (t.a * (255 - s.a) + 127) / 255);
+      target.setPixel(tx, ty, Rgba8{blendChannel(s.r, t.r, s.a), blendChannel(s.g, t.g, s.a),
+                                    blendChannel(s.b, t.b, s.a), alpha});
+    }
+  }
+}
+
+int textWidth(const std::string& text, int scale) {
+  if (text.empty()) return 0;
+  return (static_cast<int>(text.size()) * kGlyphAdvance - 1) * scale;
+}
+
+int textHeight(int scale) { return kGlyphHeight * scale; }
+
+void drawText(Image& image, int x, int y, const std::string& text, Rgba8 color, int scale) {
+  if (scale < 1) throw std::invalid_argument("drawText: scale must be >= 1");
+  int penX = x;
+  for (char character : text) {
+    const auto code = static_cast<unsigned char>(character);
+    const int glyph = (code >= 32 && code <= 126) ? code - 32 : '?' - 32;
+    for (int column = 0; column < kGlyphWidth; ++column) {
+      const std::uint8_t bits = kFont5x7[glyph][column];
+      for (int rowIndex = 0; rowIndex < kGlyphHeight; ++rowIndex) {
+        if ((bits >> rowIndex & 1u) == 0) continue;
+        for (int dy = 0; dy < scale; ++dy) {
+          for (int dx = 0; dx < scale; ++dx) {
+            image.setPixelClipped(penX + column * scale + dx, y + rowIndex * scale + dy, color);
+          }
+        }
+      }
+    }
+    penX += kGlyphAdvance * scale;
+  }
+}
+
+Image contactSheet(const std::vector<Image>& images, const std::vector<std::string>& labels,
+                   const ContactSheetOptions& options) {
+  if (images.empty()) throw std::invalid_argument("contactSheet: no images");
+  if (!labels.empty() && labels.size() != images.size()) {
+    throw std::invalid_argument("contactSheet: " + std::to_string(labels.size()) +
+                                " labels for " + std::to_string(images.size()) + " images");
+  }
+  if (options.margin < 0 || options.labelScale < 1 || options.columns < 0) {
+    throw std::invalid_argument("contactSheet: margin and columns must be >= 0, labelScale >= 1");
+  }
+  const int count = static_cast<int>(images.size());
+  const int columns =
+      options.columns > 0 ? std::min(options.columns, count)
+                          : static_cast<int>(std::ceil(std::sqrt(static_cast<double>(count))));
+  const int rows = (count + columns - 1) / columns;
+  int cellWidth = 0;
+  int imageHeight = 0;
+  int channels = 3;
+  for (int k = 0; k < count; ++k) {
+    cellWidth = std::max(cellWidth, images[k].width());
+    imageHeight = std::max(imageHeight, images[k].height());
+    if (images[k].channels() == 4) channels = 4;
+    if (!labels.empty()) cellWidth = std::max(cellWidth, textWidth(labels[k], options.labelScale));
+  }
+  const int labelGap = std::max(2, options.margin / 2);
+  const int labelBand = labels.empty() ? 0 : labelGap + textHeight(options.labelScale);
+  const int cellHeight = imageHeight + labelBand;
+  const int margin = options.margin;
+  Image sheet(margin + columns * (cellWidth + margin), margin + rows * (cellHeight + margin),
+              channels, options.background);
+  for (int k = 0; k < count; ++k) {
+    const int cellX = margin + (k % columns) * (cellWidth + margin);
+    const int cellY = margin + (k / columns) * (cellHeight + margin);
+    const Image& image = images[k];
+    blit(sheet, image, cellX + (cellWidth - image.width()) / 2,
+         cellY + (imageHeight - image.height()) / 2);
+    if (!labels.empty()) {
+      drawText(sheet, cellX + (cellWidth - textWidth(labels[k], options.labelScale)) / 2,
+               cellY + imageHeight + labelGap, labels[k], options.labelColor, options.labelScale);
+    }
+  }
+  return sheet;
+}
+
+Image sideBySide(const std::vector<Image>& images, const std::vector<std::string>& labels,
+                 int margin, Rgba8 background) {
+  ContactSheetOptions options;
+  options.columns = static_cast<int>(images.size());
+  options.margin = margin;
+  options.background = background;
+  return contactSheet(images, labels, options);
+}
+
+}  // namespace blot::engine
