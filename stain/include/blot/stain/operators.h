@@ -25,7 +25,10 @@ Eigen::MatrixX3d identityFaceTensors(int faceCount);
 
 /// Anisotropic P1 stiffness L_ij = Σ_T ∫_T ∇φ_i · S_T ∇φ_j (#V by #V, symmetric
 /// PSD for SPD tensors, rows sum to zero). faceTensors #F by 3, faceWeftDirections
-/// #F by 3. With identity tensors this is the cotan Laplacian.
+/// #F by 3. With identity tensors this is the cotan Laplacian. Isotropic faces
+/// (s_wp = 0, s_ww = s_pp) ignore their weft, which may then be zero; an
+/// anisotropic face whose weft has no component in the face plane throws
+/// std::invalid_argument naming the face (so does connectionLaplacian).
 SparseMatrix anisotropicStiffness(const SurfaceTopology& topology,
                                   const RowVectors3& vertexPositions,
                                   const Eigen::MatrixX3d& faceTensors,
