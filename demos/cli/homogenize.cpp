@@ -1,0 +1,118 @@
+// `blot homogenize PATTERN.json | --preset NAME [--subdivisions K]`: the
+// effective diffusion tensor of a weave pattern, as one JSON object on stdout.
+//
+// Design note: the command is a thin shell over stain/'s loadWeavePattern and
+// homogenize, so the numbers a user sees are exactly the ones a scene gets.
+// Output keys, in this order (docs/patterns.md): "effective", "average",
+// "reuss", "voigt" (2x2, row-major nested arrays, pattern units),
+// "eigenvalues" [min, max], "anisotropy" (max/min eigenvalue),
+// "principal_angle_deg" (major axis from the weft/x axis, counter-clockwise,
+// in (-90, 90]), "subdivisions" (K used), "pattern_hash" (16 hex digits of the
+// content hash: equal for equal tensors, whatever the file), "pattern",
+// "rows", "cols". One key per line, values compact. Bad input is reported on
+// stderr naming the file, key and position, with exit code 1; nothing is
+// printed on stdout then, so scripts never parse half a result.
+#include "commands.h"
+
+#include <blot/stain/homogenization.h>
+#include <blot/stain/weave_pattern.h>
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <cstdio>
+#include <exception>
+#include <iostream>
+#include <memory>
+#include <string>
+
+namespace blot::cli {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+struct HomogenizeOptions {
+  std::string patternPath;
+  std::string preset;
+  int subdivisions = stain::kAutoSubdivisions;
+  bool listPresets = false;
+};
+
+using Json = nlohmann::ordered_json;
+
+// Adding +0.0 turns a -0.0 (from inverting a diagonal tensor) into 0.0.
+Json matrixJson(const stain::Matrix2& m) {
+  return {{m(0, 0) + 0.0, m(0, 1) + 0.0}, {m(1, 0) + 0.0, m(1, 1) + 0.0}};
+}
+
+// One key per line, each value compact: a 2x2 tensor reads as one row.
+void printObject(const Json& object) {
+  std::cout << "{\n";
+  size_t i = 0;
+  for (const auto& [key, value] : object.items())
+    std::cout << "  " << Json(key).dump() << ": " << value.dump() << (++i < object.size() ? ",\n" : "\n");
+  std::cout << "}\n";
+}
+
+std::string hashText(std::uint64_t hash) {
+  char text[17];
+  std::snprintf(text, sizeof(text), "%016llx", static_cast<unsigned long long>(hash));
+  return text;
+}
+
+int runHomogenize(const HomogenizeOptions& options) {
+  if (options.listPresets) {
+    Json presets = Json::array();
+    for (const stain::WeavePreset& preset : stain::weavePresets())
+      presets.push_back({{"name", preset.name}, {"description", preset.description}, {"cells", preset.cells}});
+    std::cout << presets.dump(2) << "\n";
+    return 0;
+  }
+  if (options.patternPath.empty() == options.preset.empty()) {
+    std::cerr << "blot homogenize: error: give a pattern file or --preset NAME (one of them)\n";
+    return 2;
+  }
+  try {
+    const stain::WeavePattern pattern = options.preset.empty() ? stain::loadWeavePattern(options.patternPath)
+                                                               : stain::presetWeavePattern(options.preset);
+    const stain::HomogenizationResult r = stain::homogenize(pattern, options.subdivisions);
+    const Json out = {{"effective", matrixJson(r.effective)},
+                      {"average", matrixJson(r.average)},
+                      {"reuss", matrixJson(r.reussBound)},
+                      {"voigt", matrixJson(r.voigtBound)},
+                      {"eigenvalues", {r.eigenvalues(0), r.eigenvalues(1)}},
+                      {"anisotropy", r.eigenvalues(1) / r.eigenvalues(0)},
+                      {"principal_angle_deg", r.principalAngle * 180.0 / kPi + 0.0},
+                      {"subdivisions", r.subdivisions},
+                      {"pattern_hash", hashText(r.patternHash)},
+                      {"pattern", pattern.sourceName()},
+                      {"rows", pattern.rows()},
+                      {"cols", pattern.cols()}};
+    printObject(out);
+    return 0;
+  } catch (const std::exception& e) {
+    std::cerr << "blot homogenize: error: " << e.what() << "\n";
+    return 1;
+  }
+}
+
+}  // namespace
+
+void registerHomogenizeCommand(CLI::App& app, int& exitCode) {
+  auto options = std::make_shared<HomogenizeOptions>();
+  CLI::App* command = app.add_subcommand(
+      "homogenize", "Print the effective (homogenized) diffusion tensor of a weave pattern as JSON "
+                    "(docs/patterns.md)");
+  CLI::Option* file = command->add_option("pattern", options->patternPath, "Pattern file (.json)");
+  CLI::Option* preset = command->add_option(
+      "--preset", options->preset, "Use a named preset instead of a file: plain, twill-2-1, twill-3-1, "
+                                   "satin-5, basket, rib-knit");
+  file->excludes(preset);
+  command->add_option("-k,--subdivisions", options->subdivisions,
+                      "Squares per cell side K (default: chosen from the tile size, see docs/patterns.md)")
+      ->check(CLI::Range(1, 256));
+  command->add_flag("--list-presets", options->listPresets, "List the presets and their cells as JSON");
+  command->callback([options, &exitCode]() { exitCode = runHomogenize(*options); });
+}
+
+}  // namespace blot::cli
