@@ -1,0 +1,88 @@
+#pragma once
+/// Per-step constants (a fresh, const StepContext each step), the physics
+/// switches and liquid parameters a scene sets, and what a step reports.
+#include <blot/stain/types.h>
+
+#include <string>
+
+namespace blot::stain {
+
+/// Liquid/fabric interaction parameters (paper sec. 5). Units: densities kg/m²,
+/// rates 1/s, evaporation kg/(m² s).
+struct LiquidParameters {
+  double absorptionRate = 0.1;        ///< K_p (1/s).
+  double saturationDensity = 4.0;     ///< σ_sat (kg/m²).
+  double desorptionRate = 0.05;       ///< K_d (1/s), eq. (9).
+  double adsorptionCapacity = 0.5;    ///< A_d (kg/m²), eq. (9).
+  double evaporationRate = 0.01;      ///< K_evap (kg/(m² s)), eq. (10).
+  double boundaryEvaporationFactor = 1.2;  ///< a_evap on boundary vertices (1 inside).
+  double wetThreshold = 1e-9;         ///< σ below which a vertex counts as dry (kg/m²).
+};
+
+/// How the Coriolis term is integrated. ExactRotation rotates u by −2 ω_n h
+/// (energy-preserving); Explicit adds −2h ω × u (gains energy; kept only for comparison).
+enum class CoriolisScheme { ExactRotation, Explicit };
+
+/// Every physics term can be switched off. Terms a scene does not need are
+/// also skipped automatically (static mesh: no inertia; no solute: no solute
+/// transport); the profile says which ran.
+struct PhysicsSwitches {
+  bool gravity = true;
+  bool linearInertia = true;     ///< −Fᵀ p̈
+  bool coriolis = true;          ///< −2 ω × u
+  bool velocityAdvection = true;
+  bool densityAdvection = true;
+  bool densityDiffusion = true;
+  bool velocityDiffusion = true;
+  bool absorption = true;
+  bool adsorption = true;
+  bool evaporation = true;
+  bool sources = true;
+  bool positivityLimiter = true;  ///< mass-conserving fix of negative densities after diffusion
+  CoriolisScheme coriolisScheme = CoriolisScheme::ExactRotation;
+};
+
+struct StepContext {
+  double h = 0.01;        ///< time step (s)
+  double invH = 100.0;    ///< 1 / h
+  Vector3 gravity = Vector3(0, 0, -9.8);  ///< world gravity (m/s²)
+  PhysicsSwitches switches;
+  LiquidParameters liquid;
+  int maxAdvectionSubsteps = 64;  ///< cap on density-advection sub-steps per step
+};
+
+/// Makes a context; h must be finite and positive (checked by the caller's guard).
+inline StepContext makeStepContext(double h, const Vector3& gravity, const PhysicsSwitches& switches,
+                                   const LiquidParameters& liquid) {
+  StepContext ctx;
+  ctx.h = h;
+  ctx.invH = 1.0 / h;
+  ctx.gravity = gravity;
+  ctx.switches = switches;
+  ctx.liquid = liquid;
+  return ctx;
+}
+
+/// Wall-clock milliseconds per stage of the last step, and counters.
+struct StepProfile {
+  double geometry = 0, forces = 0, advectVelocity = 0, advectDensity = 0, diffuse = 0, interact = 0,
+         sources = 0, total = 0;
+  int advectionSubsteps = 0;       ///< density-advection sub-steps taken
+  int intrinsicRefreshes = 0;      ///< 1 if the metric changed enough to refactorize this step
+  double maxEdgeStrain = 0;        ///< largest |ℓ/ℓ_factored − 1| this step
+  int wetVertices = 0;             ///< vertices holding liquid at the start of the step
+  int limiterCorrectedVertices = 0;  ///< vertices whose negative density the limiter fixed
+  double limiterMovedMass = 0;     ///< kg moved by the positivity limiter
+};
+
+/// Numerical failure inside a step (tier c): the stage, the vertex, and why.
+enum class StepStatus { Ok, SolverFailure, NonFinite, NegativeMass, InvalidArgument };
+
+struct StepReport {
+  StepStatus status = StepStatus::Ok;
+  std::string stage;   ///< e.g. "diffuse"
+  int vertex = -1;     ///< offending vertex, or -1
+  std::string message;
+};
+
+}  // namespace blot::stain

@@ -1,0 +1,527 @@
+// SurfaceGeometry: extrinsic refresh under analytic motions (rigid rotation,
+// uniform stretch, no motion), the strain test, intrinsic rebuilds, and the
+// rotation fits (exact Kabsch and the warm-started Newton path).
+#include <blot/stain/surface_geometry.h>
+
+#include "geometry_test_support.h"
+
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <atomic>
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+// Counting allocator for this test binary: every malloc, calloc and realloc
+// (operator new and Eigen's dynamic storage both end in malloc) is counted
+// while `gCountAllocations` is set, then forwarded to glibc.
+extern "C" void* __libc_malloc(size_t size);
+extern "C" void* __libc_calloc(size_t count, size_t size);
+extern "C" void* __libc_realloc(void* pointer, size_t size);
+namespace {
+std::atomic<bool> gCountAllocations{false};
+std::atomic<long> gAllocations{0};
+void countAllocation() {
+  if (gCountAllocations.load(std::memory_order_relaxed)) gAllocations.fetch_add(1, std::memory_order_relaxed);
+}
+}  // namespace
+extern "C" void* malloc(size_t size) {
+  countAllocation();
+  return __libc_malloc(size);
+}
+extern "C" void* calloc(size_t count, size_t size) {
+  countAllocation();
+  return __libc_calloc(count, size);
+}
+extern "C" void* realloc(void* pointer, size_t size) {
+  countAllocation();
+  return __libc_realloc(pointer, size);
+}
+
+namespace blot::stain {
+namespace {
+
+using testing::jitteredIcosphere;
+using testing::randomFabric;
+
+FabricField isotropicFabric(int faceCount) {
+  FabricField fabric;
+  fabric.densityTensors = identityFaceTensors(faceCount);
+  fabric.velocityTensors = identityFaceTensors(faceCount);
+  fabric.weftDirections = RowVectors3::Zero(faceCount, 3);
+  return fabric;
+}
+
+FabricField anisotropicFabric(int faceCount, unsigned seed) {
+  FabricField fabric;
+  auto [tensors, wefts] = randomFabric(faceCount, 100.0, seed);
+  fabric.densityTensors = tensors;
+  fabric.velocityTensors = 0.5 * tensors;
+  fabric.weftDirections = wefts;
+  return fabric;
+}
+
+// A curved sheet with boundary: a 16x12 grid bent as z = 0.2 sin(2x) cos(3y).
+TriangleMesh wavySheet() {
+  TriangleMesh mesh = gridMesh(16, 12, 1.0, 0.75);
+  for (Eigen::Index v = 0; v < mesh.vertexPositions.rows(); ++v) {
+    const double x = mesh.vertexPositions(v, 0), y = mesh.vertexPositions(v, 1);
+    mesh.vertexPositions(v, 2) = 0.2 * std::sin(2 * x) * std::cos(3 * y);
+  }
+  return mesh;
+}
+
+Matrix3 rotationAbout(const Vector3& angularVelocity, double t) {
+  const double speed = angularVelocity.norm();
+  return Eigen::AngleAxisd(speed * t, angularVelocity / speed).toRotationMatrix();
+}
+
+// x(t) = c + v t + R(t)(x̄ − c): rotation about a pivot moving at constant velocity.
+struct RigidScene {
+  Vector3 omega{0.3, -1.2, 2.0};  // rad/s, |ω| ≈ 2.35
+  Vector3 pivot{0.1, -0.2, 0.05};
+  Vector3 velocity{0.4, 0.0, -0.3};
+  RowVectors3 rest;
+  RowVectors3 at(double t) const {
+    const Matrix3 R = rotationAbout(omega, t);
+    RowVectors3 p(rest.rows(), 3);
+    for (Eigen::Index i = 0; i < rest.rows(); ++i)
+      p.row(i) = (pivot + velocity * t + R * (rest.row(i).transpose() - pivot)).transpose();
+    return p;
+  }
+  // Exact acceleration: centripetal ω × (ω × r), r = R(t)(x̄ − c).
+  Vector3 acceleration(int i, double t) const {
+    const Vector3 r = rotationAbout(omega, t) * (rest.row(i).transpose() - pivot);
+    return omega.cross(omega.cross(r));
+  }
+};
+
+void checkRigidRotation(const TriangleMesh& mesh) {
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  const int n = topology.vertexCount();
+  RigidScene scene;
+  scene.rest = mesh.vertexPositions;
+  SurfaceGeometry geometry(topology, scene.rest, anisotropicFabric(topology.faceCount(), 3));
+  const double h = 0.01;
+  geometry.setPreviousPositions(scene.at(-h));
+  // Centred second difference of a rotation: p̈_fd = p̈ sinc²(|ω|h/2), a relative
+  // error below (|ω|h)²/12 = 4.6e-5; plus rounding ~4 ε |p| / h².
+  const double speedStep = scene.omega.norm() * h;
+  const double accelerationRelTol = speedStep * speedStep / 12.0;
+  double worstRotation = 0, worstOmega = 0, worstAcceleration = 0, worstNormal = 0;
+  for (int step = 1; step <= 1000; ++step) {
+    const double t = (step - 1) * h;  // the geometry's "t" after this refresh
+    const bool rebuild = geometry.refreshExtrinsic(scene.at(t + h), h);
+    ASSERT_FALSE(rebuild) << "step " << step << " strain " << geometry.maxEdgeStrain();
+    ASSERT_LT(geometry.maxEdgeStrain(), 1e-13);
+    const ExtrinsicGeometry& ex = geometry.extrinsic();
+    const Matrix3 Rnext = rotationAbout(scene.omega, t + h);
+    const Matrix3 Rnow = rotationAbout(scene.omega, t);
+    if (step >= 3) {
+      // Extrapolated warm start is exact for constant ω: one Newton iteration.
+      EXPECT_EQ(geometry.rotationFitStats().newtonIterations, n) << "step " << step;
+    }
+    EXPECT_EQ(geometry.rotationFitStats().svdFallbacks, 0);
+    // Check every vertex on a few steps, keep the runtime small.
+    if (step > 3 && step % 97 != 0) continue;
+    const RowVectors3 restNormals = vertexNormals(topology, scene.rest);
+    for (int i = 0; i < n; ++i) {
+      const size_t k = static_cast<size_t>(i);
+      worstRotation = std::max(worstRotation, (ex.kabschRotations[k] - Rnext).cwiseAbs().maxCoeff());
+      const Vector3 omegaWorld = ex.frames[k] * ex.vertexAngularVelocities.row(i).transpose();
+      worstOmega = std::max(worstOmega, (omegaWorld - scene.omega).cwiseAbs().maxCoeff());
+      const Vector3 exact = scene.acceleration(i, t);
+      const double error = (ex.vertexAccelerations.row(i).transpose() - exact).norm();
+      EXPECT_LE(error, 1.01 * accelerationRelTol * exact.norm() + 1e-9) << "vertex " << i;
+      worstAcceleration = std::max(worstAcceleration, error / std::max(exact.norm(), 1e-300));
+      worstNormal = std::max(worstNormal, (ex.vertexNormals.row(i).transpose() -
+                                           Rnow * restNormals.row(i).transpose()).norm());
+    }
+  }
+  EXPECT_LT(worstRotation, 1e-12);
+  EXPECT_LT(worstOmega, 1e-10);
+  EXPECT_LT(worstNormal, 1e-12);
+  // The O(h²) error is really there (the test would catch a first-order scheme):
+  EXPECT_GT(worstAcceleration, 0.5 * accelerationRelTol);
+  EXPECT_EQ(geometry.intrinsic().rebuildCount, 1);
+}
+
+TEST(SurfaceGeometry, RigidRotationClosedMesh) { checkRigidRotation(jitteredIcosphere(2, 0.2, 11)); }
+
+TEST(SurfaceGeometry, RigidRotationSheetWithBoundary) { checkRigidRotation(wavySheet()); }
+
+// The rigid path (no fits) gives what the fits give, to rounding.
+TEST(SurfaceGeometry, RigidPathMatchesFittedPath) {
+  const TriangleMesh mesh = wavySheet();
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  RigidScene scene;
+  scene.rest = mesh.vertexPositions;
+  SurfaceGeometry fitted(topology, scene.rest, isotropicFabric(topology.faceCount()));
+  SurfaceGeometry rigid(topology, scene.rest, isotropicFabric(topology.faceCount()));
+  const double h = 0.01;
+  fitted.setPreviousPositions(scene.at(-h));
+  rigid.setPreviousPositions(scene.at(-h));
+  for (int step = 1; step <= 200; ++step) {
+    const double t = (step - 1) * h;
+    const RowVectors3 next = scene.at(t + h);
+    EXPECT_FALSE(fitted.refreshExtrinsic(next, h));
+    EXPECT_FALSE(rigid.refreshExtrinsicRigid(next, rotationAbout(scene.omega, t + h), h));
+    EXPECT_EQ(rigid.rotationFitStats().fittedVertices, 0);
+    const ExtrinsicGeometry& a = fitted.extrinsic();
+    const ExtrinsicGeometry& b = rigid.extrinsic();
+    EXPECT_EQ(a.vertexAccelerations, b.vertexAccelerations);  // same centred difference
+    EXPECT_LT((a.vertexNormals - b.vertexNormals).cwiseAbs().maxCoeff(), 1e-13);
+    EXPECT_LT((a.vertexAngularVelocities - b.vertexAngularVelocities).cwiseAbs().maxCoeff(), 1e-10);
+    for (size_t k = 0; k < a.frames.size(); ++k) {
+      ASSERT_LT((a.kabschRotations[k] - b.kabschRotations[k]).cwiseAbs().maxCoeff(), 1e-12);
+      ASSERT_LT((a.frames[k] - b.frames[k]).cwiseAbs().maxCoeff(), 1e-12);
+      const Vector3 omegaWorld = b.frames[k] * b.vertexAngularVelocities.row(static_cast<int>(k)).transpose();
+      ASSERT_LT((omegaWorld - scene.omega).cwiseAbs().maxCoeff(), 1e-10);
+    }
+  }
+  EXPECT_EQ(rigid.intrinsic().rebuildCount, 1);
+  EXPECT_THROW(rigid.refreshExtrinsicRigid(scene.rest, 2.0 * Matrix3::Identity(), h), std::invalid_argument);
+}
+
+TEST(SurfaceGeometry, NormalsMatchVertexNormals) {
+  const TriangleMesh mesh = wavySheet();
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  SurfaceGeometry geometry(topology, mesh.vertexPositions, isotropicFabric(topology.faceCount()));
+  // A non-rigid motion: positions at t + h bent further.
+  RowVectors3 next = mesh.vertexPositions;
+  next.col(2) *= 1.5;
+  geometry.refreshExtrinsic(next, 0.02);
+  geometry.refreshExtrinsic(next, 0.02);  // now "t" holds `next`
+  const RowVectors3 expected = vertexNormals(topology, next);
+  EXPECT_LT((geometry.extrinsic().vertexNormals - expected).cwiseAbs().maxCoeff(), 1e-13);
+}
+
+TEST(SurfaceGeometry, UniformStretchTripsStrainTestWhenAndOnlyWhenPastTolerance) {
+  const TriangleMesh mesh = jitteredIcosphere(2, 0.2, 5);
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  const RowVectors3 rest = mesh.vertexPositions;
+  const double tolerance = 1e-3, h = 0.01, rate = 0.0095;  // s(t) = 1 + rate t
+  SurfaceGeometry geometry(topology, rest, anisotropicFabric(topology.faceCount(), 4), tolerance);
+  const Vector restDualAreas = geometry.intrinsic().vertexDualAreas;
+  double builtScale = 1.0;
+  int expectedRebuilds = 1;
+  for (int step = 1; step <= 300; ++step) {
+    const double scale = 1.0 + rate * step * h;  // at t + h
+    const bool tripped = geometry.refreshExtrinsic(scale * rest, h);
+    const double strain = scale / builtScale - 1.0;
+    EXPECT_NEAR(geometry.maxEdgeStrain(), strain, 1e-13) << "step " << step;
+    // Strain step k·9.5e-5 never lands within 1e-13 of the tolerance, so
+    // rounding cannot decide the comparison.
+    ASSERT_EQ(tripped, strain > tolerance) << "step " << step << " strain " << strain;
+    if (step == 10) {
+      EXPECT_FALSE(tripped);  // 9.5e-4: not yet
+    }
+    if (step == 11) {
+      EXPECT_TRUE(tripped);  // 1.045e-3: first trip
+    }
+    if (tripped) {
+      geometry.refreshIntrinsic();
+      builtScale = scale;
+      ++expectedRebuilds;
+      EXPECT_EQ(geometry.maxEdgeStrain(), 0.0);
+      const Vector expectedAreas = scale * scale * restDualAreas;
+      EXPECT_LT((geometry.intrinsic().vertexDualAreas - expectedAreas).cwiseAbs().maxCoeff(),
+                1e-13 * expectedAreas.maxCoeff());
+    }
+  }
+  EXPECT_EQ(geometry.intrinsic().rebuildCount, expectedRebuilds);
+  EXPECT_GT(expectedRebuilds, 20);  // 300 steps to 2.85 % stretch, ~1e-3 each
+}
+
+TEST(SurfaceGeometry, StaticMeshHasExactlyZeroRatesAndSkipsFits) {
+  const TriangleMesh mesh = jitteredIcosphere(2, 0.2, 6);
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  const RowVectors3 rest = mesh.vertexPositions;
+  SurfaceGeometry geometry(topology, rest, isotropicFabric(topology.faceCount()));
+  for (int step = 0; step < 5; ++step) {
+    EXPECT_FALSE(geometry.refreshExtrinsic(rest, 0.01));
+    const ExtrinsicGeometry& ex = geometry.extrinsic();
+    EXPECT_EQ(ex.vertexAngularVelocities.cwiseAbs().maxCoeff(), 0.0);
+    EXPECT_EQ(ex.vertexAccelerations.cwiseAbs().maxCoeff(), 0.0);
+    EXPECT_EQ(geometry.rotationFitStats().fittedVertices, 0);
+    for (size_t k = 0; k < ex.frames.size(); ++k) {
+      EXPECT_EQ(ex.kabschRotations[k], Matrix3::Identity());
+      EXPECT_EQ(ex.frames[k], ex.restFrames[k]);
+    }
+  }
+  EXPECT_EQ(geometry.intrinsic().rebuildCount, 1);
+}
+
+TEST(SurfaceGeometry, SurfaceThatStopsHasZeroRatesAfterTwoSteps) {
+  const TriangleMesh mesh = wavySheet();
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  RigidScene scene;
+  scene.rest = mesh.vertexPositions;
+  SurfaceGeometry geometry(topology, scene.rest, isotropicFabric(topology.faceCount()));
+  const double h = 0.01;
+  for (int step = 1; step <= 3; ++step) geometry.refreshExtrinsic(scene.at(step * h), h);
+  const RowVectors3 stopped = scene.at(3 * h);
+  // p(t+h) == p(t): no rotation over [t, t+h], so ω = 0; p̈ still sees the stop.
+  geometry.refreshExtrinsic(stopped, h);
+  EXPECT_EQ(geometry.extrinsic().vertexAngularVelocities.cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_GT(geometry.extrinsic().vertexAccelerations.cwiseAbs().maxCoeff(), 1.0);
+  geometry.refreshExtrinsic(stopped, h);  // t − h = t = t + h
+  EXPECT_EQ(geometry.extrinsic().vertexAngularVelocities.cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ(geometry.extrinsic().vertexAccelerations.cwiseAbs().maxCoeff(), 0.0);
+  const Matrix3 R = rotationAbout(scene.omega, 3 * h);
+  for (size_t k = 0; k < geometry.extrinsic().frames.size(); ++k) {
+    EXPECT_EQ(geometry.extrinsic().frames[k], geometry.extrinsic().nextFrames[k]);
+    EXPECT_LT((geometry.extrinsic().kabschRotations[k] - R).cwiseAbs().maxCoeff(), 1e-12);
+  }
+}
+
+// Intrinsic operators rebuilt after a rigid motion equal those at rest: the
+// rest wefts are carried along with their faces.
+TEST(SurfaceGeometry, IntrinsicRebuildIsRigidInvariantWithAnisotropicFabric) {
+  const TriangleMesh mesh = wavySheet();
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  RigidScene scene;
+  scene.rest = mesh.vertexPositions;
+  SurfaceGeometry geometry(topology, scene.rest, anisotropicFabric(topology.faceCount(), 9));
+  const SparseMatrix restDensity = geometry.intrinsic().densityStiffness;
+  const ComplexSparseMatrix restVelocity = geometry.intrinsic().velocityStiffness;
+  geometry.refreshExtrinsic(scene.at(0.7), 0.01);
+  geometry.refreshIntrinsic();
+  EXPECT_EQ(geometry.intrinsic().rebuildCount, 2);
+  const double scale = restDensity.coeffs().cwiseAbs().maxCoeff();
+  const SparseMatrix densityChange = geometry.intrinsic().densityStiffness - restDensity;
+  const ComplexSparseMatrix velocityChange = geometry.intrinsic().velocityStiffness - restVelocity;
+  EXPECT_LT(densityChange.coeffs().cwiseAbs().maxCoeff(), 1e-12 * scale);
+  EXPECT_LT(velocityChange.coeffs().cwiseAbs().maxCoeff(), 1e-12 * scale);
+}
+
+// Under a shear x' = x + γ y of a flat sheet the weft is a material line:
+// w̄ = (1, 1, 0) becomes (1 + γ, 1, 0).
+TEST(SurfaceGeometry, WeftFollowsShearAsMaterialLine) {
+  const TriangleMesh mesh = gridMesh(8, 8, 1.0, 1.0);
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  const int faceCount = topology.faceCount();
+  FabricField fabric;
+  fabric.densityTensors = Eigen::MatrixX3d::Zero(faceCount, 3);
+  fabric.densityTensors.col(0).setConstant(4.0);
+  fabric.densityTensors.col(2).setConstant(0.25);
+  fabric.velocityTensors = fabric.densityTensors;
+  fabric.weftDirections = RowVectors3::Zero(faceCount, 3);
+  fabric.weftDirections.col(0).setOnes();
+  fabric.weftDirections.col(1).setOnes();
+  SurfaceGeometry geometry(topology, mesh.vertexPositions, fabric);
+  const double gamma = 0.3;
+  RowVectors3 sheared = mesh.vertexPositions;
+  sheared.col(0) += gamma * mesh.vertexPositions.col(1);
+  EXPECT_TRUE(geometry.refreshExtrinsic(sheared, 0.01));
+  geometry.refreshIntrinsic();
+  RowVectors3 expectedWefts = RowVectors3::Zero(faceCount, 3);
+  expectedWefts.col(0).setConstant(1.0 + gamma);
+  expectedWefts.col(1).setOnes();
+  const SparseMatrix expected =
+      anisotropicStiffness(topology, sheared, fabric.densityTensors, expectedWefts);
+  const SparseMatrix difference = geometry.intrinsic().densityStiffness - expected;
+  EXPECT_LT(difference.coeffs().cwiseAbs().maxCoeff(), 1e-12 * expected.coeffs().cwiseAbs().maxCoeff());
+}
+
+TEST(SurfaceGeometry, BitIdenticalForOneAndTwoThreads) {
+  const TriangleMesh mesh = jitteredIcosphere(4, 0.2, 8);  // 2562 vertices: above the parallel threshold
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  RigidScene scene;
+  scene.rest = mesh.vertexPositions;
+  auto run = [&](int threads) {
+    omp_set_num_threads(threads);
+    SurfaceGeometry geometry(topology, scene.rest, isotropicFabric(topology.faceCount()));
+    for (int step = 1; step <= 20; ++step) {
+      RowVectors3 p = scene.at(step * 0.01);
+      p *= 1.0 + 0.001 * step;  // deforming, not rigid: Newton works harder
+      geometry.refreshExtrinsic(p, 0.01);
+    }
+    return geometry.extrinsic();
+  };
+  const int saved = omp_get_max_threads();
+  const ExtrinsicGeometry one = run(1), two = run(2);
+  omp_set_num_threads(saved);
+  EXPECT_EQ(one.vertexAngularVelocities, two.vertexAngularVelocities);
+  EXPECT_EQ(one.vertexAccelerations, two.vertexAccelerations);
+  EXPECT_EQ(one.vertexNormals, two.vertexNormals);
+  for (size_t k = 0; k < one.frames.size(); ++k) ASSERT_EQ(one.nextFrames[k], two.nextFrames[k]);
+}
+
+// After the first refresh (OpenMP starts its threads there), refreshExtrinsic
+// allocates nothing on any path: fitted, rigid, unchanged, fully static.
+TEST(SurfaceGeometry, RefreshExtrinsicAllocatesNothing) {
+  const TriangleMesh mesh = jitteredIcosphere(4, 0.2, 13);  // 2562 vertices: parallel loops
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  RigidScene scene;
+  scene.rest = mesh.vertexPositions;
+  std::vector<RowVectors3> positions;
+  std::vector<Matrix3> rotations;
+  for (int step = 0; step <= 12; ++step) {
+    positions.push_back(scene.at(step * 0.01));
+    rotations.push_back(rotationAbout(scene.omega, step * 0.01));
+  }
+  positions[6] *= 1.01;  // a deforming step, so the Newton path solves
+  SurfaceGeometry geometry(topology, scene.rest, isotropicFabric(topology.faceCount()));
+  geometry.refreshExtrinsic(positions[0], 0.01);
+  gAllocations = 0;
+  gCountAllocations = true;
+  for (int step = 1; step <= 6; ++step) geometry.refreshExtrinsic(positions[static_cast<size_t>(step)], 0.01);
+  for (int step = 7; step <= 12; ++step)
+    geometry.refreshExtrinsicRigid(positions[static_cast<size_t>(step)], rotations[static_cast<size_t>(step)], 0.01);
+  for (int step = 0; step < 4; ++step) geometry.refreshExtrinsic(positions[12], 0.01);  // stopped
+  gCountAllocations = false;
+  EXPECT_EQ(gAllocations.load(), 0);
+  EXPECT_GT(geometry.maxEdgeStrain(), 0.0);  // the deforming step was seen
+}
+
+// ---- Rotation fits ----------------------------------------------------------
+
+Matrix3 randomRotation(std::mt19937& rng, double maxAngle) {
+  std::normal_distribution<double> normal;
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const Vector3 axis = Vector3(normal(rng), normal(rng), normal(rng)).normalized();
+  return Eigen::AngleAxisd(maxAngle * unit(rng), axis).toRotationMatrix();
+}
+
+// A one-ring of k edge vectors around the origin, star-shaped, heights `bumps`.
+Eigen::MatrixX3d randomRing(std::mt19937& rng, int k, double bumps) {
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  Eigen::MatrixX3d ring(k, 3);
+  for (int m = 0; m < k; ++m) {
+    const double angle = 2 * testing::kPi * (m + 0.8 * unit(rng) - 0.4) / k;
+    const double radius = 0.5 + unit(rng);
+    ring.row(m) << radius * std::cos(angle), radius * std::sin(angle), bumps * (2 * unit(rng) - 1);
+  }
+  return ring;
+}
+
+Matrix3 covarianceOf(const Eigen::MatrixX3d& rest, const Eigen::MatrixX3d& current) {
+  return current.transpose() * rest;
+}
+
+double fitObjective(const Matrix3& R, const Eigen::MatrixX3d& rest, const Eigen::MatrixX3d& current) {
+  return (current - rest * R.transpose()).squaredNorm();
+}
+
+TEST(KabschRotation, RecoversExactRotationAndIsOptimalUnderNoise) {
+  std::mt19937 rng(2024);
+  std::normal_distribution<double> normal;
+  for (int trial = 0; trial < 200; ++trial) {
+    const Eigen::MatrixX3d rest = randomRing(rng, 3 + trial % 8, trial % 2 ? 0.3 : 0.0);
+    const Matrix3 R = randomRotation(rng, testing::kPi);
+    const Eigen::MatrixX3d exact = rest * R.transpose();
+    EXPECT_LT((kabschRotation(rest, exact) - R).cwiseAbs().maxCoeff(), 1e-13) << "trial " << trial;
+
+    Eigen::MatrixX3d noisy = exact;
+    for (Eigen::Index i = 0; i < noisy.size(); ++i) noisy.data()[i] += 1e-3 * normal(rng);
+    const Matrix3 fitted = kabschRotation(rest, noisy);
+    EXPECT_NEAR(fitted.determinant(), 1.0, 1e-13);
+    EXPECT_LT((fitted.transpose() * fitted - Matrix3::Identity()).cwiseAbs().maxCoeff(), 1e-14);
+    EXPECT_LT((fitted - R).cwiseAbs().maxCoeff(), 1e-2);  // O(noise / ring size)
+    // Optimal: no nearby rotation fits better.
+    const double best = fitObjective(fitted, rest, noisy);
+    EXPECT_LE(best, fitObjective(R, rest, noisy) + 1e-15);
+    for (int probe = 0; probe < 20; ++probe) {
+      const Matrix3 nearby = randomRotation(rng, 1e-4) * fitted;
+      EXPECT_LE(best, fitObjective(nearby, rest, noisy) + 1e-15);
+    }
+  }
+}
+
+// The warm-started Newton fit returns the SVD's rotation to 1e-9 on random
+// deformations, from guesses up to 0.5 rad off, including flat rings (rank-2
+// covariance, where the SVD needs its det correction) and mirrored rings.
+TEST(FitRotation, AgreesWithSvdOnRandomDeformations) {
+  std::mt19937 rng(77);
+  std::normal_distribution<double> normal;
+  int fallbacks = 0, trials = 0, flatNeedingCorrection = 0;
+  long iterations = 0;
+  for (int trial = 0; trial < 3000; ++trial, ++trials) {
+    const bool flat = trial % 3 == 0;
+    const Eigen::MatrixX3d rest = randomRing(rng, 3 + trial % 9, flat ? 0.0 : 0.4);
+    const Matrix3 R = randomRotation(rng, testing::kPi);
+    // A random strain (15 %) and noise (0.02), then the rotation; a flat ring
+    // is strained and perturbed in its own plane only, so it stays flat.
+    Matrix3 strain = Matrix3::Identity();
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) strain(i, j) += 0.15 * normal(rng);
+    Eigen::MatrixX3d deformed = rest * strain.transpose();
+    for (Eigen::Index i = 0; i < deformed.size(); ++i) deformed.data()[i] += 0.02 * normal(rng);
+    if (flat) deformed.col(2).setZero();
+    const Eigen::MatrixX3d current = deformed * R.transpose();
+    const Matrix3 covariance = covarianceOf(rest, current);
+    const Matrix3 svd = rotationFromCovariance(covariance);
+    if (flat) {
+      Eigen::JacobiSVD<Matrix3> check(covariance, Eigen::ComputeFullU | Eigen::ComputeFullV);
+      if (check.matrixU().determinant() * check.matrixV().determinant() < 0) ++flatNeedingCorrection;
+    }
+    const Eigen::Quaterniond guess(randomRotation(rng, 0.5) * svd);
+    const RotationFit fit = fitRotation(covariance, guess);
+    const Matrix3 newton = fit.rotation.toRotationMatrix();
+    ASSERT_LT((newton - svd).cwiseAbs().maxCoeff(), 1e-9) << "trial " << trial;
+    EXPECT_NEAR(newton.determinant(), 1.0, 1e-14);
+    fallbacks += fit.usedSvd ? 1 : 0;
+    iterations += fit.iterations;
+  }
+  EXPECT_GT(flatNeedingCorrection, 100);  // the det correction was really exercised
+  // The Newton path itself decides almost everywhere (not the fallback).
+  EXPECT_LT(fallbacks, trials / 100);
+  EXPECT_LT(double(iterations) / trials, 5.0);
+  std::printf("fitRotation: %d trials, %.2f iterations on average, %d SVD fallbacks\n", trials,
+              double(iterations) / trials, fallbacks);
+}
+
+TEST(FitRotation, MirroredRingAndFarGuessStillGiveTheSvdRotation) {
+  std::mt19937 rng(5);
+  for (int trial = 0; trial < 200; ++trial) {
+    const Eigen::MatrixX3d rest = randomRing(rng, 6, 0.3);
+    Eigen::MatrixX3d current = rest;
+    current.col(trial % 3) *= -1.0;  // a reflection: no rotation fits exactly
+    const Matrix3 covariance = covarianceOf(rest, current);
+    const Matrix3 svd = rotationFromCovariance(covariance);
+    EXPECT_NEAR(svd.determinant(), 1.0, 1e-14);
+    const Eigen::Quaterniond farGuess(randomRotation(rng, testing::kPi));
+    const RotationFit fit = fitRotation(covariance, farGuess);
+    EXPECT_LT((fit.rotation.toRotationMatrix() - svd).cwiseAbs().maxCoeff(), 1e-9) << "trial " << trial;
+  }
+}
+
+TEST(SurfaceGeometry, SvdAndNewtonMethodsGiveTheSameFrames) {
+  const TriangleMesh mesh = jitteredIcosphere(2, 0.2, 12);
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  RigidScene scene;
+  scene.rest = mesh.vertexPositions;
+  SurfaceGeometry newton(topology, scene.rest, isotropicFabric(topology.faceCount()));
+  SurfaceGeometry svd(topology, scene.rest, isotropicFabric(topology.faceCount()));
+  svd.setRotationFitMethod(RotationFitMethod::Svd);
+  std::mt19937 rng(3);
+  std::normal_distribution<double> normal;
+  for (int step = 1; step <= 30; ++step) {
+    RowVectors3 p = scene.at(step * 0.02);
+    for (Eigen::Index i = 0; i < p.size(); ++i) p.data()[i] += 0.002 * normal(rng);  // wobble
+    newton.refreshExtrinsic(p, 0.02);
+    svd.refreshExtrinsic(p, 0.02);
+    for (size_t k = 0; k < newton.extrinsic().frames.size(); ++k)
+      ASSERT_LT((newton.extrinsic().nextFrames[k] - svd.extrinsic().nextFrames[k]).cwiseAbs().maxCoeff(),
+                1e-9);
+    EXPECT_LT((newton.extrinsic().vertexAngularVelocities - svd.extrinsic().vertexAngularVelocities)
+                  .cwiseAbs()
+                  .maxCoeff(),
+              1e-9 / 0.02);
+  }
+}
+
+TEST(SurfaceGeometry, RejectsMismatchedInput) {
+  const TriangleMesh mesh = gridMesh(3, 3, 1.0, 1.0);
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  FabricField bad = isotropicFabric(topology.faceCount() - 1);
+  EXPECT_THROW({ SurfaceGeometry broken(topology, mesh.vertexPositions, bad); }, std::invalid_argument);
+  SurfaceGeometry geometry(topology, mesh.vertexPositions, isotropicFabric(topology.faceCount()));
+  EXPECT_THROW(geometry.refreshExtrinsic(RowVectors3::Zero(3, 3), 0.01), std::invalid_argument);
+  EXPECT_THROW(geometry.refreshExtrinsic(mesh.vertexPositions, 0.0), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace blot::stain
