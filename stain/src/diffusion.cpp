@@ -248,6 +248,25 @@ std::pair<int, double> limit(const Rings& rings, const Vector& dualAreas, Vector
     if (!(sigma[i] < 0.0)) continue;       // the common case: one comparison
     double deficit = -area[i] * sigma[i];  // kg
     sigma[i] = 0.0;
+    {
+      // Fast path, bit for bit the first ring of the search below: the ring's
+      // entries other than i are distinct (a matrix column), so no visited set
+      // is needed when the first ring covers the deficit, as it does for
+      // almost every fix (7K per step on the 35K grid of issue 4's bench).
+      const NeighborRange ring = rings(i);
+      double available = 0.0;
+      for (const int* j = ring.begin; j != ring.end; ++j) {
+        if (*j != i && sigma[*j] > 0.0) available += area[*j] * sigma[*j];
+      }
+      if (ring.end - ring.begin < kLimiterSearchBudget && available > 0.0 && available >= deficit) {
+        const double keep = 1.0 - deficit / available;
+        for (const int* j = ring.begin; j != ring.end; ++j) {
+          if (*j != i && sigma[*j] > 0.0) sigma[*j] *= keep;
+        }
+        moved += deficit;
+        continue;
+      }
+    }
     seen.restart();
     seen.insert(i);
     visited[0] = i;

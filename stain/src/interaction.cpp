@@ -62,6 +62,8 @@ constexpr int kChunks = 64;
 // at 10K–35K, the region waiting on a descheduled thread. The saving on an
 // idle machine (≤ 0.1 ms at 35K) does not pay that risk at the paper's sizes.
 constexpr int kParallelThreshold = 100000;
+// Mask value of a vertex that holds liquid (StainSolver's mask: 2 holds, 1 halo, 0 dry).
+constexpr char kHoldsLiquid = 2;
 
 struct Rates {
   bool absorption, adsorption, evaporation;
@@ -150,6 +152,18 @@ void interact(const StepContext& ctx, const SurfaceTopology& topology, const Int
   assert(wet.empty() || wet.size() == static_cast<size_t>(n));
   const bool allWet = wet.size() != static_cast<size_t>(n);
   const std::vector<char>& boundary = topology.vertexIsBoundary();
+  const bool wetFront = liquid.evaporationBoundary == EvaporationBoundary::WetFront && !allWet;
+  const std::vector<int>& ringOffsets = topology.ringOffsets();
+  const std::vector<int>& ringNeighbors = topology.ringNeighbors();
+  // The liquid's edge: holds liquid (mask 2) with a neighbour that does not.
+  // Read from the mask (the start of the step), not from the densities being
+  // updated here, so the result does not depend on the vertex order.
+  auto onWetFront = [&](int i) {
+    if (wet[static_cast<size_t>(i)] != kHoldsLiquid) return false;
+    for (int m = ringOffsets[static_cast<size_t>(i)]; m < ringOffsets[static_cast<size_t>(i) + 1]; ++m)
+      if (wet[static_cast<size_t>(ringNeighbors[static_cast<size_t>(m)])] != kHoldsLiquid) return true;
+    return false;
+  };
   const double* areas = geometry.vertexDualAreas.data();
   double* free = state.solvent.data();
   double* solute = state.solute.data();
@@ -164,7 +178,8 @@ void interact(const StepContext& ctx, const SurfaceTopology& topology, const Int
     double sum = 0.0;
     for (int i = begin; i < end; ++i) {
       if (!allWet && !wet[static_cast<size_t>(i)] && !(absorbed[i] > 0.0)) continue;
-      const double gone = interactVertex(rates, boundary[static_cast<size_t>(i)] != 0, free[i], solute[i],
+      const bool exposed = boundary[static_cast<size_t>(i)] != 0 || (wetFront && onWetFront(i));
+      const double gone = interactVertex(rates, exposed, free[i], solute[i],
                                          absorbed[i], absorbedSolute[i], adsorbed[i]);
       sum += gone * areas[i];
     }

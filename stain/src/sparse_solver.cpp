@@ -47,8 +47,16 @@
 //    factorize (pattern, non-finite, not positive definite) always leaves the
 //    solver "not factorized", so a solve cannot silently use the factor of an
 //    older matrix.
-//  - solve is const but writes CHOLMOD's reusable solve workspace (X, Y, E)
-//    kept in the solver: no allocation per solve after the first, and one solver
+//  - Solve: for the simplicial LLᵀ factor, our own permute / forward / back
+//    substitution over L's arrays into a work vector sized at factorize
+//    (simplicialSolve). CHOLMOD's real simplicial cholmod_solve2 allocates on
+//    every call (its complex one does not); ours allocates nothing, writes x
+//    directly (no copy out of a cholmod_dense) and is as fast or faster (issue
+//    4, docs/performance.md "Stain step"). Rounding differs from CHOLMOD's
+//    (it walks chains of columns together), not the algorithm. The supernodal
+//    factor still goes through cholmod_solve2.
+//  - solve is const but writes the solver's work vector (and CHOLMOD's
+//    reusable solve workspace X, Y, E for the supernodal path): one solver
 //    must not be used by two threads at once.
 #include <blot/stain/sparse_solver.h>
 
@@ -282,9 +290,61 @@ cholmod_sparse lowerView(const Matrix& A) {
 
 }  // namespace cholmod_detail
 
+namespace cholmod_detail {
+
+// The substitution's arithmetic, written out for complex values so that no
+// libgcc call (__divdc3, __muldc3's NaN path) sits in the inner loops; the
+// diagonal of an LLᴴ factor is real.
+inline double minusProduct(double accumulator, double l, double z) { return accumulator - l * z; }
+inline Complex minusProduct(const Complex& accumulator, const Complex& l, const Complex& z) {
+  return {accumulator.real() - (l.real() * z.real() - l.imag() * z.imag()),
+          accumulator.imag() - (l.real() * z.imag() + l.imag() * z.real())};
+}
+inline double minusConjugateProduct(double accumulator, double l, double z) { return accumulator - l * z; }
+inline Complex minusConjugateProduct(const Complex& accumulator, const Complex& l, const Complex& z) {
+  return {accumulator.real() - (l.real() * z.real() + l.imag() * z.imag()),
+          accumulator.imag() - (l.real() * z.imag() - l.imag() * z.real())};
+}
+inline double divideByDiagonal(double value, double diagonal) { return value / diagonal; }
+inline Complex divideByDiagonal(const Complex& value, const Complex& diagonal) {
+  return {value.real() / diagonal.real(), value.imag() / diagonal.real()};
+}
+
+// x = A⁻¹ b = Pᵀ L⁻ᴴ L⁻¹ P b over a simplicial LLᴴ factor (CHOLMOD's layout:
+// column j in i/x[p[j], p[j] + nz[j]), diagonal entry first, real for LLᴴ),
+// through `work` (n entries). Column-oriented forward substitution (a scatter
+// per column) and row-oriented back substitution (a gather), each one pass
+// over L in a fixed order: deterministic and allocation-free.
+template <typename Scalar>
+void simplicialSolve(const cholmod_factor& L, const Scalar* b, Scalar* x, Scalar* work) {
+  const int n = static_cast<int>(L.n);
+  const int* perm = static_cast<const int*>(L.Perm);
+  const int* columnStarts = static_cast<const int*>(L.p);
+  const int* columnCounts = static_cast<const int*>(L.nz);
+  const int* rows = static_cast<const int*>(L.i);
+  const Scalar* values = static_cast<const Scalar*>(L.x);
+  for (int k = 0; k < n; ++k) work[k] = b[perm[k]];
+  for (int j = 0; j < n; ++j) {
+    const int begin = columnStarts[j], end = begin + columnCounts[j];
+    const Scalar z = divideByDiagonal(work[j], values[begin]);
+    work[j] = z;
+    for (int q = begin + 1; q < end; ++q) work[rows[q]] = minusProduct(work[rows[q]], values[q], z);
+  }
+  for (int j = n - 1; j >= 0; --j) {
+    const int begin = columnStarts[j], end = begin + columnCounts[j];
+    Scalar sum = work[j];
+    for (int q = begin + 1; q < end; ++q) sum = minusConjugateProduct(sum, values[q], work[rows[q]]);
+    work[j] = divideByDiagonal(sum, values[begin]);
+  }
+  for (int k = 0; k < n; ++k) x[perm[k]] = work[k];
+}
+
+}  // namespace cholmod_detail
+
 template <typename Scalar>
 struct CholeskySolver<Scalar>::Impl : cholmod_detail::SolverCore {
   using SolverCore::SolverCore;
+  std::vector<Scalar> solveWork;  // n, for simplicialSolve (sized at factorize)
 };
 
 template <typename Scalar>
@@ -347,6 +407,7 @@ SolverStatus CholeskySolver<Scalar>::factorize(const Matrix& A) {
     s.freeNumeric();
     return SolverStatus::NotPositiveDefinite;
   }
+  if (s.solveWork.size() != static_cast<size_t>(s.n)) s.solveWork.resize(static_cast<size_t>(s.n));
   s.factorized = true;
   return SolverStatus::Ok;
 }
@@ -365,6 +426,16 @@ SolverStatus CholeskySolver<Scalar>::solve(const VectorType& rhs, VectorType& x)
   if (rhs.size() != s.n) return SolverStatus::SizeMismatch;
   for (Eigen::Index i = 0; i < rhs.size(); ++i) {
     if (!cholmod_detail::ScalarTraits<Scalar>::isFinite(rhs[i])) return SolverStatus::NonFinite;
+  }
+  const cholmod_factor& L = *s.factor;
+  if (!L.is_super && L.is_ll && L.itype == CHOLMOD_INT && L.xtype == cholmod_detail::ScalarTraits<Scalar>::xtype &&
+      L.Perm != nullptr && L.nz != nullptr) {
+    // Our own substitution: CHOLMOD's real simplicial solve allocates on every
+    // call; this does not, and it writes x directly (work holds P b first, so
+    // rhs and x may be the same vector).
+    x.resize(s.n);
+    cholmod_detail::simplicialSolve<Scalar>(L, rhs.data(), x.data(), s.solveWork.data());
+    return SolverStatus::Ok;
   }
   cholmod_dense b{};
   b.nrow = static_cast<size_t>(s.n);

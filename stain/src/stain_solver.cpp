@@ -8,6 +8,7 @@
 // need are skipped here, visibly: inertia on a surface that has not moved,
 // solute transport when there is no solute, stages on dry vertices.
 #include <blot/stain/external_forces.h>
+#include <blot/stain/film_pressure.h>
 #include <blot/stain/interaction.h>
 #include <blot/stain/stain_solver.h>
 
@@ -124,6 +125,14 @@ void StainSolver::updateWetMask() {
 }
 
 StepReport StainSolver::step(double h, const RowVectors3& nextPositions) {
+  return advance(h, nextPositions, nullptr);
+}
+
+StepReport StainSolver::stepRigid(double h, const RowVectors3& nextPositions, const Matrix3& rotation) {
+  return advance(h, nextPositions, &rotation);
+}
+
+StepReport StainSolver::advance(double h, const RowVectors3& nextPositions, const Matrix3* rigidRotation) {
   StepReport report;
   if (!(h > 0) || !std::isfinite(h)) {
     report.status = StepStatus::InvalidArgument;
@@ -135,6 +144,15 @@ StepReport StainSolver::step(double h, const RowVectors3& nextPositions) {
     report.status = StepStatus::InvalidArgument;
     report.stage = "guard";
     report.message = "next positions must be " + std::to_string(state_.vertexCount()) + " finite rows";
+    return report;
+  }
+  if (rigidRotation != nullptr &&
+      (!rigidRotation->allFinite() ||
+       (rigidRotation->transpose() * *rigidRotation - Matrix3::Identity()).cwiseAbs().maxCoeff() > 1e-9 ||
+       !(rigidRotation->determinant() > 0))) {
+    report.status = StepStatus::InvalidArgument;
+    report.stage = "guard";
+    report.message = "stepRigid: rotation must be a rotation matrix";
     return report;
   }
   profile_ = StepProfile{};
@@ -151,7 +169,8 @@ StepReport StainSolver::step(double h, const RowVectors3& nextPositions) {
       geometry_.setPreviousPositions(geometry_.extrinsic().nextPositions - h * initialVelocities_);
       started_ = true;
     }
-    const bool rebuild = geometry_.refreshExtrinsic(nextPositions, h);
+    const bool rebuild = rigidRotation != nullptr ? geometry_.refreshExtrinsicRigid(nextPositions, *rigidRotation, h)
+                                                  : geometry_.refreshExtrinsic(nextPositions, h);
     profile_.maxEdgeStrain = geometry_.maxEdgeStrain();
     if (rebuild) {
       // Densities are per area: when the dual areas change, rescale them so
@@ -195,6 +214,10 @@ StepReport StainSolver::step(double h, const RowVectors3& nextPositions) {
     forceCtx.switches.linearInertia = on.linearInertia && surfaceMoved;
     forceCtx.switches.coriolis = false;
     applyExternalForces(forceCtx, geometry_.extrinsic(), wet_, state_);
+  }
+  if (anyLiquid && on.filmPressure) {
+    ScopedTimer t(profile_.forces);
+    applyFilmPressure(ctx, geometry_.topology(), geometry_.extrinsic(), wet_, state_);
   }
   if (anyLiquid && on.velocityAdvection) {
     ScopedTimer t(profile_.advectVelocity);

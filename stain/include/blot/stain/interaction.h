@@ -13,7 +13,10 @@ namespace blot::stain {
 ///  adsorption  σ_s,a += min(K_d h/(1 + K_d h)(A_d − σ_s,a), σ_s) (desorption
 ///              when σ_s,a > A_d returns solute to σ_s);
 ///  evaporation σ_f -= min(a K_evap h, σ_f) with a = a_evap on boundary vertices
-///              and 1 inside; the remainder from σ_p when σ_f runs out;
+///              and 1 inside (with EvaporationBoundary::WetFront also on
+///              vertices whose `wet` value is 2, "holds liquid", next to one
+///              that is not: the liquid's own edge); the remainder from σ_p
+///              when σ_f runs out;
 ///              the evaporated mass (× dual area) is added to state.evaporatedSolvent;
 ///  drying      solute left with no free solvent is deposited (moved to σ_s,a),
 ///              and desorption needs free solvent to dissolve into.

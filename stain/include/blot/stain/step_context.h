@@ -7,6 +7,13 @@
 
 namespace blot::stain {
 
+/// Which vertices evaporate faster by a_evap (paper eq. (10): "the effective
+/// exposed area of the boundary cells is greater").
+enum class EvaporationBoundary {
+  MeshBoundary,  ///< vertices on the mesh boundary (the literal reading)
+  WetFront       ///< also vertices holding liquid next to one that does not (the liquid's own edge)
+};
+
 /// Liquid/fabric interaction parameters (paper sec. 5). Units: densities kg/m²,
 /// rates 1/s, evaporation kg/(m² s).
 struct LiquidParameters {
@@ -16,7 +23,9 @@ struct LiquidParameters {
   double adsorptionCapacity = 0.5;    ///< A_d (kg/m²), eq. (9).
   double evaporationRate = 0.01;      ///< K_evap (kg/(m² s)), eq. (10).
   double boundaryEvaporationFactor = 1.2;  ///< a_evap on boundary vertices (1 inside).
+  EvaporationBoundary evaporationBoundary = EvaporationBoundary::MeshBoundary;  ///< where a_evap applies
   double wetThreshold = 1e-9;         ///< σ below which a vertex counts as dry (kg/m²).
+  double liquidDensity = 1000.0;      ///< ρ (kg/m³), for the film pressure (PhysicsSwitches::filmPressure).
 };
 
 /// How the Coriolis term is integrated. ExactRotation rotates u by −2 ω_n h
@@ -38,6 +47,10 @@ struct PhysicsSwitches {
   bool adsorption = true;
   bool evaporation = true;
   bool sources = true;
+  /// −∇p_ext/ρ of eq. (3) with the film's hydrostatic pressure (the paper
+  /// ignores it; off by default). Drives liquid from thick to thin film: the
+  /// outward flow that forms the ring of Fig. 11 (see film_pressure.h).
+  bool filmPressure = false;
   bool positivityLimiter = true;  ///< mass-conserving fix of negative densities after diffusion
   CoriolisScheme coriolisScheme = CoriolisScheme::ExactRotation;
 };

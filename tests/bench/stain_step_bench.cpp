@@ -1,0 +1,238 @@
+// The full stain step (StainSolver::step) per phase, on meshes of the paper's
+// Table 1 sizes, under rigid rotation, every physics term on (issue 4).
+//
+// Meshes: flat grids gridMesh(n, n, 1, 1) of 2,500, 10,000 and 34,969
+// vertices, and the Stanford bunny (CGAL's bunny00.off, 37,706 vertices).
+// Fabric: anisotropic (ratio 10, weft at 30° on the grids, along each face's
+// first edge on the bunny), D_weft = 2e-3 size² m²/s, so h·D_weft/dx² ≈ 5 on
+// the 2.5K grid and ≈ 70 on the 35K grid at h = 0.01 s.
+// Motion: rotation at 1.5 rad/s about a tilted axis through the centroid,
+// positions set analytically each step; gravity −z (grids) or −y (bunny).
+// Liquid: "drop" = one drop whose radius covers ~10 % of the area, with
+// solute and an initial velocity; "wet" = the whole surface wet.
+// Geometry path: "rigid" uses StainSolver::stepRigid (the rotation is known),
+// "fitted" uses step (per-vertex Kabsch fits and the strain test).
+//
+// Reported time: StepProfile::total (manual time, the step alone). Counters:
+// per-phase means (ms) from StepProfile, n (vertices), wet (fraction of
+// vertices holding liquid), substeps (density-advection sub-steps), fixes
+// (vertices the positivity limiter corrected per step), and
+// allocs (malloc/calloc/realloc calls per step, counted across the timed
+// steps after 3 warm-up steps; the first step factorizes and allocates).
+//
+// Run: stain_step_bench --benchmark_format=json > step.json
+//      (or --benchmark_counters_tabular=true for a readable table).
+#include <benchmark/benchmark.h>
+#include <blot/stain/mesh_io.h>
+#include <blot/stain/mesh_primitives.h>
+#include <blot/stain/stain_solver.h>
+#include <omp.h>
+
+#include <atomic>
+#include <cmath>
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+#include "mesh_fixture.h"
+
+// Counting allocator for this binary (as in tests/stain/surface_geometry_test.cpp):
+// counts every malloc, calloc and realloc while gCountAllocations is set.
+extern "C" void* __libc_malloc(size_t size);
+extern "C" void* __libc_calloc(size_t count, size_t size);
+extern "C" void* __libc_realloc(void* pointer, size_t size);
+namespace {
+std::atomic<bool> gCountAllocations{false};
+std::atomic<long> gAllocations{0};
+void countAllocation() {
+  if (gCountAllocations.load(std::memory_order_relaxed)) gAllocations.fetch_add(1, std::memory_order_relaxed);
+}
+}  // namespace
+extern "C" void* malloc(size_t size) {
+  countAllocation();
+  return __libc_malloc(size);
+}
+extern "C" void* calloc(size_t count, size_t size) {
+  countAllocation();
+  return __libc_calloc(count, size);
+}
+extern "C" void* realloc(void* pointer, size_t size) {
+  countAllocation();
+  return __libc_realloc(pointer, size);
+}
+
+namespace blot::stain {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kStep = 0.01;   // s, the paper's time step
+constexpr double kOmega = 1.5;   // rad/s
+constexpr int kWarmupSteps = 3;  // the first step factorizes
+
+enum MeshId { kGrid2500 = 0, kGrid10000 = 1, kGrid35000 = 2, kBunny = 3 };
+enum Liquid { kDrop = 0, kWet = 1 };
+enum GeometryPath { kRigid = 0, kFitted = 1 };
+
+TriangleMesh makeMesh(int id) {
+  switch (id) {
+    case kGrid2500: return gridMesh(49, 49, 1, 1);
+    case kGrid10000: return gridMesh(99, 99, 1, 1);
+    case kGrid35000: return gridMesh(186, 186, 1, 1);
+    default: return loadMesh(test::externalMesh("bunny00.off"));
+  }
+}
+
+struct Scene {
+  TriangleMesh mesh;
+  std::unique_ptr<SurfaceTopology> topology;
+  std::unique_ptr<StainSolver> solver;
+  Vector3 center, axis;
+  RowVectors3 centered, next;  // rest shape about the centre; positions at t + h
+  int steps = 0;
+
+  Scene(int id, int liquid) : mesh(makeMesh(id)) {
+    const int n = static_cast<int>(mesh.vertexPositions.rows());
+    const int faces = static_cast<int>(mesh.faces.rows());
+    topology = std::make_unique<SurfaceTopology>(mesh.faces, n, "stain step bench");
+    center = mesh.vertexPositions.colwise().mean().transpose();
+    centered = mesh.vertexPositions.rowwise() - center.transpose();
+    const double size = centered.rowwise().norm().maxCoeff();
+    const bool grid = id != kBunny;
+
+    FabricField fabric;
+    fabric.densityTensors.resize(faces, 3);
+    fabric.velocityTensors.resize(faces, 3);
+    fabric.weftDirections.resize(faces, 3);
+    const double d = 2e-4 * size * size;
+    for (int f = 0; f < faces; ++f) {
+      fabric.densityTensors.row(f) << 10 * d, 0, d;
+      fabric.velocityTensors.row(f) << d, 0, d;
+      if (grid) {
+        fabric.weftDirections.row(f) << std::cos(kPi / 6), std::sin(kPi / 6), 0;
+      } else {
+        fabric.weftDirections.row(f) =
+            mesh.vertexPositions.row(mesh.faces(f, 1)) - mesh.vertexPositions.row(mesh.faces(f, 0));
+      }
+    }
+    StainSolverDef def;
+    def.gravity = grid ? Vector3(0, 0, -9.8) : Vector3(0, -9.8, 0);
+    solver = std::make_unique<StainSolver>(*topology, mesh.vertexPositions, fabric, def);
+    axis = (grid ? Vector3(0.3, 0.2, 1.0) : Vector3(0.2, 1.0, 0.1)).normalized();
+    RowVectors3 velocities(n, 3);
+    for (int i = 0; i < n; ++i) velocities.row(i) = (kOmega * axis).cross(Vector3(centered.row(i).transpose())).transpose();
+    solver->setInitialMotion(mesh.vertexPositions, velocities);
+    next = mesh.vertexPositions;
+
+    const double area = solver->geometry().intrinsic().vertexDualAreas.sum();
+    DropDef drop;
+    if (liquid == kDrop) {
+      // The vertex nearest the centroid (grids) or the top (bunny).
+      int c = 0;
+      for (int i = 1; i < n; ++i) {
+        const bool better = grid ? centered.row(i).norm() < centered.row(c).norm()
+                                 : mesh.vertexPositions(i, 1) > mesh.vertexPositions(c, 1);
+        if (better) c = i;
+      }
+      drop.centerVertex = c;
+      drop.radius = std::sqrt(0.1 * area / kPi);
+      drop.velocity = Vector3(0.05, 0.02, 0.0) * size;
+    } else {
+      drop.centerVertex = 0;
+      drop.radius = 10 * size;  // every vertex, bump nearly flat
+    }
+    drop.solventMass = 0.5 * area * (liquid == kDrop ? 0.1 : 1.0);  // ~0.5 kg/m² where wet
+    drop.soluteMass = 0.1 * drop.solventMass;
+    solver->addDrop(drop);
+  }
+
+  Matrix3 rotationAt(double t) const { return Eigen::AngleAxisd(kOmega * t, axis).toRotationMatrix(); }
+
+  StepReport advance(int path) {
+    ++steps;
+    const Matrix3 R = rotationAt(steps * kStep);
+    next.noalias() = centered * R.transpose();
+    next.rowwise() += center.transpose();
+    gCountAllocations.store(true);
+    const StepReport r = path == kRigid ? solver->stepRigid(kStep, next, R) : solver->step(kStep, next);
+    gCountAllocations.store(false);
+    return r;
+  }
+};
+
+// Args: mesh id, liquid, threads, geometry path.
+void stainStep(benchmark::State& bench) {
+  const int id = static_cast<int>(bench.range(0));
+  const int liquid = static_cast<int>(bench.range(1));
+  const int threads = static_cast<int>(bench.range(2));
+  const int path = static_cast<int>(bench.range(3));
+  omp_set_num_threads(threads);
+  Scene scene(id, liquid);
+  for (int k = 0; k < kWarmupSteps; ++k) {
+    const StepReport r = scene.advance(path);
+    if (r.status != StepStatus::Ok) {
+      bench.SkipWithError(("warm-up step failed in " + r.stage + ": " + r.message).c_str());
+      return;
+    }
+  }
+  StepProfile sum;
+  double wet = 0, fixes = 0;
+  gAllocations.store(0);
+  for (auto _ : bench) {
+    const StepReport r = scene.advance(path);
+    if (r.status != StepStatus::Ok) {
+      bench.SkipWithError(("step failed in " + r.stage + ": " + r.message).c_str());
+      break;
+    }
+    const StepProfile& p = scene.solver->profile();
+    bench.SetIterationTime(p.total * 1e-3);
+    sum.geometry += p.geometry;
+    sum.forces += p.forces;
+    sum.advectVelocity += p.advectVelocity;
+    sum.advectDensity += p.advectDensity;
+    sum.diffuse += p.diffuse;
+    sum.interact += p.interact;
+    sum.sources += p.sources;
+    sum.total += p.total;
+    sum.advectionSubsteps += p.advectionSubsteps;
+    wet += p.wetVertices;
+    fixes += p.limiterCorrectedVertices;
+  }
+  const auto mean = [](double value) { return benchmark::Counter(value, benchmark::Counter::kAvgIterations); };
+  const int n = scene.solver->state().vertexCount();
+  bench.counters["n"] = n;
+  bench.counters["threads"] = threads;
+  bench.counters["geometry"] = mean(sum.geometry);
+  bench.counters["forces"] = mean(sum.forces);
+  bench.counters["advectVelocity"] = mean(sum.advectVelocity);
+  bench.counters["advectDensity"] = mean(sum.advectDensity);
+  bench.counters["diffuse"] = mean(sum.diffuse);
+  bench.counters["interact"] = mean(sum.interact);
+  bench.counters["total"] = mean(sum.total);
+  bench.counters["substeps"] = mean(sum.advectionSubsteps);
+  bench.counters["wet"] = mean(wet / n);
+  bench.counters["fixes"] = mean(fixes);
+  bench.counters["allocs"] = mean(static_cast<double>(gAllocations.load()));
+  static const char* const kMeshNames[] = {"grid2.5K", "grid10K", "grid35K", "bunny37K"};
+  bench.SetLabel(std::string(kMeshNames[id]) + (liquid == kDrop ? " drop" : " wet") +
+                 (path == kRigid ? " rigid" : " fitted"));
+}
+
+void stainStepArgs(benchmark::internal::Benchmark* b) {
+  for (int id : {kGrid2500, kGrid10000, kGrid35000, kBunny})
+    for (int liquid : {kDrop, kWet})
+      for (int threads : {1, 2}) b->Args({id, liquid, threads, kRigid});
+  // The generic (fitted) geometry path, for comparison.
+  for (int id : {kGrid2500, kGrid10000, kGrid35000, kBunny}) b->Args({id, kDrop, 1, kFitted});
+}
+
+BENCHMARK(stainStep)
+    ->ArgNames({"mesh", "liquid", "threads", "path"})
+    ->Apply(stainStepArgs)
+    ->UseManualTime()
+    ->Iterations(40)
+    ->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace blot::stain
+
+BENCHMARK_MAIN();
