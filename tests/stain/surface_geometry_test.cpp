@@ -13,31 +13,7 @@
 #include <cstdio>
 #include <random>
 
-// Counting allocator for this test binary: every malloc, calloc and realloc
-// (operator new and Eigen's dynamic storage both end in malloc) is counted
-// while `gCountAllocations` is set, then forwarded to glibc.
-extern "C" void* __libc_malloc(size_t size);
-extern "C" void* __libc_calloc(size_t count, size_t size);
-extern "C" void* __libc_realloc(void* pointer, size_t size);
-namespace {
-std::atomic<bool> gCountAllocations{false};
-std::atomic<long> gAllocations{0};
-void countAllocation() {
-  if (gCountAllocations.load(std::memory_order_relaxed)) gAllocations.fetch_add(1, std::memory_order_relaxed);
-}
-}  // namespace
-extern "C" void* malloc(size_t size) {
-  countAllocation();
-  return __libc_malloc(size);
-}
-extern "C" void* calloc(size_t count, size_t size) {
-  countAllocation();
-  return __libc_calloc(count, size);
-}
-extern "C" void* realloc(void* pointer, size_t size) {
-  countAllocation();
-  return __libc_realloc(pointer, size);
-}
+#include "allocation_counter.h"  // counts malloc/calloc/realloc while gCountAllocations is set
 
 namespace blot::stain {
 namespace {
