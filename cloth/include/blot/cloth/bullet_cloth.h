@@ -1,0 +1,276 @@
+#pragma once
+/// Bullet soft-body cloth as a SurfaceMotion: a btSoftBody in a classic
+/// soft-rigid world, built node by node from any triangle mesh so that cloth
+/// node i is mesh vertex i and Bullet face f is mesh face f. No Bullet type
+/// appears here; positions and velocities are copied out into Eigen arrays
+/// (double) after each advance().
+///
+/// Units: metres, kilograms, seconds. The model and the chosen solver settings
+/// (and why) are in docs/cloth.md.
+#include <blot/cloth/surface_motion.h>
+#include <blot/stain/triangle_mesh.h>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <limits>
+#include <memory>
+#include <vector>
+
+namespace blot::cloth {
+
+/// Prescribed motion of one pinned vertex. Its target position is
+///   x(t) = x̄ + velocity·t + amplitude ⊙ (sin(2π·frequency·t + phase) − sin(phase)),
+/// (x̄ the rest position, ⊙ per axis), so x(0) = x̄. The defaults hold the
+/// vertex still. From t = releaseTime on the vertex is free (a dropped cloth):
+/// it gets its node mass (lumped cloth mass plus any liquid) and keeps the
+/// pin's velocity at release.
+struct PinMotion {
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();   ///< m/s, constant drift
+  Eigen::Vector3d amplitude = Eigen::Vector3d::Zero();  ///< m, sinusoid amplitude per axis
+  double frequency = 0;                                 ///< Hz (waving); 0 = no oscillation
+  double phase = 0;                                     ///< rad
+  double releaseTime = std::numeric_limits<double>::infinity();  ///< s; +∞ = never released
+
+  /// Target position (m) at time t (s) for rest position `rest` (m).
+  Eigen::Vector3d position(const Eigen::Vector3d& rest, double t) const;
+  /// Time derivative of position() (m/s).
+  Eigen::Vector3d velocityAt(double t) const;
+};
+
+/// One pinned vertex (infinite mass in Bullet: m_im = 0) and how it moves.
+struct ClothPin {
+  int vertex = -1;
+  PinMotion motion;
+};
+
+/// Bullet's aerodynamic models (btSoftBody::eAeroModel), same order and meaning:
+/// per vertex (node normal, area = one third of the adjacent face areas) or per
+/// face; one-sided models push only on the side the normal faces.
+enum class AeroModel {
+  VertexPoint,             ///< V_Point: node normals, oriented toward the relative velocity
+  VertexTwoSided,          ///< V_TwoSided
+  VertexTwoSidedLiftDrag,  ///< V_TwoSidedLiftDrag: separate lift and drag laws
+  VertexOneSided,          ///< V_OneSided
+  FaceTwoSided,            ///< F_TwoSided (default)
+  FaceTwoSidedLiftDrag,    ///< F_TwoSidedLiftDrag
+  FaceOneSided             ///< F_OneSided
+};
+
+/// Air: uniform wind and Bullet's aerodynamic force. With both coefficients 0
+/// (the default) there is no aerodynamic force at all. Drag acts on the cloth's
+/// velocity relative to the air, so it also slows a cloth moving in still air.
+/// For the point/two-sided models the force on an element of area A, normal n,
+/// relative velocity v is −½ρ|v|²A (n·v̂)(kDG v̂ + kLF n) (Bullet's formula).
+struct ClothWind {
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();  ///< m/s, uniform air velocity
+  double dragCoefficient = 0;                          ///< Bullet kDG (dimensionless, ≥ 0)
+  double liftCoefficient = 0;                          ///< Bullet kLF (dimensionless, ≥ 0)
+  double airDensity = 1.2;                             ///< kg/m³
+  AeroModel model = AeroModel::FaceTwoSided;
+};
+
+/// A static collision shape. Cloth nodes are kept `collisionMargin` outside it.
+struct ClothCollider {
+  enum class Shape { Plane, Box, Sphere };
+  Shape shape = Shape::Plane;
+  /// Plane: a point on it. Box, sphere: the centre. Metres.
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();
+  /// Plane only: the normal pointing to the free side (normalized on use).
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+  /// Box only: half side lengths along its own axes (m) and its orientation.
+  Eigen::Vector3d halfExtents = Eigen::Vector3d::Constant(0.5);
+  Eigen::Matrix3d orientation = Eigen::Matrix3d::Identity();
+  /// Sphere only: radius (m).
+  double radius = 0.5;
+  /// Coulomb-like friction; Bullet uses kDF · friction (kDF = 0.2 default cfg,
+  /// we set kDF = 1 so this is the coefficient itself), in [0, 1].
+  double friction = 0.5;
+
+  static ClothCollider plane(const Eigen::Vector3d& point, const Eigen::Vector3d& normal);
+  static ClothCollider box(const Eigen::Vector3d& center, const Eigen::Vector3d& halfExtents,
+                           const Eigen::Matrix3d& orientation = Eigen::Matrix3d::Identity());
+  static ClothCollider sphere(const Eigen::Vector3d& center, double radius);
+};
+
+/// Which Bullet constraint solver runs the links (btSoftBody::eSolverPresets).
+enum class ClothSolver {
+  /// Default: links, anchors and contacts are projected on positions
+  /// (positionIterations Gauss–Seidel sweeps); velocityIterations and
+  /// driftIterations do nothing in this mode.
+  Positions,
+  /// Links solved on velocities (velocityIterations) then corrected for drift
+  /// (driftIterations); contacts still on positions (positionIterations).
+  Velocities
+};
+
+/// Everything needed to build a BulletCloth. Defaults are the settings measured
+/// stable for long runs at 2.5K, 10K and 35K nodes (docs/cloth.md).
+struct ClothDef {
+  /// Rest shape: #V by 3 positions (m) and #F by 3 counter-clockwise faces; must
+  /// be a manifold mesh (blot::stain::SurfaceTopology rules). UVs, when present
+  /// (#V by 2), tell structural edges (axis-aligned in UV) from shear diagonals.
+  stain::TriangleMesh mesh;
+  /// Total cloth mass (kg, > 0), spread by lumped area: node i gets
+  /// totalMass · Aᵢ / ΣA with Aᵢ one third of its one-ring area.
+  double totalMass = 0.15;
+  /// Bullet link stiffness kLST in (0, 1] for structural mesh edges: the fraction
+  /// of a link's length error removed per solver iteration (not a modulus: the
+  /// effective stiffness rises with iterations and substeps).
+  double stretchStiffness = 1.0;
+  /// kLST in (0, 1] for mesh edges that are diagonal in UV space (shear). Without
+  /// UVs every mesh edge is structural and this is unused.
+  double shearStiffness = 1.0;
+  /// kLST in [0, 1] for bending links (one per interior edge, joining the two
+  /// vertices opposite it); 0 builds no bending links.
+  double bendStiffness = 0.2;
+  /// Velocity damping rate c (1/s): each substep of length hₛ multiplies node
+  /// velocities by e^{−c hₛ} (Bullet kDP = 1 − e^{−c hₛ}), so the damping does
+  /// not depend on the substep count. It damps absolute velocity (like air
+  /// resistance on every node), so a free fall is slowed too.
+  double dampingRate = 0.5;
+  ClothSolver solver = ClothSolver::Positions;
+  int positionIterations = 4;   ///< Bullet piterations (≥ 1)
+  int velocityIterations = 0;   ///< Bullet viterations (Velocities solver only)
+  int driftIterations = 0;      ///< Bullet diterations (Velocities solver only)
+  /// Bullet steps per advance(h), each of h / substeps (≥ 1).
+  int substeps = 4;
+  std::vector<ClothPin> pins;  ///< pinned vertices (each at most once)
+  /// Long-range attachments: after each substep a node farther from its
+  /// nearest pin than its rest geodesic distance × (1 + tetherSlack) is pulled
+  /// back onto that sphere. Bullet's Gauss–Seidel link solver alone lets a
+  /// cloth hanging from a few pins stretch with resolution (a 1 m flag's bottom
+  /// 0.38 m too low at 10K nodes, 1.23 m at 35K; docs/cloth.md); tethers only
+  /// ever pull toward a pin, so folds and waving are untouched. Inactive
+  /// without pins and for released pins.
+  bool tethers = true;
+  /// Stretch allowed beyond the rest geodesic distance to the nearest pin
+  /// (fraction, ≥ 0). Woven cloth gives several percent on the bias; with 0 a
+  /// flag hanging from two corners cannot sag under a liquid load at all (its
+  /// rest shape is already taut between the pins).
+  double tetherSlack = 0.05;
+  /// Gravity (m/s²), written once into both the world and the soft-body world info.
+  Eigen::Vector3d gravity = Eigen::Vector3d(0, 0, -9.8);
+  ClothWind wind;
+  std::vector<ClothCollider> colliders;
+  /// Distance (m) nodes keep from colliders (also the node bounding-volume
+  /// radius). 0 = automatic: a quarter of the mean rest edge length.
+  double collisionMargin = 0;
+  /// Fraction of a node's penetration into a collider removed per solver
+  /// iteration (Bullet kKHR, in (0, 1]). Bullet's default 0.1 let a draped
+  /// 2.5K cloth sink 1.5 cm into the ground at 2 iterations; 1 keeps it out
+  /// but makes resting nodes chatter (±4 cm/s, 0.2 mm); 0.5 chatters less
+  /// (±2 cm/s, 0.1 mm: Bullet turns the push-out into velocity).
+  double contactHardness = 0.5;
+  /// Voxel size (m) of Bullet's sparse signed-distance cache used for
+  /// cloth–collider contact. 0 = automatic: the smaller of 0.25 m and a quarter
+  /// of the smallest sphere radius or box half extent.
+  double collisionVoxelSize = 0;
+};
+
+/// Bullet soft-body cloth. Move-only; owns its Bullet world.
+class BulletCloth final : public SurfaceMotion {
+ public:
+  /// Builds the body from def.mesh in O((#V + #F) log #V) (sorted edge lists,
+  /// a balanced node tree, fast marching for tethers; no vertex-count² table).
+  /// Throws std::invalid_argument naming the field for a bad def, and
+  /// blot::stain::MeshError for a mesh SurfaceTopology rejects.
+  explicit BulletCloth(const ClothDef& def);
+  ~BulletCloth() override;
+  BulletCloth(BulletCloth&&) noexcept;
+  BulletCloth& operator=(BulletCloth&&) noexcept;
+  BulletCloth(const BulletCloth&) = delete;
+  BulletCloth& operator=(const BulletCloth&) = delete;
+
+  MotionKind kind() const override { return MotionKind::Deforming; }
+  int vertexCount() const override { return static_cast<int>(positions_.rows()); }
+  double time() const override { return time_; }
+  /// Node positions at time(), #V by 3 (m). Valid until the next advance().
+  const Eigen::MatrixX3d& positions() const override { return positions_; }
+  /// Node velocities at time(), #V by 3 (m/s); pinned nodes report their
+  /// trajectory's exact velocity.
+  const Eigen::MatrixX3d& velocities() const override { return velocities_; }
+  /// Applies pending liquid loads, then runs `substeps` Bullet steps of h /
+  /// substeps (h > 0, s), moving pinned nodes along their trajectories and
+  /// releasing pins whose time has come. Allocates nothing itself (Bullet may
+  /// when contacts appear or its distance cache grows).
+  void advance(double h) override;
+
+  /// Two-way coupling input, applied at the start of the next advance():
+  /// extraNodeMasses (#V, kg ≥ 0) is the liquid mass carried by each node and
+  /// replaces the previous value (node mass = lumped cloth mass + extra);
+  /// nodeImpulses (#V by 3, N·s) is added once as a velocity change
+  /// impulse / node mass. Pinned nodes ignore both (infinite mass).
+  /// The mass goes into Bullet's inverse mass directly, followed by a refresh
+  /// of the link constants — never btSoftBody::setMass, which would make the
+  /// current stretched link lengths the new rest lengths (docs/cloth.md).
+  /// Calling it again before advance() replaces the pending loads.
+  void setLiquidLoads(const Eigen::VectorXd& extraNodeMasses, const Eigen::MatrixX3d& nodeImpulses);
+
+  const Eigen::MatrixX3i& faces() const { return faces_; }
+  /// Node masses (kg, #V): lumped cloth mass plus the liquid mass last applied
+  /// (also for pinned nodes, which Bullet holds with infinite mass; a released
+  /// pin gets this mass).
+  const Eigen::VectorXd& nodeMasses() const { return nodeMasses_; }
+  /// True while vertex i is held by a pin (false after its release time).
+  bool isPinned(int vertex) const;
+
+  /// Links in Bullet's order, #L by 2 vertex indices: mesh edges (in
+  /// SurfaceTopology edge order), then bending links.
+  const Eigen::MatrixX2i& linkVertices() const { return linkVertices_; }
+  /// Per link: true for a mesh edge, false for a bending link (#L).
+  const std::vector<bool>& linkIsEdge() const { return linkIsEdge_; }
+  /// Rest length (m) of every link, recorded when the body was built (#L).
+  const Eigen::VectorXd& restLinkLengths() const { return restLinkLengths_; }
+  /// Bullet's rest length (m) of every link now, read from the body (#L).
+  /// Equals restLinkLengths() bit for bit unless something reset it.
+  Eigen::VectorXd currentLinkRestLengths() const;
+  /// Largest |ℓ/ℓ̄ − 1| over the mesh-edge links at the current positions.
+  double maxEdgeStrain() const;
+
+  /// Axis-aligned bounding box of positions() (m).
+  const Eigen::AlignedBox3d& boundingBox() const { return boundingBox_; }
+  /// Σ ½ mᵢ |vᵢ|² over all nodes with nodeMasses() (J).
+  double kineticEnergy() const;
+  /// Σ −mᵢ g·xᵢ (J), relative to the origin.
+  double gravitationalEnergy() const;
+  /// Finite positions and velocities, bounding-box diagonal at most 10× the rest
+  /// one, no mesh edge longer than 10× its rest length, and Bullet has not
+  /// disabled the body (it does so silently when the body's box passes 10⁶ m
+  /// after a blow-up). O(#V + #E).
+  bool isHealthy() const;
+  /// Distance nodes keep from colliders (m), after the automatic choice.
+  double collisionMargin() const { return collisionMargin_; }
+  const ClothDef& definition() const { return def_; }
+
+ private:
+  friend struct BulletClothTesting;
+  struct Bullet;  // the Bullet objects, defined in bullet_cloth.cpp
+  void applyLiquidLoads();
+  void movePins(double targetTime, double substep);
+  void enforceTethers(double substep);
+  void copyOut();
+
+  ClothDef def_;
+  std::unique_ptr<Bullet> bullet_;
+  Eigen::MatrixX3d restPositions_;
+  Eigen::MatrixX3i faces_;
+  Eigen::VectorXd lumpedMasses_, nodeMasses_;
+  Eigen::VectorXd pendingExtraMasses_;
+  Eigen::MatrixX3d pendingImpulses_;
+  bool loadsPending_ = false;
+  std::vector<int> pinSlot_;     // per vertex: index into def_.pins or -1
+  std::vector<char> released_;   // per pin
+  Eigen::MatrixX2i linkVertices_;
+  std::vector<bool> linkIsEdge_;
+  std::vector<int> tetherPin_;     // per vertex: pin slot it is tied to, or -1
+  Eigen::VectorXd tetherLengths_;  // per vertex: longest allowed distance to that pin (m)
+  Eigen::VectorXd restLinkLengths_;
+  Eigen::MatrixX3d positions_, velocities_;
+  Eigen::AlignedBox3d boundingBox_;
+  double restDiagonal_ = 0;
+  double collisionMargin_ = 0;
+  double time_ = 0;
+};
+
+}  // namespace blot::cloth
