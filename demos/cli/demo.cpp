@@ -59,6 +59,16 @@ struct DemoOptions {
 
 const char* const kDemoNames[] = {"rotating-cloth", "drop-diffusion"};
 
+/// Render settings shared by the demos' preview frames (pixels; 3×3 supersampling).
+engine::RenderSettings previewSettings(int width, int height) {
+  engine::RenderSettings settings;
+  settings.width = width;
+  settings.height = height;
+  settings.supersampling = 3;
+  settings.background = {0.9, 0.91, 0.94};
+  return settings;
+}
+
 std::string frameLabel(double time) {
   char text[32];
   std::snprintf(text, sizeof text, "t = %.2f s", time);
@@ -107,11 +117,7 @@ int runDropDiffusion(const DemoOptions& options) {
   const engine::PlyFrameWriter plyWriter(options.outputDirectory, "drop_diffusion");
   const engine::StainColorMapping mapping =
       engine::stainColorMapping(engine::pigmentPresetFromName(options.pigment));
-  engine::RenderSettings settings;
-  settings.width = 360;
-  settings.height = 300;
-  settings.supersampling = 3;
-  settings.background = {0.9, 0.91, 0.94};
+  const engine::RenderSettings settings = previewSettings(360, 300);
   const engine::Camera camera = engine::framePoints(
       mesh.vertexPositions, {-0.3, -0.6, -1.0}, double(settings.width) / settings.height);
   engine::Renderer renderer(settings);
@@ -250,11 +256,7 @@ int runRotatingCloth(const DemoOptions& options) {
   const engine::PlyFrameWriter plyWriter(options.outputDirectory, "rotating_cloth");
   const engine::StainColorMapping mapping =
       engine::stainColorMapping(engine::pigmentPresetFromName(options.pigment));
-  engine::RenderSettings settings;
-  settings.width = 320;
-  settings.height = 320;
-  settings.supersampling = 3;
-  settings.background = {0.9, 0.91, 0.94};
+  const engine::RenderSettings settings = previewSettings(320, 320);
   // The stain on the rest shape, seen from above: the cloth's own frame.
   const engine::Camera camera = engine::framePoints(mesh.vertexPositions, {0.0, 0.0, -1.0}, 1.0,
                                                     engine::Projection::Orthographic);

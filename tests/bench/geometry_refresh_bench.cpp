@@ -41,21 +41,13 @@ Matrix3 rotationAt(double t) {
   return Eigen::AngleAxisd(kOmega.norm() * t, kOmega.normalized()).toRotationMatrix();
 }
 
-FabricField isotropicFabric(int faceCount) {
-  FabricField fabric;
-  fabric.densityTensors = identityFaceTensors(faceCount);
-  fabric.velocityTensors = identityFaceTensors(faceCount);
-  fabric.weftDirections = RowVectors3::Zero(faceCount, 3);
-  return fabric;
-}
-
 // Args: vertices, threads, method (0 Newton fit, 1 SVD fit, 2 known rigid motion: no fit).
 void BM_RefreshExtrinsicRigidRotation(benchmark::State& state) {
   const TriangleMesh mesh = wavySheet(static_cast<int>(state.range(0)));
   const int threads = static_cast<int>(state.range(1));
   const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
   const int n = topology.vertexCount();
-  SurfaceGeometry geometry(topology, mesh.vertexPositions, isotropicFabric(topology.faceCount()));
+  SurfaceGeometry geometry(topology, mesh.vertexPositions, isotropicFabricField(topology.faceCount(), 1.0, 1.0));
   const int method = static_cast<int>(state.range(2));
   geometry.setRotationFitMethod(method == 1 ? RotationFitMethod::Svd : RotationFitMethod::WarmStartedNewton);
   auto refresh = [&](const RowVectors3& next, int step) {
@@ -101,7 +93,7 @@ BENCHMARK(BM_RefreshExtrinsicRigidRotation)
 void BM_RefreshExtrinsicStatic(benchmark::State& state) {
   const TriangleMesh mesh = wavySheet(static_cast<int>(state.range(0)));
   const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
-  SurfaceGeometry geometry(topology, mesh.vertexPositions, isotropicFabric(topology.faceCount()));
+  SurfaceGeometry geometry(topology, mesh.vertexPositions, isotropicFabricField(topology.faceCount(), 1.0, 1.0));
   for (auto _ : state) benchmark::DoNotOptimize(geometry.refreshExtrinsic(mesh.vertexPositions, kStep));
 }
 BENCHMARK(BM_RefreshExtrinsicStatic)->Arg(35000)->Unit(benchmark::kMicrosecond);

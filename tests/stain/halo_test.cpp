@@ -43,20 +43,6 @@ struct RadialProfile {
   MassBudget budget;
 };
 
-FabricField isotropicFabric(const TriangleMesh& mesh, double diffusivity, double viscosity) {
-  const Eigen::Index faces = mesh.faces.rows();
-  FabricField fabric;
-  fabric.densityTensors = Eigen::MatrixX3d::Zero(faces, 3);
-  fabric.densityTensors.col(0).setConstant(diffusivity);
-  fabric.densityTensors.col(2).setConstant(diffusivity);
-  fabric.velocityTensors = Eigen::MatrixX3d::Zero(faces, 3);
-  fabric.velocityTensors.col(0).setConstant(viscosity);
-  fabric.velocityTensors.col(2).setConstant(viscosity);
-  fabric.weftDirections = RowVectors3::Zero(faces, 3);
-  fabric.weftDirections.col(0).setConstant(1.0);
-  return fabric;
-}
-
 /// A 1 kg spot (0.1 kg solute) of radius 0.5 m, at rest, on a static disc
 /// under normal gravity, for 20 s (h = 0.04 s): long enough to dry.
 RadialProfile runSpot(const HaloSetup& setup) {
@@ -69,7 +55,7 @@ RadialProfile runSpot(const HaloSetup& setup) {
   def.liquid.adsorptionCapacity = 0.005;  // small next to the ~0.1 kg/m² of solute
   def.liquid.evaporationRate = 0.2;       // dries in ~10 s
   def.liquid.evaporationBoundary = setup.evaporationBoundary;
-  StainSolver solver(topology, mesh.vertexPositions, isotropicFabric(mesh, 1e-3, 1e-3), def);
+  StainSolver solver(topology, mesh.vertexPositions, isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-3, 1e-3), def);
   DropDef drop;
   drop.centerVertex = 0;
   drop.radius = 0.5;

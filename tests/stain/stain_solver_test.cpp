@@ -15,26 +15,6 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-/// Per-face weft along each face's first edge (always tangent, never degenerate).
-RowVectors3 firstEdgeWefts(const TriangleMesh& mesh) {
-  RowVectors3 wefts(mesh.faces.rows(), 3);
-  for (int f = 0; f < mesh.faces.rows(); ++f)
-    wefts.row(f) = mesh.vertexPositions.row(mesh.faces(f, 1)) - mesh.vertexPositions.row(mesh.faces(f, 0));
-  return wefts;
-}
-
-FabricField isotropicFabric(const TriangleMesh& mesh, double densityDiffusivity, double viscosity) {
-  FabricField fabric;
-  fabric.densityTensors = Eigen::MatrixX3d::Zero(mesh.faces.rows(), 3);
-  fabric.densityTensors.col(0).setConstant(densityDiffusivity);
-  fabric.densityTensors.col(2).setConstant(densityDiffusivity);
-  fabric.velocityTensors = Eigen::MatrixX3d::Zero(mesh.faces.rows(), 3);
-  fabric.velocityTensors.col(0).setConstant(viscosity);
-  fabric.velocityTensors.col(2).setConstant(viscosity);
-  fabric.weftDirections = firstEdgeWefts(mesh);
-  return fabric;
-}
-
 /// A flag waving in z: a non-isometric deformation, so the strain test trips.
 RowVectors3 wavingPositions(const TriangleMesh& rest, double t) {
   RowVectors3 p = rest.vertexPositions;
@@ -48,7 +28,7 @@ RowVectors3 wavingPositions(const TriangleMesh& rest, double t) {
 TEST(StainSolver, ConservesMassOnADeformingMeshWithStrongAnisotropy) {
   const TriangleMesh mesh = gridMesh(24, 16, 1.2, 0.8);
   const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
-  FabricField fabric = isotropicFabric(mesh, 1e-3, 1e-3);
+  FabricField fabric = isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-3, 1e-3);
   // Eigenvalue ratio 1e6 with the weft at 30° to the grid: the raw implicit
   // solve is not an M-matrix and would create negative densities.
   fabric.densityTensors.col(0).setConstant(1e-2);
@@ -101,7 +81,7 @@ double inertialDriftOverHalfTurn(bool coriolis) {
   def.switches.absorption = def.switches.adsorption = def.switches.evaporation = false;
   def.switches.coriolis = coriolis;
   def.gravity = Vector3(0, 0, -9.8);  // normal to the disc: no tangential part
-  StainSolver solver(topology, mesh.vertexPositions, isotropicFabric(mesh, 1e-4, 1e-4), def);
+  StainSolver solver(topology, mesh.vertexPositions, isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 1e-4), def);
 
   const int n = static_cast<int>(mesh.vertexPositions.rows());
   RowVectors3 velocities(n, 3);
@@ -152,7 +132,7 @@ TEST(StainSolver, TwoRunsAreBitIdentical) {
   const TriangleMesh mesh = gridMesh(16, 12, 1.0, 0.75);
   const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
   const auto run = [&]() {
-    StainSolver solver(topology, mesh.vertexPositions, isotropicFabric(mesh, 2e-3, 1e-3), StainSolverDef{});
+    StainSolver solver(topology, mesh.vertexPositions, isotropicFabricField(static_cast<int>(mesh.faces.rows()), 2e-3, 1e-3), StainSolverDef{});
     DropDef drop;
     drop.centerVertex = 100;
     drop.radius = 0.2;
@@ -176,7 +156,7 @@ TEST(StainSolver, TwoRunsAreBitIdentical) {
 TEST(StainSolver, RejectsBadStepWithoutTouchingTheState) {
   const TriangleMesh mesh = gridMesh(4, 4, 1.0, 1.0);
   const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
-  StainSolver solver(topology, mesh.vertexPositions, isotropicFabric(mesh, 1e-3, 1e-3), StainSolverDef{});
+  StainSolver solver(topology, mesh.vertexPositions, isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-3, 1e-3), StainSolverDef{});
   DropDef drop;
   drop.centerVertex = 12;
   drop.radius = 0.3;

@@ -21,14 +21,6 @@ namespace {
 using testing::jitteredIcosphere;
 using testing::randomFabric;
 
-FabricField isotropicFabric(int faceCount) {
-  FabricField fabric;
-  fabric.densityTensors = identityFaceTensors(faceCount);
-  fabric.velocityTensors = identityFaceTensors(faceCount);
-  fabric.weftDirections = RowVectors3::Zero(faceCount, 3);
-  return fabric;
-}
-
 FabricField anisotropicFabric(int faceCount, unsigned seed) {
   FabricField fabric;
   auto [tensors, wefts] = randomFabric(faceCount, 100.0, seed);
@@ -133,8 +125,8 @@ TEST(SurfaceGeometry, RigidPathMatchesFittedPath) {
   const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
   RigidScene scene;
   scene.rest = mesh.vertexPositions;
-  SurfaceGeometry fitted(topology, scene.rest, isotropicFabric(topology.faceCount()));
-  SurfaceGeometry rigid(topology, scene.rest, isotropicFabric(topology.faceCount()));
+  SurfaceGeometry fitted(topology, scene.rest, isotropicFabricField(topology.faceCount(), 1.0, 1.0));
+  SurfaceGeometry rigid(topology, scene.rest, isotropicFabricField(topology.faceCount(), 1.0, 1.0));
   const double h = 0.01;
   fitted.setPreviousPositions(scene.at(-h));
   rigid.setPreviousPositions(scene.at(-h));
@@ -163,7 +155,7 @@ TEST(SurfaceGeometry, RigidPathMatchesFittedPath) {
 TEST(SurfaceGeometry, NormalsMatchVertexNormals) {
   const TriangleMesh mesh = wavySheet();
   const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
-  SurfaceGeometry geometry(topology, mesh.vertexPositions, isotropicFabric(topology.faceCount()));
+  SurfaceGeometry geometry(topology, mesh.vertexPositions, isotropicFabricField(topology.faceCount(), 1.0, 1.0));
   // A non-rigid motion: positions at t + h bent further.
   RowVectors3 next = mesh.vertexPositions;
   next.col(2) *= 1.5;
@@ -214,7 +206,7 @@ TEST(SurfaceGeometry, StaticMeshHasExactlyZeroRatesAndSkipsFits) {
   const TriangleMesh mesh = jitteredIcosphere(2, 0.2, 6);
   const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
   const RowVectors3 rest = mesh.vertexPositions;
-  SurfaceGeometry geometry(topology, rest, isotropicFabric(topology.faceCount()));
+  SurfaceGeometry geometry(topology, rest, isotropicFabricField(topology.faceCount(), 1.0, 1.0));
   for (int step = 0; step < 5; ++step) {
     EXPECT_FALSE(geometry.refreshExtrinsic(rest, 0.01));
     const ExtrinsicGeometry& ex = geometry.extrinsic();
@@ -234,7 +226,7 @@ TEST(SurfaceGeometry, SurfaceThatStopsHasZeroRatesAfterTwoSteps) {
   const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
   RigidScene scene;
   scene.rest = mesh.vertexPositions;
-  SurfaceGeometry geometry(topology, scene.rest, isotropicFabric(topology.faceCount()));
+  SurfaceGeometry geometry(topology, scene.rest, isotropicFabricField(topology.faceCount(), 1.0, 1.0));
   const double h = 0.01;
   for (int step = 1; step <= 3; ++step) geometry.refreshExtrinsic(scene.at(step * h), h);
   const RowVectors3 stopped = scene.at(3 * h);
@@ -308,7 +300,7 @@ TEST(SurfaceGeometry, BitIdenticalForOneAndTwoThreads) {
   scene.rest = mesh.vertexPositions;
   auto run = [&](int threads) {
     omp_set_num_threads(threads);
-    SurfaceGeometry geometry(topology, scene.rest, isotropicFabric(topology.faceCount()));
+    SurfaceGeometry geometry(topology, scene.rest, isotropicFabricField(topology.faceCount(), 1.0, 1.0));
     for (int step = 1; step <= 20; ++step) {
       RowVectors3 p = scene.at(step * 0.01);
       p *= 1.0 + 0.001 * step;  // deforming, not rigid: Newton works harder
@@ -339,7 +331,7 @@ TEST(SurfaceGeometry, RefreshExtrinsicAllocatesNothing) {
     rotations.push_back(rotationAbout(scene.omega, step * 0.01));
   }
   positions[6] *= 1.01;  // a deforming step, so the Newton path solves
-  SurfaceGeometry geometry(topology, scene.rest, isotropicFabric(topology.faceCount()));
+  SurfaceGeometry geometry(topology, scene.rest, isotropicFabricField(topology.faceCount(), 1.0, 1.0));
   geometry.refreshExtrinsic(positions[0], 0.01);
   gAllocations = 0;
   gCountAllocations = true;
@@ -469,8 +461,8 @@ TEST(SurfaceGeometry, SvdAndNewtonMethodsGiveTheSameFrames) {
   const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
   RigidScene scene;
   scene.rest = mesh.vertexPositions;
-  SurfaceGeometry newton(topology, scene.rest, isotropicFabric(topology.faceCount()));
-  SurfaceGeometry svd(topology, scene.rest, isotropicFabric(topology.faceCount()));
+  SurfaceGeometry newton(topology, scene.rest, isotropicFabricField(topology.faceCount(), 1.0, 1.0));
+  SurfaceGeometry svd(topology, scene.rest, isotropicFabricField(topology.faceCount(), 1.0, 1.0));
   svd.setRotationFitMethod(RotationFitMethod::Svd);
   std::mt19937 rng(3);
   std::normal_distribution<double> normal;
@@ -492,9 +484,9 @@ TEST(SurfaceGeometry, SvdAndNewtonMethodsGiveTheSameFrames) {
 TEST(SurfaceGeometry, RejectsMismatchedInput) {
   const TriangleMesh mesh = gridMesh(3, 3, 1.0, 1.0);
   const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
-  FabricField bad = isotropicFabric(topology.faceCount() - 1);
+  FabricField bad = isotropicFabricField(topology.faceCount() - 1, 1.0, 1.0);
   EXPECT_THROW({ SurfaceGeometry broken(topology, mesh.vertexPositions, bad); }, std::invalid_argument);
-  SurfaceGeometry geometry(topology, mesh.vertexPositions, isotropicFabric(topology.faceCount()));
+  SurfaceGeometry geometry(topology, mesh.vertexPositions, isotropicFabricField(topology.faceCount(), 1.0, 1.0));
   EXPECT_THROW(geometry.refreshExtrinsic(RowVectors3::Zero(3, 3), 0.01), std::invalid_argument);
   EXPECT_THROW(geometry.refreshExtrinsic(mesh.vertexPositions, 0.0), std::invalid_argument);
 }

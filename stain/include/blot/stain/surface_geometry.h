@@ -29,6 +29,11 @@ struct FabricField {
   RowVectors3 weftDirections;        ///< #F by 3, in the rest shape
 };
 
+/// The same isotropic tensors on every face: densityDiffusivity·I for the
+/// densities, viscosity·I for the velocity (m²/s); weft directions zero
+/// (isotropic faces ignore the weft, see operators.h). faceCount >= 1.
+FabricField isotropicFabricField(int faceCount, double densityDiffusivity, double viscosity);
+
 struct IntrinsicGeometry {
   Vector edgeLengths;                   ///< #E (m), at the last rebuild
   Eigen::MatrixX3d faceCornerAngles;    ///< #F by 3 (rad)
