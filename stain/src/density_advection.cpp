@@ -54,6 +54,12 @@
 //    (a + b = b + a and x − y = −(y − x) in IEEE arithmetic). So every pass is a
 //    per-vertex gather over contiguous ring entries: no scatter, no atomics,
 //    OpenMP-deterministic. The Courant maximum is a max-reduction (exact).
+//  - Rigid motion (ExtrinsicGeometry::rigid): frames R F̄ and dual normals
+//    R N̄, so ½(F_i u_i + F_j u_j)·N_ij = ½(u_i·F̄_iᵀN̄_ij + u_j·F̄_jᵀN̄_ij), with
+//    the two 2D projections per edge computed once from the rest shape
+//    (SurfaceGeometry::restEdgeFrameNormals): a ring entry costs 8 products
+//    instead of two face normals and the 3D velocities (the per-entry normals
+//    were ~2/3 of this stage). Equal to the general path up to rounding.
 #include <blot/stain/density_advection.h>
 
 #include <algorithm>
@@ -70,33 +76,6 @@ constexpr int kMinParallelVertices = 4096;
 // strict IEEE semantics, and the sign of a speed is a coin flip the branch
 // predictor cannot learn). Exact: x + |x| = 2x or 0, and halving is exact.
 inline double positivePart(double x) { return 0.5 * (x + std::abs(x)); }
-
-// Barycentric dual-edge normal of edge e (m), oriented from edgeVertices(e, 0)
-// to edgeVertices(e, 1): Σ over the edge's faces of (c_T − m) × n_T, with c_T the
-// face centroid, m the edge midpoint and n_T the unit face normal. Computed in
-// the same order whichever endpoint asks, so the two ring entries of an edge
-// get bitwise opposite speeds.
-inline Vector3 dualEdgeNormal(const SurfaceTopology& topology, const RowVectors3& positions, int e) {
-  Vector3 normal = Vector3::Zero();
-  const int lower = topology.edgeVertices()(e, 0);
-  const int first = topology.edgeHalfedges()[static_cast<size_t>(e)];
-  const int second = topology.halfedgeTwins()[static_cast<size_t>(first)];
-  for (const int h : {first, second}) {
-    if (h < 0) continue;
-    const int f = h / 3;
-    const Vector3 p0 = positions.row(topology.faces()(f, 0)).transpose();
-    const Vector3 p1 = positions.row(topology.faces()(f, 1)).transpose();
-    const Vector3 p2 = positions.row(topology.faces()(f, 2)).transpose();
-    const Vector3 faceNormal = (p1 - p0).cross(p2 - p0).normalized();
-    const Vector3 pa = positions.row(topology.halfedgeTail(h)).transpose();
-    const Vector3 pb = positions.row(topology.halfedgeHead(h)).transpose();
-    const Vector3 toCentroid = (p0 + p1 + p2) / 3.0 - 0.5 * (pa + pb);
-    // (c − m) × n points from the half-edge's tail to its head.
-    const Vector3 piece = toCentroid.cross(faceNormal);
-    normal += topology.halfedgeTail(h) == lower ? piece : Vector3(-piece);
-  }
-  return normal;
-}
 
 // Appends to `active` every unmarked neighbour of active[from, to), marking it.
 void addNextRing(const SurfaceTopology& topology, int from, int to, std::vector<int>& active,
@@ -128,16 +107,27 @@ void DensityAdvectionScratch::resize(int vertexCount, int edgeCount) {
   keptFractions.resize(vertexCount);
   givingRatios.resize(vertexCount);
   ringInflowShares.resize(2 * static_cast<Eigen::Index>(edgeCount));
-  massSolvent.resize(vertexCount);
-  massSolute.resize(vertexCount);
-  nextMassSolvent.resize(vertexCount);
-  nextMassSolute.resize(vertexCount);
+  // Zero, not just sized: a vertex outside the active set is read as a ring
+  // neighbour (its giving ratio and mass enter the shares of the active
+  // vertices next to it), so those entries must hold 0, never stale or
+  // uninitialised values. advectDensities restores the zeros after each call.
+  vertexVelocities.setZero();
+  vertexPositions.setZero();
+  ringSpeeds.setZero();
+  outflowRates.setZero();
+  keptFractions.setZero();
+  givingRatios.setZero();
+  ringInflowShares.setZero();
+  massSolvent.setZero(vertexCount);
+  massSolute.setZero(vertexCount);
+  nextMassSolvent.setZero(vertexCount);
+  nextMassSolute.setZero(vertexCount);
 }
 
 DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopology& topology,
                                        const IntrinsicGeometry& intrinsic, const ExtrinsicGeometry& extrinsic,
                                        const std::vector<char>& wet, DensityAdvectionScratch& scratch,
-                                       StainState& state) {
+                                       StainState& state, const EdgeFrameNormals* restEdgeFrameNormals) {
   const int n = topology.vertexCount();
   const int edgeCount = topology.edgeCount();
   if (static_cast<int>(scratch.activeMarks.size()) != n || scratch.massSolvent.size() != n ||
@@ -195,7 +185,41 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
   const char* marked = marks.data();
   const double* velocities3 = scratch.vertexVelocities.data();
   double* speeds = scratch.ringSpeeds.data();
+  // Rigid motion: the same speed from the rest frames (see the header), u
+  // read as it is stored; the expression for an edge is evaluated identically
+  // from both ends (a = edgeVertices(e, 0) first), so the two entries are
+  // again bitwise opposite.
+  const bool rigid = restEdgeFrameNormals != nullptr && extrinsic.rigid &&
+                     restEdgeFrameNormals->rows() == edgeCount;
+  const double* frameNormals = rigid ? restEdgeFrameNormals->data() : nullptr;
+  const int* edgeFirst = topology.edgeVertices().data();
+  const int* edgeSecond = edgeFirst + edgeCount;
+  const Complex* u = state.velocities.data();
+  auto ringSpeedsAndOutflowRigid = [&](int from, int to) {
+    double maxCourant = 0.0;
+#pragma omp parallel for schedule(static) reduction(max : maxCourant) if (to - from >= kMinParallelVertices)
+    for (int k = from; k < to; ++k) {
+      const int i = active[static_cast<size_t>(k)];
+      double outflow = 0.0;
+      for (int m = ringOffsets[i]; m < ringOffsets[i + 1]; ++m) {
+        const int j = ringNeighbors[m];
+        const int e = ringEdgeIds[m];
+        const double* c = frameNormals + 4 * static_cast<size_t>(e);
+        const Complex ua = u[edgeFirst[e]], ub = u[edgeSecond[e]];
+        const double along = (ua.real() * c[0] + ua.imag() * c[1]) + (ub.real() * c[2] + ub.imag() * c[3]);
+        const double sign = i == edgeFirst[e] ? 1.0 : -1.0;
+        const double speed = marked[j] ? 0.5 * (sign * along) : 0.0;
+        speeds[m] = speed;
+        outflow += positivePart(speed);
+      }
+      scratch.outflowRates(i) = outflow;
+      if (wet.empty() || wet[static_cast<size_t>(i)])
+        maxCourant = std::max(maxCourant, h * outflow / areas(i));
+    }
+    return maxCourant;
+  };
   auto ringSpeedsAndOutflow = [&](int from, int to) {
+    if (rigid) return ringSpeedsAndOutflowRigid(from, to);
     double maxCourant = 0.0;
 #pragma omp parallel for schedule(static) reduction(max : maxCourant) if (to - from >= kMinParallelVertices)
     for (int k = from; k < to; ++k) {
@@ -222,7 +246,7 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
     return maxCourant;
   };
 
-  worldVelocities(0, firstRingEnd);
+  if (!rigid) worldVelocities(0, firstRingEnd);
   const double maxCourant = ringSpeedsAndOutflow(0, wetEnd);
   report.maxCourant = maxCourant;
   if (!(maxCourant > 0.0)) {  // nothing moves (or non-finite input: leave the state as is)
@@ -243,7 +267,7 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
       ringBegin = ringEnd;
       ringEnd = static_cast<int>(active.size());
     }
-    worldVelocities(firstRingEnd, ringEnd);
+    if (!rigid) worldVelocities(firstRingEnd, ringEnd);
     ringSpeedsAndOutflow(wetEnd, ringEnd);
   }
   const int count = static_cast<int>(active.size());
@@ -309,6 +333,14 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
       state.solvent(i) = solvent(i) / areas(i);
       state.solute(i) = solute(i) / areas(i);
       marks[static_cast<size_t>(i)] = 0;
+    }
+    // Leave every entry a later call may read as an inactive neighbour at 0.
+#pragma omp for schedule(static)
+    for (int k = 0; k < count; ++k) {
+      const int i = active[static_cast<size_t>(k)];
+      scratch.givingRatios(i) = 0.0;
+      scratch.massSolvent(i) = scratch.massSolute(i) = 0.0;
+      scratch.nextMassSolvent(i) = scratch.nextMassSolute(i) = 0.0;
     }
   }
   report.limitedVertices = limited;

@@ -495,7 +495,9 @@ TriangleMesh readObj(const std::string& text, const std::string& path, ElementOr
         // One texture coordinate per position, or none at all (see mesh_io.h).
         const int t = index.texcoord_index;
         const auto v = static_cast<size_t>(index.vertex_index);
-        if (t < 0 || v >= positionCount) {
+        // Both indices were range-checked by the scan; tinyobjloader resolves
+        // them itself, so check again rather than trust the two to agree.
+        if (t < 0 || static_cast<size_t>(t) >= scan.texcoords.size() / 2 || v >= positionCount) {
           uvsConsistent = false;
           continue;
         }
@@ -1132,13 +1134,21 @@ TriangleMesh loadMesh(const std::string& path) {
                                   : "unknown mesh file extension " + quoted(extension)) +
                    "; expected .obj, .ply or .off");
   }
-  const std::string text = readFile(path);
-  if (text.find_first_not_of(" \t\r\n\f\v") == std::string::npos) fail(path, "file is empty");
+  return parseMesh(readFile(path), extension, path);
+}
+
+TriangleMesh parseMesh(const std::string& text, const std::string& format,
+                       const std::string& sourceName) {
+  const std::string extension = lowercaseExtension("." + format);
+  if (extension != ".obj" && extension != ".ply" && extension != ".off")
+    fail(sourceName, "unknown mesh format " + quoted(format) + "; expected obj, ply or off");
+  if (text.find_first_not_of(" \t\r\n\f\v") == std::string::npos)
+    fail(sourceName, "file is empty");
   ElementOrigins origins;
-  TriangleMesh mesh = extension == ".obj"   ? readObj(text, path, origins)
-                      : extension == ".ply" ? readPly(text, path, origins)
-                                            : readOff(text, path, origins);
-  validateWithOrigins(mesh, path, &origins);
+  TriangleMesh mesh = extension == ".obj"   ? readObj(text, sourceName, origins)
+                      : extension == ".ply" ? readPly(text, sourceName, origins)
+                                            : readOff(text, sourceName, origins);
+  validateWithOrigins(mesh, sourceName, &origins);
   return mesh;
 }
 

@@ -14,6 +14,9 @@
 
 #include <chrono>
 #include <cmath>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
 
 namespace blot::stain {
 namespace {
@@ -36,8 +39,24 @@ class ScopedTimer {
 /// First vertex with a non-finite or negative (below −tol·max) density, or -1.
 int firstBadVertex(const StainState& s, double relativeTolerance) {
   const Vector* fields[] = {&s.solvent, &s.solute, &s.absorbedSolvent, &s.absorbedSolute, &s.adsorbedSolute};
-  double scale = 0;
-  for (const Vector* f : fields) scale = std::max(scale, f->cwiseAbs().maxCoeff());
+  // One pass for the common case (all finite, none below the floor): the
+  // largest and smallest value of every field and a sum that is finite only
+  // if every term is; the per-vertex search below runs only when it fails.
+  constexpr double kLargest = std::numeric_limits<double>::max();
+  double largest = 0, smallest = 0;
+  bool finite = true;
+  for (const Vector* f : fields) {
+    const double* v = f->data();
+    for (Eigen::Index i = 0; i < f->size(); ++i) {
+      largest = std::max(largest, v[i]);
+      smallest = std::min(smallest, v[i]);
+      finite &= std::abs(v[i]) <= kLargest;  // false for NaN and ±inf
+    }
+  }
+  const double* u = reinterpret_cast<const double*>(s.velocities.data());
+  for (Eigen::Index i = 0; i < 2 * s.velocities.size(); ++i) finite &= std::abs(u[i]) <= kLargest;
+  const double scale = std::max(largest, -smallest);
+  if (finite && smallest >= -relativeTolerance * scale) return -1;
   const double floor = -relativeTolerance * scale;
   for (int i = 0; i < s.vertexCount(); ++i) {
     for (const Vector* f : fields)
@@ -48,6 +67,40 @@ int firstBadVertex(const StainState& s, double relativeTolerance) {
 }
 
 double weightedSum(const Vector& density, const Vector& areas) { return density.dot(areas); }
+
+/// `def` when every parameter is usable, checked before anything is built from
+/// it: a negative rate would create mass and a NaN would only surface steps
+/// later as a non-finite density far from its cause. Rates, capacities and
+/// a_evap finite and >= 0; σ_sat and ρ finite and > 0 (they divide); gravity
+/// finite; strain tolerance finite and > 0. Throws std::invalid_argument naming
+/// the field, the value and what was expected.
+const StainSolverDef& checkedDefinition(const StainSolverDef& def) {
+  const auto require = [](bool ok, const char* field, double value, const char* expected) {
+    if (ok) return;
+    std::ostringstream message;
+    message << "StainSolverDef::" << field << " must be " << expected << ", got " << value;
+    throw std::invalid_argument(message.str());
+  };
+  const auto nonNegative = [&](const char* field, double value) {
+    require(std::isfinite(value) && value >= 0, field, value, "finite and >= 0");
+  };
+  const auto positive = [&](const char* field, double value) {
+    require(std::isfinite(value) && value > 0, field, value, "finite and > 0");
+  };
+  const LiquidParameters& liquid = def.liquid;
+  nonNegative("liquid.absorptionRate", liquid.absorptionRate);
+  positive("liquid.saturationDensity", liquid.saturationDensity);
+  nonNegative("liquid.desorptionRate", liquid.desorptionRate);
+  nonNegative("liquid.adsorptionCapacity", liquid.adsorptionCapacity);
+  nonNegative("liquid.evaporationRate", liquid.evaporationRate);
+  nonNegative("liquid.boundaryEvaporationFactor", liquid.boundaryEvaporationFactor);
+  nonNegative("liquid.wetThreshold", liquid.wetThreshold);
+  positive("liquid.liquidDensity", liquid.liquidDensity);
+  for (int k = 0; k < 3; ++k)
+    require(std::isfinite(def.gravity[k]), "gravity", def.gravity[k], "finite in every component");
+  positive("strainTolerance", def.strainTolerance);
+  return def;
+}
 
 }  // namespace
 
@@ -63,7 +116,7 @@ double MassBudget::soluteError() const {
 
 StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& restPositions,
                          const FabricField& fabric, const StainSolverDef& def)
-    : def_(def), geometry_(topology, restPositions, fabric, def.strainTolerance) {
+    : def_(checkedDefinition(def)), geometry_(topology, restPositions, fabric, def.strainTolerance) {
   const int n = topology.vertexCount();
   state_.resize(n);
   backup_.resize(n);
@@ -232,13 +285,15 @@ StepReport StainSolver::advance(double h, const RowVectors3& nextPositions, cons
   }
   if (anyLiquid && on.densityAdvection) {
     ScopedTimer t(profile_.advectDensity);
-    const DensityAdvectionReport r = advectDensities(ctx, geometry_.topology(), geometry_.intrinsic(),
-                                                     geometry_.extrinsic(), wet_, densityScratch_, state_);
+    const DensityAdvectionReport r =
+        advectDensities(ctx, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), wet_,
+                        densityScratch_, state_, &geometry_.restEdgeFrameNormals());
     profile_.advectionSubsteps = r.substeps;
   }
   if (anyLiquid && (on.densityDiffusion || on.velocityDiffusion)) {
     ScopedTimer t(profile_.diffuse);
-    const DiffusionReport r = diffuse(ctx, geometry_.intrinsic(), systems_, diffusionScratch_, state_);
+    const DiffusionReport r = diffuse(ctx, geometry_.intrinsic(), systems_, diffusionScratch_, state_, &wet_);
+    profile_.diffusionIterations = r.densityIterations + r.velocityIterations;
     profile_.limiterCorrectedVertices = r.limiterCorrectedVertices;
     profile_.limiterMovedMass = r.limiterMovedMass;
     if (r.status != SolverStatus::Ok) {
@@ -285,6 +340,60 @@ MassBudget StainSolver::massBudget() const {
   b.adsorbedSolute = weightedSum(state_.adsorbedSolute, a);
   b.addedSolute = state_.addedSolute;
   return b;
+}
+
+// Snapshots: the whole dynamic state by value. The backup, wet mask and
+// scratch buffers are rewritten at the start of every step, so they are not
+// part of it; the factorization is redone from the restored intrinsic tier
+// (same pattern, same values: the same factor as the original's).
+StainSolverSnapshot StainSolver::snapshot() const {
+  StainSolverSnapshot s;
+  s.state = state_;
+  s.geometry = geometry_.dynamicState();
+  s.heldRegions = heldRegions_;
+  s.initialVelocities = initialVelocities_;
+  s.factorizedStep = systems_.factorizedStep();
+  s.time = time_;
+  s.steps = steps_;
+  s.started = started_;
+  return s;
+}
+
+void StainSolver::restore(const StainSolverSnapshot& s) {
+  const int n = state_.vertexCount();
+  const auto requireRows = [n](Eigen::Index rows, const char* field) {
+    if (rows != n)
+      throw std::invalid_argument(std::string("StainSolver::restore: ") + field + " has " + std::to_string(rows) +
+                                  " rows, the solver has " + std::to_string(n) + " vertices");
+  };
+  requireRows(s.state.vertexCount(), "state");
+  requireRows(s.state.velocities.size(), "state.velocities");
+  requireRows(s.geometry.extrinsic.positions.rows(), "geometry.extrinsic.positions");
+  requireRows(s.geometry.intrinsic.vertexDualAreas.size(), "geometry.intrinsic.vertexDualAreas");
+  requireRows(static_cast<Eigen::Index>(s.geometry.rotations.size()), "geometry.rotations");
+  requireRows(s.initialVelocities.rows(), "initialVelocities");
+  if (s.geometry.intrinsic.edgeLengths.size() != geometry_.intrinsic().edgeLengths.size())
+    throw std::invalid_argument("StainSolver::restore: geometry.intrinsic.edgeLengths has " +
+                                std::to_string(s.geometry.intrinsic.edgeLengths.size()) + " entries, the solver has " +
+                                std::to_string(geometry_.intrinsic().edgeLengths.size()) + " edges");
+  for (const HeldRegion& region : s.heldRegions)
+    for (int v : region.vertices)
+      if (v < 0 || v >= n)
+        throw std::invalid_argument("StainSolver::restore: held region vertex " + std::to_string(v) +
+                                    " out of range [0, " + std::to_string(n) + ")");
+  geometry_.restoreDynamicState(s.geometry);
+  if (s.factorizedStep > 0) {
+    const SolverStatus status = systems_.factorize(geometry_.intrinsic(), s.factorizedStep);
+    if (status != SolverStatus::Ok)
+      throw std::runtime_error(std::string("StainSolver::restore: factorization failed: ") + toString(status));
+  }
+  state_ = s.state;
+  backup_ = s.state;
+  heldRegions_ = s.heldRegions;
+  initialVelocities_ = s.initialVelocities;
+  time_ = s.time;
+  steps_ = s.steps;
+  started_ = s.started;
 }
 
 }  // namespace blot::stain

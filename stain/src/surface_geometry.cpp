@@ -276,6 +276,15 @@ SurfaceGeometry::SurfaceGeometry(const SurfaceTopology& topology, const RowVecto
       restRingEdges_[static_cast<size_t>(m)] = (restPositions.row(j) - restPositions.row(i)).transpose();
     }
   }
+  const int edgeCount = topology.edgeCount();
+  restEdgeFrameNormals_.resize(edgeCount, 4);
+  for (int e = 0; e < edgeCount; ++e) {
+    const Vector3 normal = dualEdgeNormal(topology, restPositions, e);
+    const Matrix3& a = ex.restFrames[static_cast<size_t>(topology.edgeVertices()(e, 0))];
+    const Matrix3& b = ex.restFrames[static_cast<size_t>(topology.edgeVertices()(e, 1))];
+    restEdgeFrameNormals_.row(e) << a.col(0).dot(normal), a.col(1).dot(normal), b.col(0).dot(normal),
+        b.col(1).dot(normal);
+  }
   previousRotations_.assign(static_cast<size_t>(n), Eigen::Quaterniond::Identity());
   rotations_ = previousRotations_;
   nextRotations_ = previousRotations_;
@@ -288,6 +297,7 @@ void SurfaceGeometry::setPreviousPositions(const RowVectors3& previous) {
   // The next refresh shifts `positions` into `previousPositions`.
   extrinsic_.previousPositions = previous;
   extrinsic_.positions = previous;
+  extrinsic_.rigid = false;
   unchangedRefreshes_ = 0;
   lastH_ = 0;
 }
@@ -364,6 +374,7 @@ bool SurfaceGeometry::refreshExtrinsicWith(const RowVectors3& nextPositions, dou
   ex.positions.swap(ex.nextPositions);
   ex.nextPositions = nextPositions;  // same size: copies into the existing buffer
   ex.frames.swap(ex.nextFrames);
+  ex.rigid = ex.nextRigid;
   ex.vertexNormals.swap(nextNormals_);
   previousRotations_.swap(rotations_);
   rotations_.swap(nextRotations_);
@@ -406,6 +417,7 @@ bool SurfaceGeometry::refreshExtrinsicWith(const RowVectors3& nextPositions, dou
       angularVelocities.row(i).setZero();
       acceleration(i);
     }
+    ex.nextRigid = ex.rigid;
     ++unchangedRefreshes_;
     rotationFitStats_ = RotationFitStats();
     return maxEdgeStrain_ > strainTolerance_;
@@ -416,21 +428,34 @@ bool SurfaceGeometry::refreshExtrinsicWith(const RowVectors3& nextPositions, dou
   if (rigidRotation != nullptr) {
     // Known rigid motion: U_i = R for every vertex (the Kabsch fit of a rigid
     // motion), normals R n̄ (n̄ = F̄ z), no fits, and no strain to measure.
+    // When U^t was one rotation for every vertex too (the previous refresh was
+    // rigid), the rotation vector of U^tᵀ U^{t+h} is one vector: computed once
+    // (an atan2 and a quaternion product per vertex were a third of this loop).
+    ex.nextRigid = true;
     const Matrix3& R = *rigidRotation;
     const Eigen::Quaterniond q(R);
+    const Eigen::Quaterniond shared = rotations_.empty() ? q : rotations_[0];
+    const Vector3 sharedAxis = rotationVector(shared.conjugate() * q);
 #pragma omp parallel for schedule(static) if (n >= kMinParallelVertices)
     for (int i = 0; i < n; ++i) {
       const size_t k = static_cast<size_t>(i);
+      const Eigen::Quaterniond& previous = rotations_[k];
+      const Matrix3& restFrame = ex.restFrames[k];
+      if (previous.coeffs() == shared.coeffs()) {
+        angularVelocities.row(i) = (restFrame.transpose() * sharedAxis * invH).transpose();  // as angularVelocity(i)
+      } else {
+        angularVelocity(i);
+      }
       nextRotations_[k] = q;
       ex.kabschRotations[k] = R;
-      ex.nextFrames[k].noalias() = R * ex.restFrames[k];
+      ex.nextFrames[k].noalias() = R * restFrame;
       nextNormals_.row(i) = ex.nextFrames[k].col(2).transpose();
-      angularVelocity(i);
       acceleration(i);
     }
     return maxEdgeStrain_ > strainTolerance_;
   }
 
+  ex.nextRigid = false;
   const std::vector<int>& offsets = topology.ringOffsets();
   const std::vector<int>& neighbors = topology.ringNeighbors();
   const std::vector<int>& ringEdges = topology.ringEdges();

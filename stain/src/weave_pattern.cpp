@@ -357,7 +357,9 @@ WeavePattern parseWeavePattern(const std::string& jsonText, const std::string& s
   Json document;
   try {
     document = Json::parse(jsonText);
-  } catch (const Json::parse_error& e) {
+  } catch (const Json::exception& e) {
+    // Not only parse_error: a number too large for a double (1e999) is an
+    // out_of_range error from the same parse (found by tests/fuzz).
     throw PatternError(sourceName + ": not valid JSON: " + e.what());
   }
   if (!document.is_object())

@@ -4,8 +4,10 @@
 // Meshes: flat grids gridMesh(n, n, 1, 1) of 2,500, 10,000 and 34,969
 // vertices, and the Stanford bunny (CGAL's bunny00.off, 37,706 vertices).
 // Fabric: anisotropic (ratio 10, weft at 30° on the grids, along each face's
-// first edge on the bunny), D_weft = 2e-3 size² m²/s, so h·D_weft/dx² ≈ 5 on
-// the 2.5K grid and ≈ 70 on the 35K grid at h = 0.01 s.
+// first edge on the bunny), D_weft = 2e-3 size² m²/s (size = the largest
+// distance from the centroid, 0.71 on the unit grids), so h·D_weft/dx² ≈ 0.024
+// on the 2.5K grid and ≈ 0.35 on the 35K grid at h = 0.01 s: every system
+// is mild enough for the restricted CG (diffusion.h).
 // Motion: rotation at 1.5 rad/s about a tilted axis through the centroid,
 // positions set analytically each step; gravity −z (grids) or −y (bunny).
 // Liquid: "drop" = one drop whose radius covers ~10 % of the area, with
@@ -16,7 +18,8 @@
 // Reported time: StepProfile::total (manual time, the step alone). Counters:
 // per-phase means (ms) from StepProfile, n (vertices), wet (fraction of
 // vertices holding liquid), substeps (density-advection sub-steps), fixes
-// (vertices the positivity limiter corrected per step), and
+// (vertices the positivity limiter corrected per step), cgIters (conjugate-
+// gradient iterations per step, density + velocity; 0 = direct solves), and
 // allocs (malloc/calloc/realloc calls per step, counted across the timed
 // steps after 3 warm-up steps; the first step factorizes and allocates).
 //
@@ -152,7 +155,7 @@ void stainStep(benchmark::State& bench) {
     }
   }
   StepProfile sum;
-  double wet = 0, fixes = 0;
+  double wet = 0, fixes = 0, cg = 0;
   gAllocations.store(0);
   for (auto _ : bench) {
     const StepReport r = scene.advance(path);
@@ -173,6 +176,7 @@ void stainStep(benchmark::State& bench) {
     sum.advectionSubsteps += p.advectionSubsteps;
     wet += p.wetVertices;
     fixes += p.limiterCorrectedVertices;
+    cg += p.diffusionIterations;
   }
   const auto mean = [](double value) { return benchmark::Counter(value, benchmark::Counter::kAvgIterations); };
   const int n = scene.solver->state().vertexCount();
@@ -188,6 +192,7 @@ void stainStep(benchmark::State& bench) {
   bench.counters["substeps"] = mean(sum.advectionSubsteps);
   bench.counters["wet"] = mean(wet / n);
   bench.counters["fixes"] = mean(fixes);
+  bench.counters["cgIters"] = mean(cg);
   bench.counters["allocs"] = mean(static_cast<double>(gAllocations.load()));
   static const char* const kMeshNames[] = {"grid2.5K", "grid10K", "grid35K", "bunny37K"};
   bench.SetLabel(std::string(kMeshNames[id]) + (liquid == kDrop ? " drop" : " wet") +

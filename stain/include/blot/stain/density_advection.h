@@ -61,9 +61,12 @@ struct DensityAdvectionReport {
 /// `wet` (empty = all) selects the vertices whose Courant number sets n, and
 /// the work is restricted to the wet set and its n-ring halo (liquid cannot
 /// move further in n sub-steps); densities outside it are left untouched.
+/// restEdgeFrameNormals (SurfaceGeometry::restEdgeFrameNormals, optional): used
+/// instead of the positions' dual normals and frames when extrinsic.rigid.
 DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopology& topology,
                                        const IntrinsicGeometry& intrinsic,
                                        const ExtrinsicGeometry& extrinsic, const std::vector<char>& wet,
-                                       DensityAdvectionScratch& scratch, StainState& state);
+                                       DensityAdvectionScratch& scratch, StainState& state,
+                                       const EdgeFrameNormals* restEdgeFrameNormals = nullptr);
 
 }  // namespace blot::stain

@@ -29,6 +29,13 @@ namespace blot::stain {
 /// loads without UVs rather than being cut apart at the seams.
 TriangleMesh loadMesh(const std::string& path);
 
+/// Parses a mesh held in memory exactly as loadMesh parses a file: `format` is
+/// "obj", "ply" or "off" (case-insensitive, a leading dot allowed), `text` the
+/// file's bytes (binary PLY included), `sourceName` the name every message
+/// starts with. Used by the fuzz targets (tests/fuzz) and for embedded meshes.
+TriangleMesh parseMesh(const std::string& text, const std::string& format,
+                       const std::string& sourceName);
+
 /// Checks geometry and topology of an in-memory mesh; `sourceName` prefixes
 /// every message (a path, or a description such as "generated grid").
 /// Throws MeshError on the first problem found.

@@ -34,6 +34,21 @@ struct MassBudget {
   double soluteError() const;   ///< |free + absorbed + adsorbed − added| / added
 };
 
+/// Everything StainSolver::step depends on beyond the constructor's inputs
+/// (topology, rest shape, fabric, def): restoring it into a solver built from
+/// the same inputs makes every later step bit-identical (engine save/load).
+/// Drops are applied immediately by addDrop, so none are pending here.
+struct StainSolverSnapshot {
+  StainState state;
+  SurfaceGeometry::DynamicState geometry;  ///< positions at t−h, t, t+h, frames, rotation history, intrinsic tier
+  std::vector<HeldRegion> heldRegions;
+  RowVectors3 initialVelocities;  ///< v(0), used by the first step's p(−h)
+  double factorizedStep = 0;      ///< h the diffusion systems were factorized for (0: none yet)
+  double time = 0;
+  int steps = 0;
+  bool started = false;
+};
+
 class StainSolver {
  public:
   /// Builds topology-dependent caches, the geometry for the rest shape, and
@@ -70,6 +85,14 @@ class StainSolver {
   double time() const { return time_; }
   int stepCount() const { return steps_; }
   MassBudget massBudget() const;
+
+  /// Copy of the dynamic state (allocates; not for use inside a frame loop).
+  StainSolverSnapshot snapshot() const;
+  /// Restores a snapshot taken from a solver built on the same inputs and
+  /// refactorizes the diffusion systems for the snapshot's h, so the next
+  /// step reuses them as the original would have. Throws
+  /// std::invalid_argument naming the field whose size differs.
+  void restore(const StainSolverSnapshot& snapshot);
 
  private:
   void updateWetMask();

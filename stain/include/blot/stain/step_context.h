@@ -84,6 +84,7 @@ struct StepProfile {
   int intrinsicRefreshes = 0;      ///< 1 if the metric changed enough to refactorize this step
   double maxEdgeStrain = 0;        ///< largest |ℓ/ℓ_factored − 1| this step
   int wetVertices = 0;             ///< vertices holding liquid at the start of the step
+  int diffusionIterations = 0;     ///< CG iterations, density + velocity (0: direct solves)
   int limiterCorrectedVertices = 0;  ///< vertices whose negative density the limiter fixed
   double limiterMovedMass = 0;     ///< kg moved by the positivity limiter
 };

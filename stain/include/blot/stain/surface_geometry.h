@@ -64,7 +64,43 @@ struct ExtrinsicGeometry {
   /// sin(|ω|h)/h instead of |ω|). Component z is the normal rate that rotates
   /// tangent vectors (Coriolis).
   RowVectors3 vertexAngularVelocities;
+  /// Whether positions and frames at t (rigid) and at t + h (nextRigid) are
+  /// R x̄ + c and R F̄_i for one rotation R (x̄, F̄ the rest shape): set by
+  /// refreshExtrinsicRigid, cleared by refreshExtrinsic and
+  /// setPreviousPositions. Stages may then use rest-shape quantities instead
+  /// of recomputing them from the positions (density advection does).
+  bool rigid = true, nextRigid = true;
 };
+
+/// Per edge, 4 numbers (row-major #E by 4): see SurfaceGeometry::restEdgeFrameNormals.
+using EdgeFrameNormals = Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>;
+
+/// Integrated unit normal of the barycentric dual edge of edge e (m), oriented
+/// from edgeVertices(e, 0) to edgeVertices(e, 1): Σ over the edge's faces of
+/// (c_T − m) × n_T, c_T the face centroid, m the edge midpoint, n_T the unit
+/// face normal. Evaluated in the same order whichever endpoint asks, so the
+/// two ring entries of an edge can use bitwise opposite values.
+inline Vector3 dualEdgeNormal(const SurfaceTopology& topology, const RowVectors3& positions, int e) {
+  Vector3 normal = Vector3::Zero();
+  const int lower = topology.edgeVertices()(e, 0);
+  const int first = topology.edgeHalfedges()[static_cast<size_t>(e)];
+  const int second = topology.halfedgeTwins()[static_cast<size_t>(first)];
+  for (const int h : {first, second}) {
+    if (h < 0) continue;
+    const int f = h / 3;
+    const Vector3 p0 = positions.row(topology.faces()(f, 0)).transpose();
+    const Vector3 p1 = positions.row(topology.faces()(f, 1)).transpose();
+    const Vector3 p2 = positions.row(topology.faces()(f, 2)).transpose();
+    const Vector3 faceNormal = (p1 - p0).cross(p2 - p0).normalized();
+    const Vector3 pa = positions.row(topology.halfedgeTail(h)).transpose();
+    const Vector3 pb = positions.row(topology.halfedgeHead(h)).transpose();
+    const Vector3 toCentroid = (p0 + p1 + p2) / 3.0 - 0.5 * (pa + pb);
+    // (c − m) × n points from the half-edge's tail to its head.
+    const Vector3 piece = toCentroid.cross(faceNormal);
+    normal += topology.halfedgeTail(h) == lower ? piece : Vector3(-piece);
+  }
+  return normal;
+}
 
 /// Why the intrinsic tier was (re)built on a given step.
 enum class IntrinsicRefreshReason { None, Initial, StrainTolerance };
@@ -123,6 +159,47 @@ class SurfaceGeometry {
   /// Chooses the rotation fit used by refreshExtrinsic (default WarmStartedNewton).
   void setRotationFitMethod(RotationFitMethod method) { rotationFitMethod_ = method; }
   const RotationFitStats& rotationFitStats() const { return rotationFitStats_; }
+  /// Per edge e (#E by 4, m): the rest shape's dualEdgeNormal N̄_e in the rest
+  /// frames of its vertices a = edgeVertices(e, 0), b = edgeVertices(e, 1):
+  /// ((F̄_aᵀ N̄_e)_x, (F̄_aᵀ N̄_e)_y, (F̄_bᵀ N̄_e)_x, (F̄_bᵀ N̄_e)_y). Under rigid
+  /// motion (frames R F̄, normals R N̄) the flux speed ½(F_a u_a + F_b u_b)·N_e
+  /// is ½(u_a·(first pair) + u_b·(second pair)): no 3D work per step.
+  const EdgeFrameNormals& restEdgeFrameNormals() const { return restEdgeFrameNormals_; }
+
+  /// Everything the refresh stages carry from one step to the next beyond the
+  /// constructor's inputs (both tiers, the rotation history that warm-starts
+  /// the fits, the last h): restoring it into a geometry built from the same
+  /// topology, rest shape, fabric and tolerance makes every later refresh
+  /// bit-identical. Used by StainSolver::snapshot/restore (engine save/load).
+  struct DynamicState {
+    IntrinsicGeometry intrinsic;
+    ExtrinsicGeometry extrinsic;
+    RowVectors3 nextNormals;
+    std::vector<Eigen::Quaterniond> previousRotations, rotations, nextRotations;
+    Vector inverseBuiltSquaredLengths;
+    double maxEdgeStrain = 0;
+    double lastH = 0;
+    int unchangedRefreshes = 2;
+  };
+  /// Copy of the dynamic state (allocates).
+  DynamicState dynamicState() const {
+    return {intrinsic_,      extrinsic_,      nextNormals_,   previousRotations_, rotations_,
+            nextRotations_,  inverseBuiltSquaredLengths_, maxEdgeStrain_, lastH_, unchangedRefreshes_};
+  }
+  /// Restores a dynamic state taken from a geometry on the same topology
+  /// (the caller checks sizes; StainSolver::restore does).
+  void restoreDynamicState(const DynamicState& s) {
+    intrinsic_ = s.intrinsic;
+    extrinsic_ = s.extrinsic;
+    nextNormals_ = s.nextNormals;
+    previousRotations_ = s.previousRotations;
+    rotations_ = s.rotations;
+    nextRotations_ = s.nextRotations;
+    inverseBuiltSquaredLengths_ = s.inverseBuiltSquaredLengths;
+    maxEdgeStrain_ = s.maxEdgeStrain;
+    lastH_ = s.lastH;
+    unchangedRefreshes_ = s.unchangedRefreshes;
+  }
 
  private:
   bool refreshExtrinsicWith(const RowVectors3& nextPositions, double h, const Matrix3* rigidRotation);
@@ -137,6 +214,7 @@ class SurfaceGeometry {
   // Preallocated per-step data (no allocation in refreshExtrinsic):
   RowVectors3 nextNormals_;  // #V by 3, vertex normals at t + h (become vertexNormals)
   std::vector<Vector3> restRingEdges_;  // per ring entry: v̄_j − v̄_i (rest shape)
+  EdgeFrameNormals restEdgeFrameNormals_;  // #E by 4, see restEdgeFrameNormals()
   // U_i at t − h, t, t + h as unit quaternions (warm start and ω).
   std::vector<Eigen::Quaterniond> previousRotations_, rotations_, nextRotations_;
   Vector inverseBuiltSquaredLengths_;  // #E: 1 / ℓ_e² at the last intrinsic build
