@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# The dependency direction is a build fact: stain/ never sees Bullet, cloth/ never
-# sees stain internals, and no module outside cloth/ includes a Bullet header.
+# The dependency direction is a build fact: stain/ never sees Bullet, stain/ and
+# cloth/ never see each other, and no module outside cloth/ includes a Bullet header.
 set -euo pipefail
 root=${1:-$(dirname "$0")/..}
 fail=0
@@ -16,8 +16,19 @@ fi
 if hits=$(grep -rEn '#include *[<"]blot/(coupling|engine)/' "$root/cloth" 2>/dev/null); then
   echo "cloth/ includes a module above it:"; echo "$hits"; fail=1
 fi
+# stain/ and cloth/ never see each other: the cloth takes plain arrays
+# (coupling::describeClothMesh derives them from the stain's mesh).
+if hits=$(grep -rEn '#include *[<"]blot/stain/' "$root/cloth" 2>/dev/null); then
+  echo "cloth/ includes stain/:"; echo "$hits"; fail=1
+fi
+if hits=$(grep -En 'blot_(stain|coupling|engine)' "$root/cloth/CMakeLists.txt" 2>/dev/null); then
+  echo "blot_cloth links a module it must not see:"; echo "$hits"; fail=1
+fi
+if hits=$(grep -En 'blot_(cloth|coupling|engine)' "$root/stain/CMakeLists.txt" 2>/dev/null); then
+  echo "blot_stain links a module above it:"; echo "$hits"; fail=1
+fi
 if hits=$(grep -rEn '#include *[<"]blot/engine/' "$root/coupling" 2>/dev/null); then
   echo "coupling/ includes engine/:"; echo "$hits"; fail=1
 fi
-[ "$fail" = 0 ] && echo "layering OK: engine -> coupling -> {stain, cloth}; Bullet only in cloth/"
+[ "$fail" = 0 ] && echo "layering OK: engine -> coupling -> {stain, cloth}; stain and cloth independent; Bullet only in cloth/"
 exit $fail

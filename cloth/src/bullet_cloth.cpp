@@ -7,7 +7,9 @@
 //    rest length ℓ̄ with Gauss–Seidel sweeps (positionIterations), each removing
 //    the fraction kLST of the error (linearized: Δx ∝ (ℓ̄² − ℓ²)/(ℓ̄² + ℓ²)),
 //    weighted by inverse masses; then v = (x − x_prev)/hₛ · (1 − kDP).
-//  - Links come from our own edge list (SurfaceTopology, O(#V + #F)): mesh
+//  - Links come from the caller's plain arrays (ClothDef.edges and
+//    .bendingPairs; coupling::describeClothMesh derives them from the stain's
+//    SurfaceTopology in O(#V + #F), so cloth/ never sees stain/): mesh
 //    edges (structural or shear by their direction in UV space) and one bending
 //    link per interior edge joining the two opposite vertices. Nodes and faces
 //    are appended in mesh order, so node i is vertex i and face f is face f.
@@ -50,9 +52,6 @@
 
 #include "bullet_cloth_testing.h"
 
-#include <blot/stain/intrinsic_geometry.h>
-#include <blot/stain/surface_topology.h>
-
 #include <BulletCollision/BroadphaseCollision/btDbvtBroadphase.h>
 #include <BulletCollision/CollisionDispatch/btCollisionDispatcher.h>
 #include <BulletCollision/CollisionShapes/btBoxShape.h>
@@ -63,10 +62,16 @@
 #include <BulletSoftBody/btSoftBodyRigidBodyCollisionConfiguration.h>
 #include <BulletSoftBody/btSoftRigidDynamicsWorld.h>
 
+#include <LinearMath/btAlignedAllocator.h>
+#include <malloc.h>
+
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdlib>
 #include <functional>
 #include <limits>
+#include <mutex>
 #include <new>
 #include <numeric>
 #include <queue>
@@ -99,6 +104,68 @@ struct BulletCloth::Bullet {
 
 namespace {
 
+// Bullet 3.24's btSoftBody::solveConstraints calls applyClusters twice per
+// substep, and each call allocates and frees two node-sized scratch arrays
+// even when the body has no clusters (4 mallocs per substep, measured). A
+// game-loop step must not allocate, so Bullet's raw allocations go through a
+// small recycling cache: a freed block is kept (up to kSlots of them) and
+// handed out again for a request it fits without wasting more than half of
+// it. Every block still comes from malloc and goes back to free, so blocks
+// Bullet allocated before the cache was installed are handled too
+// (malloc_usable_size tells their size). Installed once per process, on the
+// first BulletCloth; process-wide, since Bullet's allocator is.
+// Rejected: patching Bullet or giving the body cluster scratch of its own
+// (applyClusters is not virtual).
+class RecyclingBulletAllocator {
+ public:
+  static void install() {
+    static std::once_flag once;
+    std::call_once(once, [] { btAlignedAllocSetCustom(&allocate, &release); });
+  }
+
+ private:
+  static constexpr int kSlots = 16;
+  struct Slot {
+    void* block = nullptr;
+    size_t size = 0;
+  };
+  static std::mutex& lock() {
+    static std::mutex m;
+    return m;
+  }
+  static std::array<Slot, kSlots>& slots() {
+    static std::array<Slot, kSlots> s;
+    return s;
+  }
+  static void* allocate(size_t size) {
+    {
+      std::lock_guard<std::mutex> guard(lock());
+      for (Slot& slot : slots()) {
+        if (slot.block != nullptr && slot.size >= size && slot.size <= 2 * size) {
+          void* block = slot.block;
+          slot.block = nullptr;
+          return block;
+        }
+      }
+    }
+    return std::malloc(size);
+  }
+  static void release(void* block) {
+    if (block == nullptr) return;
+    {
+      std::lock_guard<std::mutex> guard(lock());
+      for (Slot& slot : slots()) {
+        if (slot.block == nullptr) {
+          slot.block = block;
+          slot.size = malloc_usable_size(block);
+          return;
+        }
+      }
+    }
+    std::free(block);
+  }
+};
+
 btVector3 toBullet(const Eigen::Ref<const Eigen::Vector3d>& v) {
   return btVector3(static_cast<btScalar>(v.x()), static_cast<btScalar>(v.y()), static_cast<btScalar>(v.z()));
 }
@@ -115,14 +182,62 @@ void require(bool ok, const std::string& what) {
   if (!ok) throw std::invalid_argument("ClothDef: " + what);
 }
 
+// The same for checks inside per-row loops: the message is built only on
+// failure (building it for every row was a quarter of a 140K cloth's load).
+template <class Message>
+void requireEach(bool ok, const Message& message) {
+  if (!ok) require(false, message());
+}
+
 bool inUnitInterval(double x) { return x >= 0 && x <= 1; }
 
+std::string at(const char* field, Eigen::Index row) { return std::string(field) + "[" + std::to_string(row) + "]"; }
+
+// The mesh arrays: shapes, finiteness, index ranges, each error naming the
+// field and row. Manifoldness is the describer's job (coupling::describeClothMesh
+// builds them through stain::SurfaceTopology, which rejects non-manifold meshes).
+void validateMesh(const ClothDef& def) {
+  const Eigen::Index n = def.restPositions.rows();
+  require(n > 0, "restPositions is empty (#V by 3 expected)");
+  require(def.faces.rows() > 0, "faces is empty (#F by 3 expected)");
+  for (Eigen::Index i = 0; i < n; ++i)
+    requireEach(def.restPositions.row(i).allFinite(), [&] { return at("restPositions", i) + " is not finite"; });
+  for (Eigen::Index f = 0; f < def.faces.rows(); ++f) {
+    for (int k = 0; k < 3; ++k)
+      requireEach(def.faces(f, k) >= 0 && def.faces(f, k) < n, [&] {
+        return at("faces", f) + " has vertex " + std::to_string(def.faces(f, k)) + " outside [0, " + std::to_string(n) + ")";
+      });
+    requireEach(def.faces(f, 0) != def.faces(f, 1) && def.faces(f, 1) != def.faces(f, 2) && def.faces(f, 2) != def.faces(f, 0),
+                [&] { return at("faces", f) + " repeats a vertex (degenerate face)"; });
+  }
+  require(def.uvs.rows() == 0 || def.uvs.rows() == n,
+          "uvs has " + std::to_string(def.uvs.rows()) + " rows; expected " + std::to_string(n) + " (one per vertex) or 0");
+  for (Eigen::Index i = 0; i < def.uvs.rows(); ++i)
+    requireEach(def.uvs.row(i).allFinite(), [&] { return at("uvs", i) + " is not finite"; });
+  require(def.edges.rows() > 0, "edges is empty (#E by 2 expected)");
+  auto checkPairs = [n](const Eigen::MatrixX2i& pairs, const char* field) {
+    for (Eigen::Index e = 0; e < pairs.rows(); ++e) {
+      requireEach(pairs(e, 0) >= 0 && pairs(e, 0) < n && pairs(e, 1) >= 0 && pairs(e, 1) < n, [&] {
+        return at(field, e) + " = (" + std::to_string(pairs(e, 0)) + ", " + std::to_string(pairs(e, 1)) +
+               ") has a vertex outside [0, " + std::to_string(n) + ")";
+      });
+      requireEach(pairs(e, 0) != pairs(e, 1),
+                  [&] { return at(field, e) + " joins vertex " + std::to_string(pairs(e, 0)) + " to itself"; });
+    }
+  };
+  checkPairs(def.edges, "edges");
+  checkPairs(def.bendingPairs, "bendingPairs");
+  require(def.nodeAreas.size() == n,
+          "nodeAreas has " + std::to_string(def.nodeAreas.size()) + " entries; expected " + std::to_string(n));
+  for (Eigen::Index i = 0; i < n; ++i)
+    requireEach(std::isfinite(def.nodeAreas[i]) && def.nodeAreas[i] >= 0, [&] {
+      return at("nodeAreas", i) + " = " + std::to_string(def.nodeAreas[i]) + " (expected finite and >= 0, m²)";
+    });
+  require(def.nodeAreas.sum() > 0, "nodeAreas sum to zero (the mesh has no area)");
+}
+
 void validate(const ClothDef& def) {
-  const auto& mesh = def.mesh;
-  require(mesh.vertexPositions.rows() > 0 && mesh.faces.rows() > 0, "mesh needs vertices and faces");
-  require(mesh.vertexPositions.allFinite(), "mesh.vertexPositions must be finite");
-  require(mesh.vertexUVs.rows() == 0 || mesh.vertexUVs.rows() == mesh.vertexPositions.rows(),
-          "mesh.vertexUVs must have one row per vertex or none");
+  validateMesh(def);
   require(std::isfinite(def.totalMass) && def.totalMass > 0, "totalMass must be positive (kg)");
   require(def.stretchStiffness > 0 && def.stretchStiffness <= 1, "stretchStiffness must be in (0, 1]");
   require(def.shearStiffness > 0 && def.shearStiffness <= 1, "shearStiffness must be in (0, 1]");
@@ -141,7 +256,7 @@ void validate(const ClothDef& def) {
   require(def.contactHardness > 0 && def.contactHardness <= 1, "contactHardness must be in (0, 1]");
   require(std::isfinite(def.collisionMargin) && def.collisionMargin >= 0, "collisionMargin must be >= 0 (m)");
   require(std::isfinite(def.collisionVoxelSize) && def.collisionVoxelSize >= 0, "collisionVoxelSize must be >= 0 (m)");
-  const auto vertexCount = mesh.vertexPositions.rows();
+  const auto vertexCount = def.restPositions.rows();
   std::vector<char> seen(static_cast<size_t>(vertexCount), 0);
   for (size_t p = 0; p < def.pins.size(); ++p) {
     const ClothPin& pin = def.pins[p];
@@ -198,33 +313,6 @@ bool isShearEdge(const Eigen::MatrixX2d& uv, int i, int j) {
   return std::min(du, dv) > 1e-6 * (du + dv);
 }
 
-// Bending links: for each interior edge, the two vertices opposite it, as
-// sorted (a < b) pairs without duplicates and without pairs that are already
-// mesh edges. Sorted order keeps the link order deterministic.
-std::vector<std::pair<int, int>> bendingPairs(const stain::SurfaceTopology& topology) {
-  const auto& faces = topology.faces();
-  const auto& twins = topology.halfedgeTwins();
-  std::vector<std::pair<int, int>> pairs;
-  pairs.reserve(static_cast<size_t>(topology.edgeCount()));
-  for (int h = 0; h < topology.halfedgeCount(); ++h) {
-    const int t = twins[static_cast<size_t>(h)];
-    if (t < h) continue;  // boundary (−1) or seen from the twin
-    const int a = faces(h / 3, (h % 3 + 2) % 3), b = faces(t / 3, (t % 3 + 2) % 3);
-    if (a != b) pairs.emplace_back(std::min(a, b), std::max(a, b));
-  }
-  std::sort(pairs.begin(), pairs.end());
-  pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
-  std::vector<std::pair<int, int>> edges;
-  edges.reserve(static_cast<size_t>(topology.edgeCount()));
-  const auto& ev = topology.edgeVertices();
-  for (int e = 0; e < topology.edgeCount(); ++e) edges.emplace_back(ev(e, 0), ev(e, 1));
-  std::sort(edges.begin(), edges.end());
-  pairs.erase(std::remove_if(pairs.begin(), pairs.end(),
-                             [&](const std::pair<int, int>& p) { return std::binary_search(edges.begin(), edges.end(), p); }),
-              pairs.end());
-  return pairs;
-}
-
 // Tethers (long-range attachments): every vertex the pins can reach is tied to
 // its nearest pin, at its rest geodesic distance computed by fast marching
 // (Kimmel–Sethian: Dijkstra's order, but a vertex whose triangle has both
@@ -253,9 +341,24 @@ double wavefrontArrival(const Eigen::Vector3d& ea, const Eigen::Vector3d& eb, do
   return arrival;
 }
 
-void nearestPins(const stain::SurfaceTopology& topology, const Eigen::MatrixX3d& rest, const Eigen::VectorXd& edgeLengths,
-                 const std::vector<ClothPin>& pins, std::vector<int>& pinOf, Eigen::VectorXd& distance) {
-  const int n = topology.vertexCount();
+// Vertex-to-face incidence in CSR form (faces of vertex i are
+// faceOf[offsets[i] .. offsets[i+1]), in face order).
+void vertexFaces(const Eigen::MatrixX3i& faces, int n, std::vector<int>& offsets, std::vector<int>& faceOf) {
+  offsets.assign(static_cast<size_t>(n) + 1, 0);
+  for (Eigen::Index f = 0; f < faces.rows(); ++f)
+    for (int k = 0; k < 3; ++k) ++offsets[static_cast<size_t>(faces(f, k)) + 1];
+  for (int i = 0; i < n; ++i) offsets[static_cast<size_t>(i) + 1] += offsets[static_cast<size_t>(i)];
+  faceOf.assign(static_cast<size_t>(offsets.back()), -1);
+  std::vector<int> fill(offsets.begin(), offsets.end() - 1);
+  for (Eigen::Index f = 0; f < faces.rows(); ++f)
+    for (int k = 0; k < 3; ++k) faceOf[static_cast<size_t>(fill[static_cast<size_t>(faces(f, k))]++)] = static_cast<int>(f);
+}
+
+void nearestPins(const Eigen::MatrixX3i& faces, const Eigen::MatrixX3d& rest, const std::vector<ClothPin>& pins,
+                 std::vector<int>& pinOf, Eigen::VectorXd& distance) {
+  const int n = static_cast<int>(rest.rows());
+  std::vector<int> offsets, faceOf;
+  vertexFaces(faces, n, offsets, faceOf);
   pinOf.assign(static_cast<size_t>(n), -1);
   distance = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::infinity());
   std::vector<char> done(static_cast<size_t>(n), 0);
@@ -269,11 +372,6 @@ void nearestPins(const stain::SurfaceTopology& topology, const Eigen::MatrixX3d&
     }
   };
   for (size_t p = 0; p < pins.size(); ++p) relax(pins[p].vertex, 0.0, static_cast<int>(p));
-  const auto& offsets = topology.ringOffsets();
-  const auto& neighbors = topology.ringNeighbors();
-  const auto& ringEdges = topology.ringEdges();
-  const auto& ringFaces = topology.ringFaces();
-  const auto& faces = topology.faces();
   while (!heap.empty()) {
     const auto [d, u] = heap.top();
     heap.pop();
@@ -281,15 +379,15 @@ void nearestPins(const stain::SurfaceTopology& topology, const Eigen::MatrixX3d&
     done[static_cast<size_t>(u)] = 1;
     const int pin = pinOf[static_cast<size_t>(u)];
     for (int k = offsets[static_cast<size_t>(u)]; k < offsets[static_cast<size_t>(u) + 1]; ++k) {
-      const int v = neighbors[static_cast<size_t>(k)];
-      if (!done[static_cast<size_t>(v)]) relax(v, d + edgeLengths[ringEdges[static_cast<size_t>(k)]], pin);
-      const int f = ringFaces[static_cast<size_t>(k)];
-      if (f < 0) continue;
-      for (int c = 0; c < 3; ++c) {
-        const int target = faces(f, c), other = faces(f, (c + 1) % 3) == u ? faces(f, (c + 2) % 3) : faces(f, (c + 1) % 3);
-        if (target == u || other == u || done[static_cast<size_t>(target)] || !done[static_cast<size_t>(other)] ||
-            pinOf[static_cast<size_t>(other)] != pin)
-          continue;
+      const int f = faceOf[static_cast<size_t>(k)];
+      // The face's other two corners: each is reached along its edge from u,
+      // and, when the other one is done with the same pin, by the wavefront.
+      const int c = faces(f, 0) == u ? 0 : faces(f, 1) == u ? 1 : 2;
+      for (int side = 1; side <= 2; ++side) {
+        const int target = faces(f, (c + side) % 3), other = faces(f, (c + 3 - side) % 3);
+        if (done[static_cast<size_t>(target)]) continue;
+        relax(target, d + (rest.row(target) - rest.row(u)).norm(), pin);
+        if (!done[static_cast<size_t>(other)] || pinOf[static_cast<size_t>(other)] != pin) continue;
         const Eigen::Vector3d origin = rest.row(target);
         relax(target, wavefrontArrival(rest.row(u).transpose() - origin, rest.row(other).transpose() - origin, d, distance[other]), pin);
       }
@@ -377,28 +475,28 @@ ClothCollider ClothCollider::sphere(const Eigen::Vector3d& center, double radius
 }
 
 BulletCloth::BulletCloth(const ClothDef& def) : def_(def), bullet_(std::make_unique<Bullet>()) {
+  RecyclingBulletAllocator::install();
   validate(def_);
-  const stain::TriangleMesh& mesh = def_.mesh;
-  const int n = static_cast<int>(mesh.vertexPositions.rows());
-  faces_ = mesh.faces;
-  const stain::SurfaceTopology topology(mesh.faces, n, "BulletCloth mesh");
+  const Eigen::MatrixX3d& rest = def_.restPositions;
+  const int n = static_cast<int>(rest.rows());
+  faces_ = def_.faces;
 
-  // Lumped masses from rest areas.
-  const Eigen::VectorXd lengths = stain::edgeLengths(topology, mesh.vertexPositions);
-  const Eigen::VectorXd areas = stain::vertexDualAreas(topology, stain::faceAreas(topology, lengths));
-  const double totalArea = areas.sum();
-  require(totalArea > 0, "mesh has zero area");
-  lumpedMasses_ = areas * (def_.totalMass / totalArea);
+  // Lumped masses from the given node areas.
+  lumpedMasses_ = def_.nodeAreas * (def_.totalMass / def_.nodeAreas.sum());
   nodeMasses_ = lumpedMasses_;
   pendingExtraMasses_ = Eigen::VectorXd::Zero(n);
   pendingImpulses_ = Eigen::MatrixX3d::Zero(n, 3);
-  collisionMargin_ = def_.collisionMargin > 0 ? def_.collisionMargin : 0.25 * lengths.mean();
+  double edgeLengthSum = 0;
+  for (Eigen::Index e = 0; e < def_.edges.rows(); ++e)
+    edgeLengthSum += (rest.row(def_.edges(e, 1)) - rest.row(def_.edges(e, 0))).norm();
+  collisionMargin_ =
+      def_.collisionMargin > 0 ? def_.collisionMargin : 0.25 * edgeLengthSum / static_cast<double>(def_.edges.rows());
 
   pinSlot_.assign(static_cast<size_t>(n), -1);
   released_.assign(def_.pins.size(), 0);
   for (size_t p = 0; p < def_.pins.size(); ++p) pinSlot_[static_cast<size_t>(def_.pins[p].vertex)] = static_cast<int>(p);
   if (def_.tethers) {
-    nearestPins(topology, mesh.vertexPositions, lengths, def_.pins, tetherPin_, tetherLengths_);
+    nearestPins(faces_, rest, def_.pins, tetherPin_, tetherLengths_);
     tetherLengths_ *= 1 + def_.tetherSlack;
   } else {
     tetherPin_.assign(static_cast<size_t>(n), -1);
@@ -423,8 +521,8 @@ BulletCloth::BulletCloth(const ClothDef& def) : def_(def), bullet_(std::make_uni
   info.m_sparsesdf.Reset();
 
   // Static colliders.
-  const Eigen::Vector3d restMin = mesh.vertexPositions.colwise().minCoeff();
-  const Eigen::Vector3d restMax = mesh.vertexPositions.colwise().maxCoeff();
+  const Eigen::Vector3d restMin = rest.colwise().minCoeff();
+  const Eigen::Vector3d restMax = rest.colwise().maxCoeff();
   restDiagonal_ = (restMax - restMin).norm();
   for (const ClothCollider& col : def_.colliders) {
     Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
@@ -481,7 +579,7 @@ BulletCloth::BulletCloth(const ClothDef& def) : def_(def), bullet_(std::make_uni
   for (int i = 0; i < n; ++i) {
     body.m_nodes.push_back(blank);
     btSoftBody::Node& node = body.m_nodes[i];
-    node.m_x = toBullet(mesh.vertexPositions.row(i).transpose());
+    node.m_x = toBullet(rest.row(i).transpose());
     node.m_q = node.m_x;
     // Pinned: m_im = 0, infinite mass.
     node.m_im = pinSlot_[static_cast<size_t>(i)] >= 0 ? btScalar(0) : static_cast<btScalar>(1.0 / lumpedMasses_[i]);
@@ -501,23 +599,23 @@ BulletCloth::BulletCloth(const ClothDef& def) : def_(def), bullet_(std::make_uni
   btSoftBody::Material* bending = body.appendMaterial();
   bending->m_kLST = static_cast<btScalar>(def_.bendStiffness);
 
-  const auto bends = def_.bendStiffness > 0 ? bendingPairs(topology) : std::vector<std::pair<int, int>>();
-  const int edgeCount = topology.edgeCount();
-  const int linkCount = edgeCount + static_cast<int>(bends.size());
+  const int edgeCount = static_cast<int>(def_.edges.rows());
+  const int bendCount = def_.bendStiffness > 0 ? static_cast<int>(def_.bendingPairs.rows()) : 0;
+  const int linkCount = edgeCount + bendCount;
   linkVertices_.resize(linkCount, 2);
   linkIsEdge_.assign(static_cast<size_t>(linkCount), false);
   body.m_links.reserve(linkCount);
-  const auto& ev = topology.edgeVertices();
   for (int e = 0; e < edgeCount; ++e) {
-    const int i = ev(e, 0), j = ev(e, 1);
-    body.appendLink(i, j, isShearEdge(mesh.vertexUVs, i, j) ? shear : structural);
+    const int i = def_.edges(e, 0), j = def_.edges(e, 1);
+    body.appendLink(i, j, isShearEdge(def_.uvs, i, j) ? shear : structural);
     linkVertices_.row(e) << i, j;
     linkIsEdge_[static_cast<size_t>(e)] = true;
   }
-  for (size_t k = 0; k < bends.size(); ++k) {
-    body.appendLink(bends[k].first, bends[k].second, bending);
+  for (int k = 0; k < bendCount; ++k) {
+    const int p = def_.bendingPairs(k, 0), q = def_.bendingPairs(k, 1);
+    body.appendLink(p, q, bending);
     body.m_links[body.m_links.size() - 1].m_bbending = -1;  // a signed 1-bit field: -1 is "set"
-    linkVertices_.row(edgeCount + static_cast<int>(k)) << bends[k].first, bends[k].second;
+    linkVertices_.row(edgeCount + k) << p, q;
   }
   body.m_faces.reserve(static_cast<int>(faces_.rows()));
   for (int f = 0; f < faces_.rows(); ++f) body.appendFace(faces_(f, 0), faces_(f, 1), faces_(f, 2));
@@ -599,7 +697,7 @@ void BulletCloth::movePins(double targetTime, double substep) {
       node.m_v = toBullet(pin.motion.velocityAt(pin.motion.releaseTime));
       continue;
     }
-    const Eigen::Vector3d target = pin.motion.position(def_.mesh.vertexPositions.row(pin.vertex).transpose(), targetTime);
+    const Eigen::Vector3d target = pin.motion.position(def_.restPositions.row(pin.vertex).transpose(), targetTime);
     node.m_v = toBullet((target - toEigen(node.m_x)) / substep);
   }
   if (released) body.updateLinkConstants();
@@ -657,6 +755,97 @@ void BulletCloth::copyOut() {
   // report the trajectory's exact one.
   for (size_t p = 0; p < def_.pins.size(); ++p)
     if (!released_[p]) velocities_.row(def_.pins[p].vertex) = def_.pins[p].motion.velocityAt(time_).transpose();
+}
+
+BulletClothState BulletCloth::captureState() const {
+  const btSoftBody& body = *bullet_->body;
+  const int n = vertexCount();
+  BulletClothState state;
+  state.time = time_;
+  state.positions.resize(n, 3);
+  state.previousPositions.resize(n, 3);
+  state.velocities.resize(n, 3);
+  state.previousVelocities.resize(n, 3);
+  state.forces.resize(n, 3);
+  state.nodeNormals.resize(n, 3);
+  state.nodeAreas.resize(n);
+  state.inverseMasses.resize(n);
+  for (int i = 0; i < n; ++i) {
+    const btSoftBody::Node& node = body.m_nodes[i];
+    state.positions.row(i) = toEigen(node.m_x).transpose();
+    state.previousPositions.row(i) = toEigen(node.m_q).transpose();
+    state.velocities.row(i) = toEigen(node.m_v).transpose();
+    state.previousVelocities.row(i) = toEigen(node.m_vn).transpose();
+    state.forces.row(i) = toEigen(node.m_f).transpose();
+    state.nodeNormals.row(i) = toEigen(node.m_n).transpose();
+    state.nodeAreas[i] = node.m_area;
+    state.inverseMasses[i] = node.m_im;
+  }
+  state.faceNormals.resize(body.m_faces.size(), 3);
+  for (int f = 0; f < body.m_faces.size(); ++f) state.faceNormals.row(f) = toEigen(body.m_faces[f].m_normal).transpose();
+  state.nodeMasses = nodeMasses_;
+  state.pendingExtraMasses = pendingExtraMasses_;
+  state.pendingImpulses = pendingImpulses_;
+  state.loadsPending = loadsPending_;
+  state.releasedPins = released_;
+  return state;
+}
+
+void BulletCloth::restoreState(const BulletClothState& state) {
+  const Eigen::Index n = vertexCount(), f = faces_.rows();
+  auto rows = [](const char* field, Eigen::Index got, Eigen::Index expected) {
+    if (got != expected)
+      throw std::invalid_argument(std::string("BulletCloth::restoreState: ") + field + " has " + std::to_string(got) +
+                                  " rows; expected " + std::to_string(expected));
+  };
+  rows("positions", state.positions.rows(), n);
+  rows("previousPositions", state.previousPositions.rows(), n);
+  rows("velocities", state.velocities.rows(), n);
+  rows("previousVelocities", state.previousVelocities.rows(), n);
+  rows("forces", state.forces.rows(), n);
+  rows("nodeNormals", state.nodeNormals.rows(), n);
+  rows("nodeAreas", state.nodeAreas.size(), n);
+  rows("faceNormals", state.faceNormals.rows(), f);
+  rows("inverseMasses", state.inverseMasses.size(), n);
+  rows("nodeMasses", state.nodeMasses.size(), n);
+  rows("pendingExtraMasses", state.pendingExtraMasses.size(), n);
+  rows("pendingImpulses", state.pendingImpulses.rows(), n);
+  rows("releasedPins", static_cast<Eigen::Index>(state.releasedPins.size()), static_cast<Eigen::Index>(def_.pins.size()));
+  if (!std::isfinite(state.time) || !state.positions.allFinite() || !state.velocities.allFinite())
+    throw std::invalid_argument("BulletCloth::restoreState: time, positions and velocities must be finite");
+
+  Bullet& b = *bullet_;
+  btSoftBody& body = *b.body;
+  for (int i = 0; i < n; ++i) {
+    btSoftBody::Node& node = body.m_nodes[i];
+    node.m_x = toBullet(state.positions.row(i).transpose());
+    node.m_q = toBullet(state.previousPositions.row(i).transpose());
+    node.m_v = toBullet(state.velocities.row(i).transpose());
+    node.m_vn = toBullet(state.previousVelocities.row(i).transpose());
+    node.m_f = toBullet(state.forces.row(i).transpose());
+    node.m_n = toBullet(state.nodeNormals.row(i).transpose());
+    node.m_area = static_cast<btScalar>(state.nodeAreas[i]);
+    node.m_im = static_cast<btScalar>(state.inverseMasses[i]);
+  }
+  for (int k = 0; k < f; ++k) body.m_faces[k].m_normal = toBullet(state.faceNormals.row(k).transpose());
+  body.updateLinkConstants();
+  // The node tree's volumes belong to the positions they were last updated
+  // at: rebuild it (balanced, as at construction) around the restored ones.
+  body.m_ndbvt.clear();
+  std::vector<int> order(static_cast<size_t>(n));
+  std::iota(order.begin(), order.end(), 0);
+  body.m_ndbvt.m_root = buildNodeTree(body, order.begin(), order.end(), nullptr, static_cast<btScalar>(collisionMargin_));
+  body.m_ndbvt.m_leaves = static_cast<int>(n);
+  body.updateBounds();
+  if (body.getActivationState() == DISABLE_SIMULATION) body.forceActivationState(ACTIVE_TAG);
+
+  time_ = state.time;
+  nodeMasses_ = state.nodeMasses;
+  pendingExtraMasses_ = state.pendingExtraMasses;
+  pendingImpulses_ = state.pendingImpulses;
+  loadsPending_ = state.loadsPending;
+  released_ = state.releasedPins;
+  copyOut();
 }
 
 Eigen::VectorXd BulletCloth::currentLinkRestLengths() const {

@@ -8,6 +8,8 @@
 
 #include "bullet_cloth_testing.h"
 
+#include "cloth_test_defs.h"
+
 #include <blot/stain/mesh_io.h>
 #include <blot/stain/mesh_primitives.h>
 #include <blot/stain/surface_topology.h>
@@ -24,29 +26,11 @@ namespace {
 constexpr double kFrame = 1.0 / 60;
 constexpr double kGravity = 9.8;
 
-int topLeft(int cells) { return cells * (cells + 1); }
-int topRight(int cells) { return cells * (cells + 1) + cells; }
-
-// A 1 m square flag in the vertical xz-plane, top edge at z = 1, pinned at its
-// two top corners; (cells + 1)² vertices.
-ClothDef hangingFlag(int cells) {
-  ClothDef def;
-  def.mesh = stain::gridMesh(cells, cells, 1.0, 1.0);
-  for (int i = 0; i < def.mesh.vertexPositions.rows(); ++i) {
-    const double x = def.mesh.vertexPositions(i, 0), y = def.mesh.vertexPositions(i, 1);
-    def.mesh.vertexPositions.row(i) << x, 0, y;
-  }
-  def.pins = {ClothPin{topLeft(cells), {}}, ClothPin{topRight(cells), {}}};
-  return def;
-}
-
-// A 1 m square lying flat at height z, no pins.
-ClothDef flatSheet(int cells, double z) {
-  ClothDef def;
-  def.mesh = stain::gridMesh(cells, cells, 1.0, 1.0);
-  def.mesh.vertexPositions.col(2).setConstant(z);
-  return def;
-}
+using fixtures::describe;
+using fixtures::flatSheet;
+using fixtures::hangingFlag;
+using fixtures::topLeft;
+using fixtures::topRight;
 
 double totalEnergy(const BulletCloth& cloth) { return cloth.kineticEnergy() + cloth.gravitationalEnergy(); }
 
@@ -69,32 +53,31 @@ void expectSameMeshInBullet(const BulletCloth& cloth, const stain::TriangleMesh&
 }
 
 TEST(BulletCloth, NodesFacesAndLinksKeepMeshIndices) {
-  ClothDef grid;
-  grid.mesh = test::jitteredGridMesh(16, 12, 1.5, 1.0, 0.2, 20240611);
+  const stain::TriangleMesh gridMesh = test::jitteredGridMesh(16, 12, 1.5, 1.0, 0.2, 20240611);
+  ClothDef grid = describe(gridMesh);
   grid.pins = {ClothPin{5, {}}};
   {
     SCOPED_TRACE("jittered grid");
-    expectSameMeshInBullet(BulletCloth(grid), grid.mesh);
+    expectSameMeshInBullet(BulletCloth(grid), gridMesh);
   }
-  ClothDef camel;
-  camel.mesh = stain::loadMesh(test::externalMesh("camel.off"));
+  const stain::TriangleMesh camelMesh = stain::loadMesh(test::externalMesh("camel.off"));
   SCOPED_TRACE("camel.off");
-  const BulletCloth cloth(camel);
-  expectSameMeshInBullet(cloth, camel.mesh);
+  const BulletCloth cloth(describe(camelMesh));
+  expectSameMeshInBullet(cloth, camelMesh);
   EXPECT_EQ(cloth.vertexCount(), 9770);
 }
 
 TEST(BulletCloth, LumpedMassesFollowVertexAreas) {
-  ClothDef def;
-  def.mesh = test::jitteredGridMesh(10, 8, 1.0, 0.8, 0.2, 7);
+  const stain::TriangleMesh mesh = test::jitteredGridMesh(10, 8, 1.0, 0.8, 0.2, 7);
+  ClothDef def = describe(mesh);
   def.totalMass = 0.3;
   def.pins = {ClothPin{0, {}}};
   const BulletCloth cloth(def);
   // Independent lumped mass: a third of each adjacent triangle's area × density.
-  const auto& x = def.mesh.vertexPositions;
+  const auto& x = mesh.vertexPositions;
   Eigen::VectorXd area = Eigen::VectorXd::Zero(x.rows());
-  for (int f = 0; f < def.mesh.faces.rows(); ++f) {
-    const auto& t = def.mesh.faces.row(f);
+  for (int f = 0; f < mesh.faces.rows(); ++f) {
+    const auto& t = mesh.faces.row(f);
     const Eigen::Vector3d a = x.row(t(0)), b = x.row(t(1)), c = x.row(t(2));
     for (int k = 0; k < 3; ++k) area[t(k)] += (b - a).cross(c - a).norm() / 6;
   }
@@ -250,7 +233,7 @@ TEST(BulletCloth, AnimatedPinsFollowTheirTrajectories) {
   for (int frame = 1; frame <= 120; ++frame) {
     cloth.advance(kFrame);
     for (const ClothPin& pin : def.pins) {
-      const Eigen::Vector3d rest = def.mesh.vertexPositions.row(pin.vertex);
+      const Eigen::Vector3d rest = def.restPositions.row(pin.vertex);
       const Eigen::Vector3d target = pin.motion.position(rest, cloth.time());
       EXPECT_LT((cloth.positions().row(pin.vertex).transpose() - target).norm(), 1e-5) << "frame " << frame;
       EXPECT_EQ(cloth.velocities().row(pin.vertex).transpose(), pin.motion.velocityAt(cloth.time()));
@@ -326,7 +309,7 @@ TEST(BulletCloth, ImpulsesChangeMomentumByTheirSumAndSkipPins) {
   held.setLiquidLoads(extra, impulses);
   held.advance(kFrame);
   EXPECT_EQ(held.velocities().row(0).norm(), 0.0);
-  EXPECT_EQ(held.positions().row(0), held.definition().mesh.vertexPositions.row(0));
+  EXPECT_EQ(held.positions().row(0), held.definition().restPositions.row(0));
 }
 
 TEST(BulletCloth, GroundPlaneStopsADroppedCloth) {
@@ -406,13 +389,12 @@ TEST(BulletCloth, RunsAreDeterministic) {
 // int overflow past 46K). A 140K build would need ~78 GB that way; ours is
 // O(n) and keeps every index. The build time is in tests/bench (no timed tests).
 TEST(BulletCloth, BuildsA140KVertexGridWithIndicesPreserved) {
-  ClothDef def;
-  def.mesh = stain::gridMesh(373, 373, 2.0, 2.0);
+  const ClothDef def = describe(stain::gridMesh(373, 373, 2.0, 2.0));
   const BulletCloth cloth(def);
   EXPECT_EQ(cloth.vertexCount(), 139876);
-  EXPECT_EQ(BulletClothTesting::bodyFaces(cloth), def.mesh.faces);
+  EXPECT_EQ(BulletClothTesting::bodyFaces(cloth), def.faces);
   // Node i starts at vertex i (to Bullet's single precision).
-  EXPECT_LT((cloth.positions() - def.mesh.vertexPositions).cwiseAbs().maxCoeff(), 1e-6);
+  EXPECT_LT((cloth.positions() - def.restPositions).cwiseAbs().maxCoeff(), 1e-6);
 }
 
 TEST(BulletCloth, InvalidDefinitionsNameTheField) {
@@ -439,6 +421,31 @@ TEST(BulletCloth, InvalidDefinitionsNameTheField) {
   def = hangingFlag(4);
   def.substeps = 0;
   EXPECT_NE(message(def).find("substeps"), std::string::npos);
+  // The mesh arrays: each error names the field and the row.
+  def = hangingFlag(4);
+  def.faces(3, 1) = 25;
+  EXPECT_NE(message(def).find("faces[3] has vertex 25 outside [0, 25)"), std::string::npos) << message(def);
+  def = hangingFlag(4);
+  def.faces(2, 2) = def.faces(2, 0);
+  EXPECT_NE(message(def).find("faces[2] repeats a vertex"), std::string::npos) << message(def);
+  def = hangingFlag(4);
+  def.edges(7, 1) = def.edges(7, 0);
+  EXPECT_NE(message(def).find("edges[7] joins vertex"), std::string::npos) << message(def);
+  def = hangingFlag(4);
+  def.bendingPairs(0, 0) = -1;
+  EXPECT_NE(message(def).find("bendingPairs[0]"), std::string::npos) << message(def);
+  def = hangingFlag(4);
+  def.restPositions(6, 2) = std::nan("");
+  EXPECT_NE(message(def).find("restPositions[6] is not finite"), std::string::npos) << message(def);
+  def = hangingFlag(4);
+  def.uvs.conservativeResize(24, 2);
+  EXPECT_NE(message(def).find("uvs has 24 rows"), std::string::npos) << message(def);
+  def = hangingFlag(4);
+  def.nodeAreas[9] = -1e-3;
+  EXPECT_NE(message(def).find("nodeAreas[9]"), std::string::npos) << message(def);
+  def = hangingFlag(4);
+  def.nodeAreas.resize(3);
+  EXPECT_NE(message(def).find("nodeAreas has 3 entries; expected 25"), std::string::npos) << message(def);
 
   BulletCloth cloth(hangingFlag(4));
   EXPECT_THROW(cloth.advance(0), std::invalid_argument);

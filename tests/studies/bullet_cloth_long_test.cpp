@@ -4,7 +4,9 @@
 // for 30 simulated seconds: finite, bounded, energy flat once settled, no
 // Bullet-disabled body. docs/cloth.md has the numbers these bounds come from.
 #include <blot/cloth/bullet_cloth.h>
+#include <blot/coupling/coupled_surface.h>
 #include <blot/stain/mesh_primitives.h>
+#include <blot/stain/surface_topology.h>
 
 #include <gtest/gtest.h>
 
@@ -18,13 +20,20 @@ namespace {
 constexpr double kFrame = 1.0 / 60;
 constexpr int kFrames = 1800;  // 30 s
 
-ClothDef flag(int cells, bool waving) {
+ClothDef describe(const stain::TriangleMesh& mesh) {
   ClothDef def;
-  def.mesh = stain::gridMesh(cells, cells, 1.0, 1.0);
-  for (int i = 0; i < def.mesh.vertexPositions.rows(); ++i) {
-    const double x = def.mesh.vertexPositions(i, 0), y = def.mesh.vertexPositions(i, 1);
-    def.mesh.vertexPositions.row(i) << x, 0, y;
+  coupling::describeClothMesh(mesh, stain::SurfaceTopology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows())),
+                              def);
+  return def;
+}
+
+ClothDef flag(int cells, bool waving) {
+  stain::TriangleMesh mesh = stain::gridMesh(cells, cells, 1.0, 1.0);
+  for (int i = 0; i < mesh.vertexPositions.rows(); ++i) {
+    const double x = mesh.vertexPositions(i, 0), y = mesh.vertexPositions(i, 1);
+    mesh.vertexPositions.row(i) << x, 0, y;
   }
+  ClothDef def = describe(mesh);
   PinMotion motion;
   if (waving) {
     motion.amplitude = Eigen::Vector3d(0, 0.1, 0);  // 10 cm at 1 Hz, across the flag
@@ -87,9 +96,9 @@ TEST(BulletClothLongRun, WavingFlag35KNodes) {
 }
 
 TEST(BulletClothLongRun, DrapeOverSphere10KNodes) {
-  ClothDef def;
-  def.mesh = stain::gridMesh(99, 99, 1.0, 1.0);
-  def.mesh.vertexPositions.col(2).setConstant(0.5);
+  stain::TriangleMesh mesh = stain::gridMesh(99, 99, 1.0, 1.0);
+  mesh.vertexPositions.col(2).setConstant(0.5);
+  ClothDef def = describe(mesh);
   const Eigen::Vector3d center(0.5, 0.5, 0.1);
   def.colliders = {ClothCollider::plane(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ()),
                    ClothCollider::sphere(center, 0.25)};

@@ -8,7 +8,6 @@
 /// Units: metres, kilograms, seconds. The model and the chosen solver settings
 /// (and why) are in docs/cloth.md.
 #include <blot/cloth/surface_motion.h>
-#include <blot/stain/triangle_mesh.h>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -107,12 +106,23 @@ enum class ClothSolver {
 /// Everything needed to build a BulletCloth. Defaults are the settings measured
 /// stable for long runs at 2.5K, 10K and 35K nodes (docs/cloth.md).
 struct ClothDef {
-  /// Rest shape: #V by 3 positions (m) and #F by 3 counter-clockwise faces; must
-  /// be a manifold mesh (blot::stain::SurfaceTopology rules). UVs, when present
-  /// (#V by 2), tell structural edges (axis-aligned in UV) from shear diagonals.
-  stain::TriangleMesh mesh;
+  /// The rest shape as plain arrays, so that cloth/ needs no mesh library
+  /// (blot::coupling::describeClothMesh fills them all from a stain mesh and
+  /// its SurfaceTopology). The mesh must be a manifold triangle mesh; these
+  /// arrays are checked for shapes, finiteness and index ranges only.
+  Eigen::MatrixX3d restPositions;  ///< #V by 3 (m); node i is vertex i
+  Eigen::MatrixX3i faces;          ///< #F by 3, counter-clockwise; Bullet face f is face f
+  /// #V by 2 texture coordinates, or 0 rows: they tell structural edges
+  /// (axis-aligned in UV) from shear diagonals. Without them every edge is structural.
+  Eigen::MatrixX2d uvs;
+  Eigen::MatrixX2i edges;          ///< #E by 2 mesh edges (each once): the first #E links, in this order
+  /// #B by 2: per interior edge, the two vertices opposite it (not themselves
+  /// an edge), each pair once; the bending links, after the edges. Unused
+  /// when bendStiffness is 0.
+  Eigen::MatrixX2i bendingPairs;
+  Eigen::VectorXd nodeAreas;       ///< #V lumped areas (m², one third of the one-ring area; ≥ 0)
   /// Total cloth mass (kg, > 0), spread by lumped area: node i gets
-  /// totalMass · Aᵢ / ΣA with Aᵢ one third of its one-ring area.
+  /// totalMass · Aᵢ / ΣA with Aᵢ = nodeAreas[i].
   double totalMass = 0.15;
   /// Bullet link stiffness kLST in (0, 1] for structural mesh edges: the fraction
   /// of a link's length error removed per solver iteration (not a modulus: the
@@ -168,13 +178,35 @@ struct ClothDef {
   double collisionVoxelSize = 0;
 };
 
+/// Everything a BulletCloth carries from one advance() to the next, as plain
+/// arrays (save/load). Bullet's single-precision values are stored exactly in
+/// doubles. Restoring it into a cloth built from the same ClothDef and
+/// stepping gives bit-identical positions to the run it was captured from
+/// (docs/cloth.md says what is rebuilt rather than stored).
+struct BulletClothState {
+  double time = 0;                 ///< s
+  Eigen::MatrixX3d positions;      ///< #V by 3, Bullet m_x (m)
+  Eigen::MatrixX3d previousPositions;   ///< #V by 3, m_q: positions before the last substep (m)
+  Eigen::MatrixX3d velocities;     ///< #V by 3, m_v (m/s; Bullet's own, damped, also for pins)
+  Eigen::MatrixX3d previousVelocities;  ///< #V by 3, m_vn (m/s)
+  Eigen::MatrixX3d forces;         ///< #V by 3, m_f force accumulator (N; 0 between steps)
+  Eigen::MatrixX3d nodeNormals;    ///< #V by 3, m_n (aerodynamics reads them before refreshing)
+  Eigen::VectorXd nodeAreas;       ///< #V, m_area (m²)
+  Eigen::MatrixX3d faceNormals;    ///< #F by 3, m_normal
+  Eigen::VectorXd inverseMasses;   ///< #V, m_im (1/kg; 0 = pinned)
+  Eigen::VectorXd nodeMasses;      ///< #V, lumped + applied liquid (kg)
+  Eigen::VectorXd pendingExtraMasses;  ///< #V, liquid loads not yet applied (kg)
+  Eigen::MatrixX3d pendingImpulses;    ///< #V by 3 (N·s)
+  bool loadsPending = false;
+  std::vector<char> releasedPins;  ///< per ClothDef pin: 1 once released
+};
+
 /// Bullet soft-body cloth. Move-only; owns its Bullet world.
 class BulletCloth final : public SurfaceMotion {
  public:
-  /// Builds the body from def.mesh in O((#V + #F) log #V) (sorted edge lists,
-  /// a balanced node tree, fast marching for tethers; no vertex-count² table).
-  /// Throws std::invalid_argument naming the field for a bad def, and
-  /// blot::stain::MeshError for a mesh SurfaceTopology rejects.
+  /// Builds the body from the def's arrays in O((#V + #F) log #V) (a balanced
+  /// node tree, fast marching for tethers; no vertex-count² table). Throws
+  /// std::invalid_argument naming the field (and row) for a bad def.
   explicit BulletCloth(const ClothDef& def);
   ~BulletCloth() override;
   BulletCloth(BulletCloth&&) noexcept;
@@ -212,11 +244,14 @@ class BulletCloth final : public SurfaceMotion {
   /// (also for pinned nodes, which Bullet holds with infinite mass; a released
   /// pin gets this mass).
   const Eigen::VectorXd& nodeMasses() const { return nodeMasses_; }
+  /// The cloth's own node masses (kg, #V): totalMass spread by lumped area,
+  /// without liquid.
+  const Eigen::VectorXd& lumpedMasses() const { return lumpedMasses_; }
   /// True while vertex i is held by a pin (false after its release time).
   bool isPinned(int vertex) const;
 
-  /// Links in Bullet's order, #L by 2 vertex indices: mesh edges (in
-  /// SurfaceTopology edge order), then bending links.
+  /// Links in Bullet's order, #L by 2 vertex indices: ClothDef.edges in their
+  /// order, then ClothDef.bendingPairs (when bendStiffness > 0).
   const Eigen::MatrixX2i& linkVertices() const { return linkVertices_; }
   /// Per link: true for a mesh edge, false for a bending link (#L).
   const std::vector<bool>& linkIsEdge() const { return linkIsEdge_; }
@@ -239,6 +274,14 @@ class BulletCloth final : public SurfaceMotion {
   /// disabled the body (it does so silently when the body's box passes 10⁶ m
   /// after a blow-up). O(#V + #E).
   bool isHealthy() const;
+  /// The state between two advance() calls (allocates; for save/load).
+  BulletClothState captureState() const;
+  /// Puts a captured state back (same ClothDef: vertex, face and pin counts
+  /// must match, std::invalid_argument naming the field otherwise). Rebuilds
+  /// what Bullet derives from it: link constants from the inverse masses, the
+  /// node bounding-volume tree and the body's bounds from the positions.
+  void restoreState(const BulletClothState& state);
+
   /// Distance nodes keep from colliders (m), after the automatic choice.
   double collisionMargin() const { return collisionMargin_; }
   const ClothDef& definition() const { return def_; }
