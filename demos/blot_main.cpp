@@ -12,9 +12,11 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", blot::engine::versionString());
   app.require_subcommand(1);
   int exitCode = 0;
+  blot::cli::registerRunCommand(app, exitCode);
   blot::cli::registerMeshInfoCommand(app, exitCode);
   blot::cli::registerDemoCommand(app, exitCode);
   blot::cli::registerHomogenizeCommand(app, exitCode);
+  blot::cli::registerFigureCommand(app, exitCode);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -8,5 +8,7 @@ namespace blot::cli {
 void registerMeshInfoCommand(CLI::App& app, int& exitCode);
 void registerDemoCommand(CLI::App& app, int& exitCode);
 void registerHomogenizeCommand(CLI::App& app, int& exitCode);
+void registerRunCommand(CLI::App& app, int& exitCode);
+void registerFigureCommand(CLI::App& app, int& exitCode);  ///< `blot figure`: multi-run paper figures (figures.cpp)
 
 }  // namespace blot::cli

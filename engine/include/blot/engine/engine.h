@@ -1,0 +1,235 @@
+#pragma once
+/// blot::Engine: the facade a game or a tool embeds. One moving surface with
+/// its stain (coupling::CoupledSurface), driven by a fixed internal time step
+/// behind an accumulator, with drops added at runtime, read-only per-vertex
+/// views, statistics, and save/load of the whole state.
+///
+/// Why a fixed internal step: the stain solver factorizes (M + h L) for its h,
+/// and the Bullet cloth's stability and the stain's CFL limits are tuned for
+/// one h; a frame time that changes every frame would refactorize every frame
+/// and make results depend on the frame rate. So step(frameDt) only feeds an
+/// accumulator and runs whole internal steps of EngineDef::timeStep.
+#include <blot/cloth/bullet_cloth.h>
+#include <blot/cloth/mesh_sequence.h>
+#include <blot/cloth/surface_motion.h>
+#include <blot/coupling/coupled_surface.h>
+#include <blot/engine/stain_color.h>
+#include <blot/stain/fabric_layout.h>
+#include <blot/stain/sources.h>
+#include <blot/stain/stain_solver.h>
+#include <blot/stain/surface_topology.h>
+#include <blot/stain/triangle_mesh.h>
+
+#include <cstdint>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace blot::engine {
+
+/// Where the moving mesh comes from (cloth/).
+enum class MotionSource { Static, Rigid, Sequence, Bullet };
+const char* motionSourceName(MotionSource source);  ///< "static", "rigid", "sequence", "bullet"
+
+/// A drop that lands at a given simulated time (s, ≥ 0): applied before the
+/// first internal step that starts at or after `time`.
+struct TimedDrop {
+  double time = 0;
+  stain::DropDef drop;
+};
+
+/// Everything an Engine is built from (Box2D-style definition struct). Every
+/// field has a working default except `mesh`, which must be set (e.g.
+/// stain::gridMesh for a patch).
+struct EngineDef {
+  /// Rest shape (#V by 3, m) and faces; validated (stain::validateMesh). Cloth
+  /// vertex i is mesh vertex i for every source.
+  stain::TriangleMesh mesh;
+  MotionSource source = MotionSource::Static;
+  cloth::RigidMotionDef rigid;        ///< used when source == Rigid
+  cloth::MeshSequenceDef sequence;    ///< used when source == Sequence (frames read with stain::loadMesh)
+  /// Used when source == Bullet. Its mesh-derived fields are filled from
+  /// `mesh` by coupling::describeClothMesh; set only the physical ones.
+  cloth::ClothDef cloth;
+
+  /// Isotropic fabric (when fabricPatches is empty): density diffusivity (m²/s, > 0).
+  double diffusivity = 0.01;
+  /// Velocity diffusivity (kinematic viscosity of the film, m²/s, ≥ 0), isotropic
+  /// on every face, also with fabric patches.
+  double viscosity = 2e-3;
+  /// Woven fabric: patches with patterns or tensors (stain::fabricLayout);
+  /// every face in exactly one patch. Empty: isotropic `diffusivity`.
+  std::vector<stain::FabricPatch> fabricPatches;
+  /// Per patch with a pattern (same order as fabricPatches, or empty): scale
+  /// its homogenized S_eff so that trace / 2 equals this (m²/s); 0 keeps the
+  /// pattern's own units.
+  std::vector<double> fabricPatchDiffusivities;
+  int homogenizationSubdivisions = stain::kAutoSubdivisions;  ///< K for the patterns' cell problems
+
+  /// Switches, liquid parameters, gravity (m/s², also given to a Bullet cloth)
+  /// and the intrinsic-rebuild strain tolerance.
+  stain::StainSolverDef stain;
+  coupling::CouplingMode coupling = coupling::CouplingMode::OneWay;
+
+  double timeStep = 1.0 / 120.0;  ///< internal step h (s, > 0)
+  /// Most internal steps one step(frameDt) call runs (≥ 1); frame time beyond
+  /// that is dropped (counted in EngineStatistics::droppedTime), so a slow
+  /// frame cannot trigger a spiral of ever longer catch-up frames.
+  int maxStepsPerCall = 8;
+
+  std::vector<TimedDrop> drops;               ///< scheduled drops (any order; applied in time order)
+  std::vector<stain::HeldRegion> heldRegions; ///< regions held at fixed density
+  /// Runtime drops queued between steps without allocating (addDrop beyond
+  /// this many before the next step still works, but allocates).
+  int dropQueueCapacity = 64;
+
+  StainColorMapping colors;  ///< display colour (Beer–Lambert) of colors()
+};
+
+/// Where a world point lands on the cloth (addDropAtPoint).
+struct SurfaceHit {
+  int face = -1;                              ///< face of the nearest surface point
+  Eigen::Vector3d barycentric = Eigen::Vector3d::Zero();  ///< weights of faces(face, 0..2), sum 1
+  Eigen::Vector3d point = Eigen::Vector3d::Zero();        ///< nearest surface point (m)
+  double distance = 0;                        ///< from the query point to it (m)
+};
+
+/// Sums over internal steps, for means: stain stage times (StepProfile) and
+/// coupled parts (CoupledStepTimes), milliseconds.
+struct PhaseTotals {
+  double geometry = 0, forces = 0, advectVelocity = 0, advectDensity = 0, diffuse = 0, interact = 0, sources = 0,
+         stainTotal = 0;
+  double cloth = 0, stain = 0, coupling = 0, total = 0;
+};
+
+struct EngineStatistics {
+  std::int64_t steps = 0;           ///< internal steps taken
+  double time = 0;                  ///< simulated time (s) = steps · h
+  double droppedTime = 0;           ///< frame time discarded by maxStepsPerCall (s)
+  int dropsApplied = 0;
+  double wallSeconds = 0;           ///< wall-clock time inside internal steps (s)
+  double stepsPerSecond = 0;        ///< steps / wallSeconds
+  stain::StepProfile lastProfile;   ///< stain stages of the last internal step (ms)
+  coupling::CoupledStepTimes lastTimes;  ///< cloth/stain/coupling of the last internal step (ms)
+  PhaseTotals totals;               ///< sums since construction (ms); mean = total / steps
+  int intrinsicRefreshes = 0;       ///< internal steps that rebuilt the metric
+  stain::MassBudget massBudget;     ///< now (kg)
+};
+
+/// Error loading a state file (tier b): names the file and the mismatch.
+class StateFileError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+class Engine {
+ public:
+  /// Builds the topology, fabric (homogenizing patterns once), motion source,
+  /// stain solver and coupling. Throws std::invalid_argument (or
+  /// stain::MeshError, stain::FabricLayoutError, cloth::SequenceError) naming
+  /// the field for a bad def. Drops scheduled at time 0 are applied now.
+  explicit Engine(const EngineDef& def);
+  /// Reads and builds a scene file (scene.h); throws SceneError naming the key.
+  static std::unique_ptr<Engine> fromSceneFile(const std::string& path);
+  /// The same from JSON text; relative paths resolve against baseDirectory.
+  static std::unique_ptr<Engine> fromSceneJson(const std::string& jsonText, const std::string& baseDirectory = ".",
+                                               const std::string& sourceName = "<scene>");
+  ~Engine();
+  Engine(const Engine&) = delete;
+  Engine& operator=(const Engine&) = delete;
+
+  /// Adds frameDt (s, finite, ≥ 0) to the accumulator and runs
+  /// n = min(⌊accumulator / h⌋, maxStepsPerCall) internal steps; the remainder
+  /// (< h) is carried to the next call, time beyond the cap is dropped. The
+  /// accumulator counts in units of h, and ⌊·⌋ forgives 1e-9 of a step, so
+  /// frame times that add up to whole steps (e.g. 0.016 + 0.004 at h = 0.01)
+  /// run exactly those steps. Results depend only on the sequence of internal
+  /// steps and drops, not on how frame time was split. On a numerical failure
+  /// the report names stage, vertex and step; the stain keeps the state before
+  /// the failing step, the remaining steps of this call are not run and the
+  /// accumulator is cleared. Allocates nothing after the first call, except
+  /// that a step applying a drop allocates its footprint, the stain's
+  /// intrinsic rebuild (edge strain past StainSolverDef::strainTolerance)
+  /// allocates, and Bullet allocates contact lists when a cloth meets a
+  /// collider (tests/engine/engine_allocation_test.cpp). Returns the last report.
+  stain::StepReport step(double frameDt);
+  /// Runs exactly `count` internal steps (≥ 0), bypassing the accumulator.
+  stain::StepReport advanceSteps(int count);
+
+  /// Queues a drop for the next internal step. Vertex drops (centerVertex ≥ 0)
+  /// land there; otherwise centerPoint is projected onto the cloth (nearest
+  /// point, see addDropAtPoint). Throws std::invalid_argument naming the field.
+  void addDrop(const stain::DropDef& drop);
+  /// Queues `drop` centred where the world point lands on the cloth now: the
+  /// nearest point on any face (barycentric), which becomes centerPoint.
+  SurfaceHit addDropAtPoint(const Eigen::Vector3d& point, stain::DropDef drop);
+  /// Nearest point on the current surface to `point` (m); O(#F).
+  SurfaceHit nearestSurfacePoint(const Eigen::Vector3d& point) const;
+
+  // Read-only views, #V rows, valid until the next step(), advanceSteps() or load().
+  int vertexCount() const;
+  const stain::Triangles& faces() const;
+  const Eigen::MatrixX3d& positions() const;   ///< m, at time()
+  const Eigen::MatrixX3d& normals() const;     ///< unit vertex normals at time()
+  const Eigen::VectorXd& solvent() const;      ///< free solvent σ_f (kg/m²)
+  const Eigen::VectorXd& solute() const;       ///< free solute σ_s (kg/m²)
+  const Eigen::VectorXd& absorbedSolvent() const;  ///< σ_p (kg/m²)
+  const Eigen::VectorXd& absorbedSolute() const;   ///< σ_s,p (kg/m²)
+  const Eigen::VectorXd& adsorbedSolute() const;   ///< σ_s,a (kg/m²)
+  const Eigen::MatrixX3d& liquidVelocities() const;  ///< tangential liquid velocity, world frame (m/s)
+  const Eigen::MatrixX3d& colors() const;      ///< display colour in [0, 1] (Beer–Lambert, stain_color.h)
+
+  double time() const;                 ///< simulated time (s)
+  std::int64_t stepCount() const { return steps_; }
+  double timeStep() const { return def_.timeStep; }
+  double accumulator() const { return accumulator_ * def_.timeStep; }  ///< carried frame time (s)
+  const EngineDef& definition() const { return def_; }
+  EngineStatistics statistics() const;
+  const coupling::CoupledSurface& surface() const { return *surface_; }
+  const stain::SurfaceTopology& topology() const { return *topology_; }
+  /// FNV-1a over every simulation array (positions, velocities, densities,
+  /// time): equal hashes mean (to 64 bits) bit-identical state.
+  std::uint64_t stateHash() const;
+
+  /// Writes the whole simulation state (stain, cloth, accumulator, drops not
+  /// yet applied) to a binary file: magic, version, mesh sizes and fingerprint,
+  /// then the arrays. Statistics are not saved.
+  void save(const std::string& path) const;
+  /// Restores a state written by save() from an engine built from the same
+  /// def; the steps after it are bit-identical to the original's. Throws
+  /// StateFileError naming the file and the mismatch (vertex/face counts, mesh
+  /// fingerprint, motion source, version, truncation); the engine is unchanged then.
+  void load(const std::string& path);
+
+ private:
+  /// A fresh motion + stain + coupling from def_ (construction and load).
+  std::unique_ptr<coupling::CoupledSurface> buildSurface() const;
+  stain::StepReport runInternalStep();
+  void applyDueDrops();
+  void publishViews();
+
+  EngineDef def_;
+  std::unique_ptr<stain::SurfaceTopology> topology_;
+  stain::FabricField fabric_;
+  std::unique_ptr<coupling::CoupledSurface> surface_;
+  std::vector<TimedDrop> schedule_;      // def_.drops sorted by time
+  std::size_t nextScheduled_ = 0;        // first schedule_ entry not applied yet
+  std::vector<stain::DropDef> pending_;  // runtime drops for the next internal step
+  double accumulator_ = 0;               // carried frame time in units of h
+  std::int64_t steps_ = 0;
+  std::uint64_t meshFingerprint_ = 0;
+  // Views (preallocated, rewritten by publishViews).
+  Eigen::MatrixX3d normals_, liquidVelocities_, colors_;
+  // Statistics.
+  double droppedTime_ = 0, wallSeconds_ = 0;
+  int dropsApplied_ = 0, intrinsicRefreshes_ = 0;
+  PhaseTotals totals_;
+};
+
+}  // namespace blot::engine
+
+namespace blot {
+using engine::Engine;     // the embedding API is blot::Engine
+using engine::EngineDef;
+}  // namespace blot

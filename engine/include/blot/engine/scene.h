@@ -1,0 +1,76 @@
+#pragma once
+/// Scene files (JSON): everything an Engine is built from plus what `blot run`
+/// writes. Every key, unit and default is documented in docs/scene-format.md.
+///
+/// Parsing is strict: an unknown key, a value of the wrong type or outside its
+/// range is a SceneError whose message starts with the source name and the key
+/// path, e.g.
+///   "scene.json: cloth.pins[2].vertex: expected an integer in [0, 2601), got 9000".
+/// The mesh is loaded or generated while parsing (vertex indices are checked
+/// against it), and weave-pattern files are read; homogenization and the
+/// fabric layout happen when the Engine is built.
+#include <blot/engine/engine.h>
+#include <blot/engine/ply_frame_writer.h>
+#include <blot/engine/renderer.h>
+
+#include <stdexcept>
+#include <string>
+
+namespace blot::engine {
+
+/// Default `strain_tolerance` of scenes on a Bullet cloth (relative edge
+/// strain): Bullet's edges jitter by 1-4 % per step near pins, so the stain
+/// solver's own default (1e-3, right for mesh sequences) would rebuild its
+/// operators on most steps.
+constexpr double kBulletStrainTolerance = 0.02;
+
+/// Input-data error in a scene (tier b): names the source and the key path.
+class SceneError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// PNG preview of the last frame.
+struct ScenePreview {
+  bool enabled = true;
+  int width = 480, height = 360;  ///< pixels
+  int supersampling = 3;          ///< samples per pixel side
+  Eigen::Vector3d viewDirection = Eigen::Vector3d(-0.3, -0.6, -1.0);  ///< camera looks along it (world)
+  Projection projection = Projection::Perspective;
+  /// Camera up (world); zero: +z, or +y when the view is within ~25° of vertical.
+  Eigen::Vector3d up = Eigen::Vector3d::Zero();
+  /// Also render the last frame's densities on the rest shape (the stain as it
+  /// lies on the flat, undeformed cloth): <directory>/<name>_rest.png.
+  bool restShape = false;
+};
+
+/// What `blot run` writes. A frame is `stepsPerFrame` internal steps.
+struct SceneOutputs {
+  int frames = 10;          ///< frames after the initial one (≥ 1)
+  int stepsPerFrame = 4;    ///< internal steps per frame (≥ 1)
+  int plyEvery = 1;         ///< write a PLY every this many frames (0: none); frame 0 and the last always
+  PlyFormat plyFormat = PlyFormat::BinaryLittleEndian;
+  std::string directory;    ///< output folder; empty: "out/<scene file stem>"
+  ScenePreview preview;
+};
+
+/// A parsed scene: the engine definition and the outputs.
+struct SceneDef {
+  std::string sourceName;       ///< file path or the name given for JSON text
+  std::string name;             ///< "name" key, or the file stem
+  std::string description;      ///< "description" key (free text)
+  std::string meshDescription;  ///< e.g. "patch 1 x 1 m, 50 x 50 quads (2601 vertices)"
+  EngineDef engine;
+  SceneOutputs outputs;
+};
+
+/// Parses scene JSON. `baseDirectory` resolves relative paths (mesh files,
+/// sequences, patterns); `sourceName` prefixes every error message.
+SceneDef parseScene(const std::string& jsonText, const std::string& sourceName,
+                    const std::string& baseDirectory = ".");
+/// Reads and parses a scene file (relative paths resolve against its folder).
+SceneDef loadScene(const std::string& path);
+/// The engine definition of a scene (a copy of scene.engine).
+EngineDef engineDef(const SceneDef& scene);
+
+}  // namespace blot::engine

@@ -1,0 +1,411 @@
+// blot::Engine: the fixed-step loop, drops, views and statistics around one
+// CoupledSurface (cloth → stain → coupling).
+//
+// Design note.
+//  - Accumulator: step(frameDt) adds frameDt / h to a counter kept in units of
+//    the internal step h and runs ⌊counter + 1e-9⌋ internal steps (at most
+//    maxStepsPerCall; the excess is dropped and reported, Box2D/Gaffer's
+//    "spiral of death" guard). A remainder within 1e-9 steps of a whole number
+//    snaps to it, so frame times that add up to whole steps leave exactly zero
+//    behind whichever way they were split: the same internal steps run and the
+//    results are bit-identical (the simulation never sees frameDt itself).
+//    Rejected: variable internal steps (refactorizing M + hL each frame and
+//    results depending on the frame rate) and interpolating the views between
+//    steps (the caller can, from two views; the engine keeps one state).
+//  - Drops are queued and applied at the start of the next internal step, in
+//    the order: scheduled (EngineDef::drops, by time) then runtime (call order),
+//    so a drop never lands mid-step and a replay with the same calls gives the
+//    same state.
+//  - Views are published once per step() call (not per internal step) into
+//    preallocated arrays: normals and world-frame liquid velocities from the
+//    stain's newest frames, display colours by Beer–Lambert.
+#include <blot/engine/engine.h>
+#include <blot/engine/scene.h>
+
+#include <blot/stain/mesh_io.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <sstream>
+
+namespace blot::engine {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double millisecondsSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+/// Closest point to p on triangle (a, b, c) as barycentric weights (Ericson,
+/// Real-Time Collision Detection 5.1.5: Voronoi regions of vertices, edges, face).
+Eigen::Vector3d closestBarycentric(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                   const Eigen::Vector3d& c) {
+  const Eigen::Vector3d ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return {1, 0, 0};
+  const Eigen::Vector3d bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return {0, 1, 0};
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    const double v = d1 / (d1 - d3);
+    return {1 - v, v, 0};
+  }
+  const Eigen::Vector3d cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return {0, 0, 1};
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    const double w = d2 / (d2 - d6);
+    return {1 - w, 0, w};
+  }
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    return {0, 1 - w, w};
+  }
+  const double denominator = 1.0 / (va + vb + vc);
+  const double v = vb * denominator, w = vc * denominator;
+  return {1 - v - w, v, w};
+}
+
+void requireFinite(double value, const char* field) {
+  if (!std::isfinite(value)) throw std::invalid_argument(std::string("drop: ") + field + " must be finite");
+}
+
+/// Checks a drop's fields before it is queued (stain::addDrop checks again when it lands).
+void validateDrop(const stain::DropDef& d, int vertexCount) {
+  if (d.centerVertex < -1 || d.centerVertex >= vertexCount)
+    throw std::invalid_argument("drop: centerVertex = " + std::to_string(d.centerVertex) + " is out of range [0, " +
+                                std::to_string(vertexCount) + ") (or -1 to use centerPoint)");
+  for (int c = 0; c < 3; ++c) requireFinite(d.centerPoint[c], "centerPoint");
+  for (int c = 0; c < 3; ++c) requireFinite(d.velocity[c], "velocity");
+  if (!(d.radius > 0) || !std::isfinite(d.radius)) throw std::invalid_argument("drop: radius must be finite and > 0");
+  if (!(d.solventMass >= 0) || !std::isfinite(d.solventMass))
+    throw std::invalid_argument("drop: solventMass must be finite and >= 0");
+  if (!(d.soluteMass >= 0) || !std::isfinite(d.soluteMass))
+    throw std::invalid_argument("drop: soluteMass must be finite and >= 0");
+  if (!(d.splashSpeed >= 0) || !std::isfinite(d.splashSpeed))
+    throw std::invalid_argument("drop: splashSpeed must be finite and >= 0");
+}
+
+void hashBytes(std::uint64_t& h, const void* data, std::size_t bytes) {
+  const auto* p = static_cast<const unsigned char*>(data);
+  for (std::size_t i = 0; i < bytes; ++i) {
+    h ^= p[i];
+    h *= 1099511628211ull;
+  }
+}
+template <typename Derived>
+void hashArray(std::uint64_t& h, const Eigen::DenseBase<Derived>& a) {
+  const auto& m = a.derived();
+  hashBytes(h, m.data(), sizeof(typename Derived::Scalar) * static_cast<std::size_t>(m.size()));
+}
+
+}  // namespace
+
+// ------------------------------------------------------------------ construction
+
+Engine::Engine(const EngineDef& def) : def_(def) {
+  if (!(def_.timeStep > 0) || !std::isfinite(def_.timeStep))
+    throw std::invalid_argument("EngineDef.timeStep must be finite and > 0, got " + std::to_string(def_.timeStep));
+  if (def_.maxStepsPerCall < 1)
+    throw std::invalid_argument("EngineDef.maxStepsPerCall must be >= 1, got " + std::to_string(def_.maxStepsPerCall));
+  if (def_.dropQueueCapacity < 0) throw std::invalid_argument("EngineDef.dropQueueCapacity must be >= 0");
+  if (!(def_.diffusivity > 0) || !std::isfinite(def_.diffusivity))
+    throw std::invalid_argument("EngineDef.diffusivity must be finite and > 0");
+  if (!(def_.viscosity >= 0) || !std::isfinite(def_.viscosity))
+    throw std::invalid_argument("EngineDef.viscosity must be finite and >= 0");
+  stain::validateMesh(def_.mesh, "EngineDef.mesh");
+  const int n = static_cast<int>(def_.mesh.vertexPositions.rows());
+  topology_ = std::make_unique<stain::SurfaceTopology>(def_.mesh.faces, n, "EngineDef.mesh");
+
+  // Fabric: isotropic, or patches laid out with patterns homogenized once.
+  const int faceCount = static_cast<int>(def_.mesh.faces.rows());
+  if (def_.fabricPatches.empty()) {
+    fabric_ = stain::isotropicFabricField(faceCount, def_.diffusivity, def_.viscosity);
+  } else {
+    stain::Homogenizer homogenizer;
+    std::vector<stain::FabricPatch> patches = def_.fabricPatches;
+    for (std::size_t i = 0; i < patches.size() && i < def_.fabricPatchDiffusivities.size(); ++i) {
+      const double d = def_.fabricPatchDiffusivities[i];
+      if (!(d > 0) || !patches[i].pattern) continue;
+      const stain::Matrix2 s = homogenizer.homogenize(*patches[i].pattern, def_.homogenizationSubdivisions).effective;
+      patches[i].tensor = s * (2.0 * d / s.trace());
+      patches[i].pattern.reset();
+    }
+    const stain::FabricLayout layout =
+        stain::fabricLayout(*topology_, def_.mesh.vertexPositions, patches, homogenizer, def_.homogenizationSubdivisions);
+    fabric_.densityTensors = layout.faceTensors;
+    fabric_.velocityTensors.resize(faceCount, 3);
+    fabric_.velocityTensors.col(0).setConstant(def_.viscosity);
+    fabric_.velocityTensors.col(1).setZero();
+    fabric_.velocityTensors.col(2).setConstant(def_.viscosity);
+    fabric_.weftDirections = layout.faceWeftDirections;
+  }
+
+  schedule_ = def_.drops;
+  for (std::size_t i = 0; i < schedule_.size(); ++i) {
+    if (!(schedule_[i].time >= 0) || !std::isfinite(schedule_[i].time))
+      throw std::invalid_argument("EngineDef.drops[" + std::to_string(i) + "].time must be finite and >= 0");
+    try {
+      validateDrop(schedule_[i].drop, n);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument("EngineDef.drops[" + std::to_string(i) + "]: " + e.what());
+    }
+  }
+  std::stable_sort(schedule_.begin(), schedule_.end(),
+                   [](const TimedDrop& a, const TimedDrop& b) { return a.time < b.time; });
+
+  meshFingerprint_ = 14695981039346656037ull;
+  hashArray(meshFingerprint_, def_.mesh.vertexPositions);
+  hashArray(meshFingerprint_, def_.mesh.faces);
+
+  surface_ = buildSurface();
+  pending_.reserve(static_cast<std::size_t>(def_.dropQueueCapacity));
+  normals_.resize(n, 3);
+  liquidVelocities_.resize(n, 3);
+  colors_.resize(n, 3);
+  applyDueDrops();  // drops scheduled at t = 0 show in the first views
+  publishViews();
+}
+
+std::unique_ptr<coupling::CoupledSurface> Engine::buildSurface() const {
+  std::unique_ptr<cloth::SurfaceMotion> motion;
+  switch (def_.source) {
+    case MotionSource::Static: motion = std::make_unique<cloth::StaticSurface>(def_.mesh.vertexPositions); break;
+    case MotionSource::Rigid: motion = std::make_unique<cloth::RigidMotion>(def_.mesh.vertexPositions, def_.rigid); break;
+    case MotionSource::Sequence: {
+      const cloth::FrameReader read = [](const std::string& path, Eigen::MatrixX3d& positions, Eigen::MatrixX3i& faces) {
+        stain::TriangleMesh frame = stain::loadMesh(path);
+        positions = std::move(frame.vertexPositions);
+        faces = std::move(frame.faces);
+      };
+      auto sequence = std::make_unique<cloth::MeshSequence>(def_.sequence, read);
+      if (sequence->vertexCount() != def_.mesh.vertexPositions.rows() || sequence->faces() != def_.mesh.faces)
+        throw std::invalid_argument("EngineDef.sequence: frames have " + std::to_string(sequence->vertexCount()) +
+                                    " vertices and other faces than EngineDef.mesh (" +
+                                    std::to_string(def_.mesh.vertexPositions.rows()) + " vertices)");
+      motion = std::move(sequence);
+      break;
+    }
+    case MotionSource::Bullet: {
+      cloth::ClothDef cloth = def_.cloth;
+      coupling::describeClothMesh(def_.mesh, *topology_, cloth);
+      cloth.gravity = def_.stain.gravity;
+      motion = std::make_unique<cloth::BulletCloth>(cloth);
+      break;
+    }
+  }
+  auto surface = std::make_unique<coupling::CoupledSurface>(std::move(motion), *topology_, fabric_, def_.stain,
+                                                            def_.coupling);
+  for (const stain::HeldRegion& region : def_.heldRegions) surface->stain().addHeldRegion(region);
+  return surface;
+}
+
+std::unique_ptr<Engine> Engine::fromSceneFile(const std::string& path) {
+  return std::make_unique<Engine>(loadScene(path).engine);
+}
+
+std::unique_ptr<Engine> Engine::fromSceneJson(const std::string& jsonText, const std::string& baseDirectory,
+                                              const std::string& sourceName) {
+  return std::make_unique<Engine>(parseScene(jsonText, sourceName, baseDirectory).engine);
+}
+
+Engine::~Engine() = default;
+
+// ------------------------------------------------------------------ stepping
+
+stain::StepReport Engine::step(double frameDt) {
+  if (!(frameDt >= 0) || !std::isfinite(frameDt)) {
+    stain::StepReport report;
+    report.status = stain::StepStatus::InvalidArgument;
+    report.stage = "guard";
+    report.message = "Engine::step: frameDt must be finite and >= 0";
+    return report;
+  }
+  accumulator_ += frameDt / def_.timeStep;
+  double due = std::floor(accumulator_ + 1e-9);
+  if (due > def_.maxStepsPerCall) {
+    droppedTime_ += (due - def_.maxStepsPerCall) * def_.timeStep;
+    accumulator_ -= due - def_.maxStepsPerCall;
+    due = def_.maxStepsPerCall;
+  }
+  accumulator_ -= due;
+  const double whole = std::round(accumulator_);
+  if (std::abs(accumulator_ - whole) < 1e-9) accumulator_ = whole;
+  if (accumulator_ < 0) accumulator_ = 0;
+  return advanceSteps(static_cast<int>(due));
+}
+
+stain::StepReport Engine::advanceSteps(int count) {
+  stain::StepReport report;
+  for (int k = 0; k < count; ++k) {
+    report = runInternalStep();
+    if (report.status != stain::StepStatus::Ok) {
+      accumulator_ = 0;
+      break;
+    }
+  }
+  if (count > 0) publishViews();
+  return report;
+}
+
+stain::StepReport Engine::runInternalStep() {
+  const Clock::time_point start = Clock::now();
+  try {
+    applyDueDrops();
+  } catch (const std::exception& e) {
+    stain::StepReport report;
+    report.status = stain::StepStatus::InvalidArgument;
+    report.stage = "drops";
+    report.message = e.what();
+    return report;
+  }
+  stain::StepReport report = surface_->step(def_.timeStep);
+  // The cloth has moved on either way (on a failure the stain kept its state
+  // and the geometry follows the cloth), so the engine's clock moves too.
+  ++steps_;
+  wallSeconds_ += 1e-3 * millisecondsSince(start);
+  if (report.status != stain::StepStatus::Ok) {
+    report.message += " (internal step " + std::to_string(steps_) + ", t = " + std::to_string(time()) + " s)";
+    return report;
+  }
+  const stain::StepProfile& p = surface_->stain().profile();
+  const coupling::CoupledStepTimes& t = surface_->lastTimes();
+  totals_.geometry += p.geometry;
+  totals_.forces += p.forces;
+  totals_.advectVelocity += p.advectVelocity;
+  totals_.advectDensity += p.advectDensity;
+  totals_.diffuse += p.diffuse;
+  totals_.interact += p.interact;
+  totals_.sources += p.sources;
+  totals_.stainTotal += p.total;
+  totals_.cloth += t.cloth;
+  totals_.stain += t.stain;
+  totals_.coupling += t.coupling;
+  totals_.total += t.total;
+  intrinsicRefreshes_ += p.intrinsicRefreshes;
+  return report;
+}
+
+void Engine::applyDueDrops() {
+  const double now = static_cast<double>(steps_) * def_.timeStep;
+  while (nextScheduled_ < schedule_.size() && schedule_[nextScheduled_].time <= now + 1e-9 * def_.timeStep) {
+    stain::DropDef drop = schedule_[nextScheduled_].drop;
+    if (drop.centerVertex < 0) drop.centerPoint = nearestSurfacePoint(drop.centerPoint).point;
+    surface_->stain().addDrop(drop);
+    ++nextScheduled_;
+    ++dropsApplied_;
+  }
+  for (const stain::DropDef& drop : pending_) {
+    surface_->stain().addDrop(drop);
+    ++dropsApplied_;
+  }
+  pending_.clear();
+}
+
+void Engine::addDrop(const stain::DropDef& drop) {
+  validateDrop(drop, vertexCount());
+  if (drop.centerVertex >= 0) {
+    pending_.push_back(drop);
+  } else {
+    addDropAtPoint(drop.centerPoint, drop);
+  }
+}
+
+SurfaceHit Engine::addDropAtPoint(const Eigen::Vector3d& point, stain::DropDef drop) {
+  if (!point.allFinite()) throw std::invalid_argument("drop: point must be finite");
+  const SurfaceHit hit = nearestSurfacePoint(point);
+  drop.centerVertex = -1;
+  drop.centerPoint = hit.point;
+  validateDrop(drop, vertexCount());
+  pending_.push_back(drop);
+  return hit;
+}
+
+SurfaceHit Engine::nearestSurfacePoint(const Eigen::Vector3d& point) const {
+  const Eigen::MatrixX3d& x = positions();
+  const stain::Triangles& f = def_.mesh.faces;
+  SurfaceHit best;
+  best.distance = std::numeric_limits<double>::infinity();
+  for (Eigen::Index k = 0; k < f.rows(); ++k) {
+    const Eigen::Vector3d a = x.row(f(k, 0)).transpose(), b = x.row(f(k, 1)).transpose(), c = x.row(f(k, 2)).transpose();
+    const Eigen::Vector3d w = closestBarycentric(point, a, b, c);
+    const Eigen::Vector3d q = w[0] * a + w[1] * b + w[2] * c;
+    const double d = (q - point).norm();
+    if (d < best.distance) {  // strict: the lowest face index wins ties
+      best.face = static_cast<int>(k);
+      best.barycentric = w;
+      best.point = q;
+      best.distance = d;
+    }
+  }
+  return best;
+}
+
+// ------------------------------------------------------------------ views
+
+void Engine::publishViews() {
+  const stain::ExtrinsicGeometry& ex = surface_->stain().geometry().extrinsic();
+  const stain::StainState& s = surface_->stain().state();
+  for (int i = 0; i < s.vertexCount(); ++i) {
+    const stain::Matrix3& frame = ex.nextFrames[static_cast<std::size_t>(i)];
+    normals_.row(i) = frame.col(2).transpose();
+    const stain::Complex u = s.velocities[i];
+    liquidVelocities_.row(i) = (frame.col(0) * u.real() + frame.col(1) * u.imag()).transpose();
+  }
+  stainColors(def_.colors, s.solvent, s.solute, s.absorbedSolute, s.adsorbedSolute, colors_);
+}
+
+int Engine::vertexCount() const { return static_cast<int>(def_.mesh.vertexPositions.rows()); }
+const stain::Triangles& Engine::faces() const { return def_.mesh.faces; }
+const Eigen::MatrixX3d& Engine::positions() const { return surface_->motion().positions(); }
+const Eigen::MatrixX3d& Engine::normals() const { return normals_; }
+const Eigen::VectorXd& Engine::solvent() const { return surface_->stain().state().solvent; }
+const Eigen::VectorXd& Engine::solute() const { return surface_->stain().state().solute; }
+const Eigen::VectorXd& Engine::absorbedSolvent() const { return surface_->stain().state().absorbedSolvent; }
+const Eigen::VectorXd& Engine::absorbedSolute() const { return surface_->stain().state().absorbedSolute; }
+const Eigen::VectorXd& Engine::adsorbedSolute() const { return surface_->stain().state().adsorbedSolute; }
+const Eigen::MatrixX3d& Engine::liquidVelocities() const { return liquidVelocities_; }
+const Eigen::MatrixX3d& Engine::colors() const { return colors_; }
+double Engine::time() const { return static_cast<double>(steps_) * def_.timeStep; }
+
+EngineStatistics Engine::statistics() const {
+  EngineStatistics s;
+  s.steps = steps_;
+  s.time = time();
+  s.droppedTime = droppedTime_;
+  s.dropsApplied = dropsApplied_;
+  s.wallSeconds = wallSeconds_;
+  s.stepsPerSecond = wallSeconds_ > 0 ? static_cast<double>(steps_) / wallSeconds_ : 0.0;
+  s.lastProfile = surface_->stain().profile();
+  s.lastTimes = surface_->lastTimes();
+  s.totals = totals_;
+  s.intrinsicRefreshes = intrinsicRefreshes_;
+  s.massBudget = surface_->stain().massBudget();
+  return s;
+}
+
+std::uint64_t Engine::stateHash() const {
+  std::uint64_t h = 14695981039346656037ull;
+  const stain::StainState& s = surface_->stain().state();
+  hashArray(h, surface_->motion().positions());
+  hashArray(h, surface_->motion().velocities());
+  hashArray(h, s.solvent);
+  hashArray(h, s.solute);
+  hashArray(h, s.absorbedSolvent);
+  hashArray(h, s.absorbedSolute);
+  hashArray(h, s.adsorbedSolute);
+  hashArray(h, s.velocities);
+  const double scalars[] = {s.evaporatedSolvent, s.addedSolvent, s.addedSolute, surface_->stain().time(), accumulator_};
+  hashBytes(h, scalars, sizeof scalars);
+  hashBytes(h, &steps_, sizeof steps_);
+  return h;
+}
+
+}  // namespace blot::engine

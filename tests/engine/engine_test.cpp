@@ -1,0 +1,365 @@
+// blot::Engine: the accumulator policy, runtime drops (vertex and world point),
+// views, statistics, determinism across frame-time splits, and save/load.
+#include <blot/engine/engine.h>
+#include <blot/engine/scene.h>
+#include <blot/stain/mesh_primitives.h>
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+namespace blot::engine {
+namespace {
+
+/// A 0.5 m patch (21 x 21 vertices) centred on the origin, spinning at 2 rad/s
+/// about z: inertia, Coriolis, advection, diffusion and interaction all run.
+EngineDef rotatingPatch(int resolution = 20) {
+  EngineDef def;
+  def.mesh = stain::gridMesh(resolution, resolution, 0.5, 0.5);
+  def.mesh.vertexPositions.col(0).array() -= 0.25;
+  def.mesh.vertexPositions.col(1).array() -= 0.25;
+  def.source = MotionSource::Rigid;
+  def.rigid.angularVelocity = Eigen::Vector3d(0, 0, 2);
+  def.timeStep = 0.01;
+  def.stain.liquid.absorptionRate = 0.4;
+  TimedDrop drop;
+  drop.drop.centerPoint = Eigen::Vector3d(0.08, 0, 0);
+  drop.drop.radius = 0.06;
+  drop.drop.solventMass = 0.02;
+  drop.drop.soluteMass = 0.01;
+  def.drops.push_back(drop);
+  return def;
+}
+
+std::string temporaryPath(const std::string& name) {
+  return (std::filesystem::temp_directory_path() / ("blot_engine_test_" + name)).string();
+}
+
+TEST(EngineTest, InitialDropShowsInTheFirstViewsAndMassIsConserved) {
+  Engine engine(rotatingPatch());
+  const int n = engine.vertexCount();
+  ASSERT_EQ(n, 21 * 21);
+  EXPECT_EQ(engine.positions().rows(), n);
+  EXPECT_EQ(engine.normals().rows(), n);
+  EXPECT_EQ(engine.colors().rows(), n);
+  // The drop is applied at construction: the mass budget already holds it, and
+  // the stained vertices are darker than the clean cloth.
+  EXPECT_NEAR(engine.statistics().massBudget.addedSolvent, 0.02, 1e-15);
+  EXPECT_LT(engine.colors().col(1).minCoeff(), 0.9 * engine.colors().col(1).maxCoeff());
+  // Normals of the flat patch are ±z, unit.
+  EXPECT_NEAR(engine.normals().col(2).cwiseAbs().minCoeff(), 1.0, 1e-12);
+
+  ASSERT_EQ(engine.advanceSteps(20).status, stain::StepStatus::Ok);
+  const EngineStatistics s = engine.statistics();
+  EXPECT_EQ(s.steps, 20);
+  EXPECT_DOUBLE_EQ(s.time, 0.2);
+  EXPECT_LT(s.massBudget.solventError(), 1e-12);
+  EXPECT_LT(s.massBudget.soluteError(), 1e-12);
+  EXPECT_GT(s.totals.stain, 0.0);
+  EXPECT_GT(s.stepsPerSecond, 0.0);
+  // The liquid view is tangent to the surface (z = 0 on a flat patch).
+  EXPECT_LT(engine.liquidVelocities().col(2).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_GT(engine.liquidVelocities().rowwise().norm().maxCoeff(), 0.0);
+}
+
+TEST(EngineTest, AccumulatorRunsWholeStepsAndCarriesTheRemainder) {
+  Engine engine(rotatingPatch(8));
+  EXPECT_EQ(engine.step(0.004).status, stain::StepStatus::Ok);
+  EXPECT_EQ(engine.stepCount(), 0);
+  EXPECT_NEAR(engine.accumulator(), 0.004, 1e-15);
+  engine.step(0.007);  // 0.011: one step, 0.001 carried
+  EXPECT_EQ(engine.stepCount(), 1);
+  EXPECT_NEAR(engine.accumulator(), 0.001, 1e-12);
+  engine.step(0.009);  // exactly 0.01 more: the remainder snaps to zero
+  EXPECT_EQ(engine.stepCount(), 2);
+  EXPECT_EQ(engine.accumulator(), 0.0);
+}
+
+TEST(EngineTest, FrameTimeBeyondTheCapIsDroppedAndReported) {
+  EngineDef def = rotatingPatch(8);
+  def.maxStepsPerCall = 3;
+  Engine engine(def);
+  engine.step(0.1);  // ten steps due, three run
+  EXPECT_EQ(engine.stepCount(), 3);
+  EXPECT_NEAR(engine.statistics().droppedTime, 0.07, 1e-12);
+  EXPECT_EQ(engine.accumulator(), 0.0);
+}
+
+TEST(EngineTest, VariableFrameTimesWithTheSameTotalGiveIdenticalState) {
+  Engine fixed(rotatingPatch());
+  Engine variable(rotatingPatch());
+  for (int k = 0; k < 12; ++k) fixed.step(0.01);
+  // Twelve steps' worth, split unevenly (and in amounts not exact in binary).
+  for (double dt : {0.016, 0.004, 0.013, 0.007, 0.0, 0.02, 0.001, 0.029, 0.03}) variable.step(dt);
+  EXPECT_EQ(fixed.stepCount(), 12);
+  EXPECT_EQ(variable.stepCount(), 12);
+  EXPECT_EQ(variable.accumulator(), 0.0);
+  EXPECT_EQ(fixed.stateHash(), variable.stateHash());
+  EXPECT_EQ((fixed.solvent() - variable.solvent()).cwiseAbs().maxCoeff(), 0.0);
+  // And a different sequence of steps does change the hash (the test can fail).
+  variable.step(0.01);
+  EXPECT_NE(fixed.stateHash(), variable.stateHash());
+}
+
+TEST(EngineTest, RuntimeDropLandsAtTheNextInternalStep) {
+  EngineDef def = rotatingPatch(10);
+  def.drops.clear();
+  Engine engine(def);
+  stain::DropDef drop;
+  drop.centerVertex = 60;
+  drop.radius = 0.08;
+  drop.solventMass = 0.004;
+  drop.soluteMass = 0.001;
+  engine.addDrop(drop);
+  engine.step(0.0);  // no internal step: nothing applied yet
+  EXPECT_EQ(engine.statistics().massBudget.addedSolvent, 0.0);
+  engine.step(0.01);
+  EXPECT_NEAR(engine.statistics().massBudget.addedSolvent, 0.004, 1e-15);
+  EXPECT_NEAR(engine.statistics().massBudget.addedSolute, 0.001, 1e-15);
+  EXPECT_EQ(engine.statistics().dropsApplied, 1);
+  drop.centerVertex = 10000;
+  EXPECT_THROW(engine.addDrop(drop), std::invalid_argument);
+}
+
+TEST(EngineTest, WorldPointDropHitsTheNearestSurfacePoint) {
+  EngineDef def = rotatingPatch(10);
+  def.drops.clear();
+  def.source = MotionSource::Static;
+  Engine engine(def);
+  stain::DropDef drop;
+  drop.radius = 0.05;
+  // Above the patch: lands straight below, inside a face.
+  const SurfaceHit hit = engine.addDropAtPoint(Eigen::Vector3d(0.013, -0.021, 0.3), drop);
+  ASSERT_GE(hit.face, 0);
+  EXPECT_NEAR(hit.point.x(), 0.013, 1e-14);
+  EXPECT_NEAR(hit.point.y(), -0.021, 1e-14);
+  EXPECT_NEAR(hit.point.z(), 0.0, 1e-15);
+  EXPECT_NEAR(hit.distance, 0.3, 1e-14);
+  EXPECT_NEAR(hit.barycentric.sum(), 1.0, 1e-14);
+  EXPECT_GE(hit.barycentric.minCoeff(), 0.0);
+  // Beyond the edge: lands on the boundary.
+  const SurfaceHit edge = engine.nearestSurfacePoint(Eigen::Vector3d(0.4, 0.0, 0.0));
+  EXPECT_NEAR(edge.point.x(), 0.25, 1e-14);
+  EXPECT_NEAR(edge.distance, 0.15, 1e-14);
+  engine.step(0.01);
+  EXPECT_NEAR(engine.statistics().massBudget.addedSolvent, drop.solventMass, 1e-15);
+}
+
+TEST(EngineTest, ScheduledDropLandsAtItsTime) {
+  EngineDef def = rotatingPatch(8);
+  def.drops[0].time = 0.05;
+  Engine engine(def);
+  EXPECT_EQ(engine.statistics().massBudget.addedSolvent, 0.0);
+  engine.advanceSteps(5);  // steps starting at t = 0 .. 0.04
+  EXPECT_EQ(engine.statistics().massBudget.addedSolvent, 0.0);
+  engine.advanceSteps(1);  // starts at t = 0.05
+  EXPECT_NEAR(engine.statistics().massBudget.addedSolvent, 0.02, 1e-15);
+}
+
+TEST(EngineTest, BadFrameTimeIsAStatusNotAnException) {
+  Engine engine(rotatingPatch(4));
+  EXPECT_EQ(engine.step(-1.0).status, stain::StepStatus::InvalidArgument);
+  EXPECT_EQ(engine.step(std::nan("")).status, stain::StepStatus::InvalidArgument);
+  EXPECT_EQ(engine.stepCount(), 0);
+}
+
+TEST(EngineTest, BadDefinitionsNameTheField) {
+  EngineDef def = rotatingPatch(4);
+  def.timeStep = 0;
+  try {
+    Engine engine(def);
+    FAIL() << "no error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("timeStep"), std::string::npos) << e.what();
+  }
+  def = rotatingPatch(4);
+  def.drops[0].drop.centerVertex = 999;
+  try {
+    Engine engine(def);
+    FAIL() << "no error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("drops[0]"), std::string::npos) << e.what();
+  }
+}
+
+TEST(EngineTest, SaveThenLoadContinuesBitIdentically) {
+  const std::string path = temporaryPath("rigid.state");
+  Engine original(rotatingPatch());
+  original.advanceSteps(15);
+  // A runtime drop still pending at save time must land after the load, too.
+  stain::DropDef drop;
+  drop.centerVertex = 100;
+  drop.solventMass = 0.003;
+  original.addDrop(drop);
+  original.step(0.004);  // a carried remainder is part of the state
+  original.save(path);
+  original.advanceSteps(10);
+  original.step(0.016);
+  const std::uint64_t expected = original.stateHash();
+
+  Engine restored(rotatingPatch());
+  restored.advanceSteps(3);  // whatever it did before is replaced
+  restored.load(path);
+  EXPECT_EQ(restored.stepCount(), 15);
+  EXPECT_NEAR(restored.accumulator(), 0.004, 1e-15);
+  restored.advanceSteps(10);
+  restored.step(0.016);
+  EXPECT_EQ(restored.stepCount(), original.stepCount());
+  EXPECT_EQ(restored.stateHash(), expected);
+  EXPECT_EQ((restored.positions() - original.positions()).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ((restored.adsorbedSolute() - original.adsorbedSolute()).cwiseAbs().maxCoeff(), 0.0);
+  std::remove(path.c_str());
+}
+
+/// A two-way Bullet flag (xz plane) pinned at its two top corners, with a heavy drop.
+EngineDef twoWayFlag() {
+  EngineDef def;
+  def.mesh = stain::gridMesh(16, 16, 0.6, 0.6);
+  def.mesh.vertexPositions.col(2) = def.mesh.vertexPositions.col(1);
+  def.mesh.vertexPositions.col(1).setZero();
+  def.source = MotionSource::Bullet;
+  def.cloth.pins = {{16 * 17, {}}, {16 * 17 + 16, {}}};
+  def.coupling = coupling::CouplingMode::TwoWay;
+  def.timeStep = 0.01;
+  TimedDrop drop;
+  drop.drop.centerVertex = 8 * 17 + 8;
+  drop.drop.radius = 0.15;
+  drop.drop.solventMass = 0.05;
+  drop.drop.soluteMass = 0.01;
+  def.drops.push_back(drop);
+  return def;
+}
+
+TEST(EngineTest, TwoWayBulletSaveThenLoadContinuesBitIdentically) {
+  const std::string path = temporaryPath("bullet.state");
+  Engine original(twoWayFlag());
+  original.advanceSteps(12);
+  original.save(path);
+  original.advanceSteps(12);
+  Engine restored(twoWayFlag());
+  restored.load(path);
+  restored.advanceSteps(12);
+  EXPECT_EQ(restored.stateHash(), original.stateHash());
+  EXPECT_EQ((restored.positions() - original.positions()).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ((restored.solvent() - original.solvent()).cwiseAbs().maxCoeff(), 0.0);
+  // The cloth really moved after the save (the comparison is not vacuous).
+  EXPECT_GT((original.positions() - original.definition().mesh.vertexPositions).cwiseAbs().maxCoeff(), 1e-4);
+  std::remove(path.c_str());
+}
+
+// Two engines built alike in one process give the same bits, also when the
+// second one reuses heap memory the first one freed (a read of uninitialised
+// scratch would show up here as a different hash).
+TEST(EngineTest, EnginesBuiltAlikeInOneProcessAgree) {
+  std::uint64_t first = 0;
+  {
+    Engine warmUp(rotatingPatch(24));
+    warmUp.advanceSteps(10);
+    Engine engine(twoWayFlag());
+    engine.advanceSteps(24);
+    first = engine.stateHash();
+  }
+  Engine again(twoWayFlag());
+  again.advanceSteps(24);
+  EXPECT_EQ(again.stateHash(), first);
+}
+
+TEST(EngineTest, MeshSequenceSceneMovesAndSavesBitIdentically) {
+  // Three frames of a 6 x 6 patch bending upward, written as OBJ files.
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "blot_engine_sequence";
+  std::filesystem::create_directories(dir);
+  const stain::TriangleMesh grid = stain::gridMesh(6, 6, 0.5, 0.5);
+  for (int k = 0; k < 3; ++k) {
+    std::ofstream obj(dir / ("f_" + std::to_string(k) + ".obj"));
+    obj.precision(17);
+    for (Eigen::Index i = 0; i < grid.vertexPositions.rows(); ++i) {
+      const double x = grid.vertexPositions(i, 0);
+      obj << "v " << x << " " << grid.vertexPositions(i, 1) << " " << 0.2 * k * x * x << "\n";
+    }
+    for (Eigen::Index f = 0; f < grid.faces.rows(); ++f)
+      obj << "f " << grid.faces(f, 0) + 1 << " " << grid.faces(f, 1) + 1 << " " << grid.faces(f, 2) + 1 << "\n";
+  }
+  {
+    std::ofstream scene(dir / "s.json");
+    scene << R"({"mesh": {"file": "f_0.obj"}, "cloth": {"source": "sequence", "pattern": "f_%d.obj", "frame_rate": 10},
+                 "time_step": 0.01, "drops": [{"vertex": 24, "radius": 0.1, "solvent_mass": 0.002}]})";
+  }
+  const std::string path = temporaryPath("sequence.state");
+  std::unique_ptr<Engine> original = Engine::fromSceneFile((dir / "s.json").string());
+  original->advanceSteps(7);
+  original->save(path);
+  original->advanceSteps(9);
+  EXPECT_GT(original->positions().col(2).maxCoeff(), 0.001);  // the surface bent
+  std::unique_ptr<Engine> restored = Engine::fromSceneFile((dir / "s.json").string());
+  restored->load(path);
+  restored->advanceSteps(9);
+  EXPECT_EQ(restored->stateHash(), original->stateHash());
+  std::remove(path.c_str());
+}
+
+TEST(EngineTest, LoadingAnotherMeshsStateNamesTheMismatch) {
+  const std::string path = temporaryPath("mismatch.state");
+  Engine small(rotatingPatch(8));
+  small.advanceSteps(2);
+  small.save(path);
+  Engine large(rotatingPatch(10));
+  const std::uint64_t before = large.stateHash();
+  try {
+    large.load(path);
+    FAIL() << "no error";
+  } catch (const StateFileError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find(path), std::string::npos) << message;
+    EXPECT_NE(message.find("81 vertices"), std::string::npos) << message;
+    EXPECT_NE(message.find("121 vertices"), std::string::npos) << message;
+  }
+  EXPECT_EQ(large.stateHash(), before);  // unchanged on error
+
+  // Same sizes, different rest shape: the fingerprint catches it.
+  EngineDef moved = rotatingPatch(8);
+  moved.mesh.vertexPositions.col(2).array() += 0.1;
+  Engine other(moved);
+  try {
+    other.load(path);
+    FAIL() << "no error";
+  } catch (const StateFileError& e) {
+    EXPECT_NE(std::string(e.what()).find("fingerprint"), std::string::npos) << e.what();
+  }
+
+  // Truncated file.
+  {
+    std::ifstream in(path, std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size() / 2));
+  }
+  try {
+    small.load(path);
+    FAIL() << "no error";
+  } catch (const StateFileError& e) {
+    EXPECT_NE(std::string(e.what()).find("truncated"), std::string::npos) << e.what();
+  }
+  std::remove(path.c_str());
+}
+
+TEST(EngineTest, BuildsFromSceneJsonWithFabricPatches) {
+  const std::string json = R"({
+    "mesh": {"patch": {"size": [0.4, 0.4], "resolution": [12, 12]}},
+    "cloth": {"source": "static"},
+    "fabric": {"viscosity": 0.001, "patches": [{"preset": "twill-2-1", "diffusivity": 0.005, "weft": [1, 0, 0]}]},
+    "time_step": 0.01,
+    "drops": [{"point": [0, 0, 0.2], "radius": 0.08, "solvent_mass": 0.01, "solute_mass": 0.004}]})";
+  std::unique_ptr<Engine> engine = Engine::fromSceneJson(json);
+  EXPECT_EQ(engine->vertexCount(), 13 * 13);
+  // trace / 2 of every face's density tensor is the requested diffusivity.
+  const stain::FabricField& fabric = engine->surface().stain().geometry().fabric();
+  EXPECT_NEAR(0.5 * (fabric.densityTensors(0, 0) + fabric.densityTensors(0, 2)), 0.005, 1e-12);
+  EXPECT_NE(fabric.densityTensors(0, 0), fabric.densityTensors(0, 2));  // anisotropic
+  engine->advanceSteps(10);
+  EXPECT_LT(engine->statistics().massBudget.soluteError(), 1e-12);
+}
+
+}  // namespace
+}  // namespace blot::engine

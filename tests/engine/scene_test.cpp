@@ -1,0 +1,238 @@
+// Scene files: good scenes parse into the EngineDef fields they name, and bad
+// ones fail with a message that names the source and the key path.
+#include <blot/engine/scene.h>
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+namespace blot::engine {
+namespace {
+
+/// A minimal valid scene: a 10 x 10 patch (121 vertices, 200 faces), static.
+const char* const kMinimal = R"({"mesh": {"patch": {"size": [1, 1], "resolution": [10, 10]}},
+                                 "cloth": {"source": "static"}})";
+
+std::string withCloth(const std::string& cloth) {
+  return R"({"mesh": {"patch": {"size": [1, 1], "resolution": [10, 10]}}, "cloth": )" + cloth + "}";
+}
+std::string withExtra(const std::string& extra) {
+  return R"({"mesh": {"patch": {"size": [1, 1], "resolution": [10, 10]}}, "cloth": {"source": "static"}, )" + extra +
+         "}";
+}
+
+/// The error message of parsing `json`, or "" when it parses.
+std::string errorOf(const std::string& json) {
+  try {
+    parseScene(json, "scene.json");
+  } catch (const SceneError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(SceneTest, MinimalSceneGetsDocumentedDefaults) {
+  const SceneDef scene = parseScene(kMinimal, "scene.json");
+  EXPECT_EQ(scene.engine.mesh.vertexPositions.rows(), 121);
+  EXPECT_EQ(scene.engine.mesh.faces.rows(), 200);
+  EXPECT_EQ(scene.engine.source, MotionSource::Static);
+  EXPECT_EQ(scene.engine.coupling, coupling::CouplingMode::OneWay);
+  EXPECT_DOUBLE_EQ(scene.engine.timeStep, 1.0 / 120.0);
+  EXPECT_EQ(scene.engine.maxStepsPerCall, 8);
+  EXPECT_DOUBLE_EQ(scene.engine.diffusivity, 0.01);
+  EXPECT_EQ(scene.outputs.frames, 10);
+  EXPECT_EQ(scene.outputs.directory, "out/scene");
+  // The patch is centred on the origin in the xy plane.
+  EXPECT_NEAR(scene.engine.mesh.vertexPositions.colwise().mean().norm(), 0.0, 1e-12);
+  EXPECT_DOUBLE_EQ(scene.engine.mesh.vertexPositions.col(2).cwiseAbs().maxCoeff(), 0.0);
+}
+
+TEST(SceneTest, EveryCommonKeyReachesItsField) {
+  const std::string json = R"({
+    "name": "flag", "description": "a test",
+    "mesh": {"patch": {"size": [2, 1], "resolution": [20, 10], "plane": "xz", "center": [0, 0, 1]}},
+    "cloth": {"source": "bullet", "total_mass": 0.3, "bend_stiffness": 0.1, "damping_rate": 0.2,
+              "position_iterations": 6, "substeps": 2,
+              "pins": [{"vertex": 0}, {"point": [1, 0, 1.5], "amplitude": [0, 0.1, 0], "frequency": 0.5}],
+              "wind": {"velocity": [0, 3, 0], "drag_coefficient": 0.4, "model": "vertex-two-sided"},
+              "colliders": [{"shape": "plane", "center": [0, 0, 0]}, {"shape": "sphere", "center": [0, 0.5, 0.5], "radius": 0.2}]},
+    "fabric": {"diffusivity": 0.02, "viscosity": 0.001},
+    "liquid": {"absorption_rate": 0.3, "evaporation_boundary": "wet-front"},
+    "physics": {"coriolis": false, "film_pressure": true, "coriolis_scheme": "explicit"},
+    "gravity": [0, 0, -9.81],
+    "coupling": "two-way", "time_step": 0.005, "max_steps_per_call": 4,
+    "drops": [{"vertex": 5, "radius": 0.1, "solvent_mass": 0.01, "solute_mass": 0.002, "time": 0.5},
+              {"point": [0, 0, 1], "velocity": [0, 1, 0]}],
+    "held_regions": [{"vertices": [1, 2, 3], "solvent_density": 2}],
+    "display": {"pigment": "ink"},
+    "outputs": {"frames": 3, "steps_per_frame": 2, "ply_every": 0, "directory": "out/x",
+                "preview": {"width": 64, "height": 48, "projection": "orthographic"}}})";
+  const SceneDef scene = parseScene(json, "flag.json");
+  const EngineDef& d = scene.engine;
+  EXPECT_EQ(scene.name, "flag");
+  EXPECT_EQ(d.mesh.vertexPositions.rows(), 21 * 11);
+  // xz plane: y = 0 everywhere, z spans [0.5, 1.5] around the centre z = 1.
+  EXPECT_DOUBLE_EQ(d.mesh.vertexPositions.col(1).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_DOUBLE_EQ(d.mesh.vertexPositions.col(2).maxCoeff(), 1.5);
+  EXPECT_EQ(d.source, MotionSource::Bullet);
+  EXPECT_DOUBLE_EQ(d.cloth.totalMass, 0.3);
+  EXPECT_EQ(d.cloth.positionIterations, 6);
+  EXPECT_EQ(d.cloth.substeps, 2);
+  ASSERT_EQ(d.cloth.pins.size(), 2u);
+  EXPECT_EQ(d.cloth.pins[0].vertex, 0);
+  EXPECT_EQ(d.cloth.pins[1].vertex, 20 + 21 * 10);  // the top right corner, nearest to (1, 0, 1.5)
+  EXPECT_DOUBLE_EQ(d.cloth.pins[1].motion.frequency, 0.5);
+  EXPECT_EQ(d.cloth.wind.model, cloth::AeroModel::VertexTwoSided);
+  ASSERT_EQ(d.cloth.colliders.size(), 2u);
+  EXPECT_EQ(d.cloth.colliders[1].shape, cloth::ClothCollider::Shape::Sphere);
+  EXPECT_DOUBLE_EQ(d.cloth.colliders[1].radius, 0.2);
+  EXPECT_DOUBLE_EQ(d.cloth.gravity.z(), -9.81);
+  EXPECT_DOUBLE_EQ(d.stain.gravity.z(), -9.81);
+  EXPECT_DOUBLE_EQ(d.diffusivity, 0.02);
+  EXPECT_DOUBLE_EQ(d.stain.liquid.absorptionRate, 0.3);
+  EXPECT_EQ(d.stain.liquid.evaporationBoundary, stain::EvaporationBoundary::WetFront);
+  EXPECT_FALSE(d.stain.switches.coriolis);
+  EXPECT_TRUE(d.stain.switches.filmPressure);
+  EXPECT_EQ(d.stain.switches.coriolisScheme, stain::CoriolisScheme::Explicit);
+  EXPECT_EQ(d.coupling, coupling::CouplingMode::TwoWay);
+  EXPECT_DOUBLE_EQ(d.timeStep, 0.005);
+  ASSERT_EQ(d.drops.size(), 2u);
+  EXPECT_EQ(d.drops[0].drop.centerVertex, 5);
+  EXPECT_DOUBLE_EQ(d.drops[0].time, 0.5);
+  EXPECT_EQ(d.drops[1].drop.centerVertex, -1);
+  EXPECT_DOUBLE_EQ(d.drops[1].drop.velocity.y(), 1.0);
+  ASSERT_EQ(d.heldRegions.size(), 1u);
+  EXPECT_EQ(d.heldRegions[0].vertices.size(), 3u);
+  EXPECT_EQ(scene.outputs.frames, 3);
+  EXPECT_EQ(scene.outputs.plyEvery, 0);
+  EXPECT_EQ(scene.outputs.preview.projection, Projection::Orthographic);
+}
+
+TEST(SceneTest, FabricPatchesWithTensorAndPreset) {
+  const std::string json = withExtra(R"("fabric": {"viscosity": 0.001, "patches": [
+      {"name": "left", "faces": [0, 1, 2], "tensor": [[2, 0], [0, 1]], "diffusivity": 0.03, "weft": [1, 1, 0]},
+      {"preset": "twill-2-1", "faces": "all"}]})");
+  const SceneDef scene = parseScene(json, "scene.json");
+  ASSERT_EQ(scene.engine.fabricPatches.size(), 2u);
+  const stain::FabricPatch& left = scene.engine.fabricPatches[0];
+  EXPECT_EQ(left.name, "left");
+  EXPECT_EQ(left.faces.size(), 3u);
+  // Scaled so that trace / 2 = 0.03 with the 2:1 anisotropy kept.
+  EXPECT_NEAR(left.tensor(0, 0), 0.04, 1e-15);
+  EXPECT_NEAR(left.tensor(1, 1), 0.02, 1e-15);
+  EXPECT_EQ(left.weftConstraints.size(), 3u);
+  EXPECT_TRUE(scene.engine.fabricPatches[1].pattern.has_value());
+  EXPECT_EQ(scene.engine.fabricPatches[1].name, "fabric.patches[1]");  // errors name the key path
+  EXPECT_EQ(scene.engine.fabricPatches[1].faces.size(), 200u);
+}
+
+TEST(SceneTest, FileMeshResolvesAgainstTheSceneFolder) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "blot_scene_test";
+  std::filesystem::create_directories(dir / "meshes");
+  {
+    std::ofstream obj(dir / "meshes" / "tri.obj");
+    obj << "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n";
+    std::ofstream scene(dir / "s.json");
+    scene << R"({"mesh": {"file": "meshes/tri.obj", "scale": 2}, "cloth": {"source": "rigid", "angular_velocity": [0, 0, 1]}})";
+  }
+  const SceneDef scene = loadScene((dir / "s.json").string());
+  EXPECT_EQ(scene.engine.mesh.vertexPositions.rows(), 4);
+  EXPECT_DOUBLE_EQ(scene.engine.mesh.vertexPositions(3, 0), 2.0);
+  EXPECT_EQ(scene.engine.source, MotionSource::Rigid);
+  EXPECT_DOUBLE_EQ(scene.engine.rigid.angularVelocity.z(), 1.0);
+  EXPECT_EQ(scene.name, "s");
+}
+
+// ------------------------------------------------------------------ bad scenes
+// Each case: the scene, the key path the message must name, and a fragment of
+// what was expected.
+struct BadScene {
+  const char* label;
+  std::string json;
+  const char* keyPath;
+  const char* expected;
+};
+
+class BadSceneTest : public ::testing::TestWithParam<BadScene> {};
+
+TEST_P(BadSceneTest, MessageNamesSourceAndKey) {
+  const BadScene& c = GetParam();
+  const std::string message = errorOf(c.json);
+  ASSERT_FALSE(message.empty()) << c.label << ": parsed without error";
+  EXPECT_EQ(message.rfind("scene.json: ", 0), 0u) << message;
+  EXPECT_NE(message.find(std::string("scene.json: ") + c.keyPath + ":"), std::string::npos)
+      << c.label << ": message does not name '" << c.keyPath << "': " << message;
+  EXPECT_NE(message.find(c.expected), std::string::npos) << c.label << ": " << message;
+}
+
+const std::string kBullet = R"({"source": "bullet", )";
+
+INSTANTIATE_TEST_SUITE_P(
+    Scenes, BadSceneTest,
+    ::testing::Values(
+        BadScene{"pin vertex out of range", withCloth(kBullet + R"("pins": [{"vertex": 0}, {"vertex": 1}, {"vertex": 9000}]})"),
+                 "cloth.pins[2].vertex", "expected an integer in [0, 121), got 9000"},
+        BadScene{"unknown top-level key", withExtra(R"("tme_step": 0.01)"), "tme_step", "unknown key"},
+        BadScene{"unknown nested key", withExtra(R"("liquid": {"absorption": 0.1})"), "liquid.absorption",
+                 "unknown key (expected one of: absorption_rate"},
+        BadScene{"wrong type", withExtra(R"("time_step": "fast")"), "time_step", "expected a number in (0, 1], got a string"},
+        BadScene{"negative time step", withExtra(R"("time_step": -0.01)"), "time_step", "got -0.01"},
+        BadScene{"bad enum", withExtra(R"("coupling": "both")"), "coupling", "expected one of \"one-way\", \"two-way\""},
+        BadScene{"two-way without bullet", withExtra(R"("coupling": "two-way")"), "coupling", "needs cloth.source \"bullet\""},
+        BadScene{"unknown source", withCloth(R"({"source": "cloth"})"), "cloth.source", "expected one of \"static\""},
+        BadScene{"missing cloth", R"({"mesh": {"patch": {}}})", "cloth", "required key is missing"},
+        BadScene{"two meshes", R"({"mesh": {"patch": {}, "disc": {}}, "cloth": {"source": "static"}})", "mesh",
+                 "exactly one of"},
+        BadScene{"resolution not integer", R"({"mesh": {"patch": {"resolution": [10.5, 10]}}, "cloth": {"source": "static"}})",
+                 "mesh.patch.resolution[0]", "expected an integer in [1, 2000]"},
+        BadScene{"missing mesh file", R"({"mesh": {"file": "/nonexistent/x.obj"}, "cloth": {"source": "static"}})",
+                 "mesh.file", "/nonexistent/x.obj"},
+        BadScene{"stiffness out of range", withCloth(kBullet + R"("stretch_stiffness": 1.5})"), "cloth.stretch_stiffness",
+                 "expected a number in (0, 1], got 1.5"},
+        BadScene{"duplicate pin", withCloth(kBullet + R"("pins": [{"vertex": 3}, {"vertex": 3}]})"), "cloth.pins[1].vertex",
+                 "already pinned by cloth.pins[0]"},
+        BadScene{"collider shape", withCloth(kBullet + R"("colliders": [{"shape": "cone"}]})"), "cloth.colliders[0].shape",
+                 "expected one of \"plane\", \"box\", \"sphere\""},
+        BadScene{"sphere key on a box", withCloth(kBullet + R"("colliders": [{"shape": "box", "radius": 1}]})"),
+                 "cloth.colliders[0].radius", "unknown key"},
+        BadScene{"wind not an object", withCloth(kBullet + R"("wind": 3})"), "cloth.wind", "expected an object, got 3"},
+        BadScene{"vector of 2", withCloth(R"({"source": "rigid", "angular_velocity": [0, 1]})"), "cloth.angular_velocity",
+                 "expected an array of 3 numbers"},
+        BadScene{"drop without a place", withExtra(R"("drops": [{"radius": 0.1}])"), "drops[0].vertex", "required"},
+        BadScene{"drop negative mass", withExtra(R"("drops": [{"vertex": 1, "solute_mass": -1}])"), "drops[0].solute_mass",
+                 "expected a number >= 0, got -1"},
+        BadScene{"held region vertex", withExtra(R"("held_regions": [{"vertices": [1, 500]}])"),
+                 "held_regions[0].vertices[1]", "[0, 121)"},
+        BadScene{"held region empty ball", withExtra(R"("held_regions": [{"center": [9, 9, 9], "radius": 0.01}])"),
+                 "held_regions[0].radius", "no rest-shape vertex"},
+        BadScene{"physics switch type", withExtra(R"("physics": {"coriolis": 1})"), "physics.coriolis", "expected true or false"},
+        BadScene{"fabric face out of range", withExtra(R"("fabric": {"patches": [{"faces": [0, 999], "tensor": [[1, 0], [0, 1]]}]})"),
+                 "fabric.patches[0].faces[1]", "[0, 200)"},
+        BadScene{"tensor not SPD", withExtra(R"("fabric": {"patches": [{"tensor": [[1, 2], [2, 1]]}]})"),
+                 "fabric.patches[0].tensor", "positive definite"},
+        BadScene{"unknown preset", withExtra(R"("fabric": {"patches": [{"preset": "denim"}]})"), "fabric.patches[0].preset",
+                 "denim"},
+        BadScene{"outputs frames zero", withExtra(R"("outputs": {"frames": 0})"), "outputs.frames", "[1, 1000000]"},
+        BadScene{"preview key", withExtra(R"("outputs": {"preview": {"size": 3}})"), "outputs.preview.size", "unknown key"},
+        BadScene{"pigment", withExtra(R"("display": {"pigment": "blood"})"), "display.pigment", "\"wine\", \"coffee\", \"ink\""},
+        BadScene{"sequence without pattern", withCloth(R"({"source": "sequence"})"), "cloth.pattern", "required"}),
+    [](const ::testing::TestParamInfo<BadScene>& param) {
+      std::string name = param.param.label;
+      for (char& ch : name)
+        if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
+      return name;
+    });
+
+TEST(SceneTest, InvalidJsonNamesTheSource) {
+  const std::string message = errorOf("{\"mesh\": ");
+  EXPECT_EQ(message.rfind("scene.json: invalid JSON", 0), 0u) << message;
+}
+
+TEST(SceneTest, MissingFileIsAnError) {
+  EXPECT_THROW(loadScene("/nonexistent/scene.json"), SceneError);
+}
+
+}  // namespace
+}  // namespace blot::engine
