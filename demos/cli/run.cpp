@@ -26,13 +26,17 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <csignal>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <memory>
 #include <sstream>
+#include <stdexcept>
 #include <string>
+#include <system_error>
 
 namespace blot::cli {
 namespace {
@@ -43,7 +47,74 @@ struct RunOptions {
   std::string outputDirectory;  // empty: the scene's
   int threads = 0;         // 0: OpenMP's default
   bool quiet = false;
+  int checkpointEvery = 0;  // frames between checkpoints; 0: none
+  bool resume = false;      // continue from <out>/checkpoint.json
+  int killAfterFrame = 0;   // testing only: SIGKILL this process after that frame
 };
+
+// Checkpoints (issue 8): every `checkpointEvery` frames the whole engine state
+// goes to <out>/checkpoint_<frame>.state (Engine::save writes a temporary and
+// renames it), then <out>/checkpoint.json — frame, state file, state hash — is
+// replaced the same way, and only then is the previous state file removed. A
+// kill at any point leaves a checkpoint.json that names a complete state file;
+// --resume loads it, checks the state hash, and reruns the frames after it,
+// rewriting their PLY files with identical bytes (the run is deterministic for
+// a given scene and thread count). Rejected: one fixed state file name (a kill
+// between the state's rename and the JSON's would pair a new state with an old
+// frame number).
+struct Checkpoint {
+  int frame = 0;
+  std::string stateFile;  // file name inside the output folder
+  std::uint64_t stateHash = 0;
+};
+
+std::string hexHash(std::uint64_t hash) {
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(hash));
+  return hex;
+}
+
+void writeCheckpoint(const engine::Engine& engine, const std::filesystem::path& directory, int frame,
+                     const std::string& previousStateFile) {
+  const std::string stateFile = "checkpoint_" + std::to_string(frame) + ".state";
+  engine.save((directory / stateFile).string());
+  const nlohmann::json record = {{"frame", frame}, {"state", stateFile}, {"state_hash", hexHash(engine.stateHash())}};
+  const std::filesystem::path json = directory / "checkpoint.json", temporary = directory / "checkpoint.json.tmp";
+  {
+    std::ofstream out(temporary);
+    out << record.dump(2) << "\n";
+    if (!out.flush()) throw std::runtime_error(temporary.string() + ": cannot write the checkpoint record");
+  }
+  std::filesystem::rename(temporary, json);
+  if (!previousStateFile.empty() && previousStateFile != stateFile) {
+    std::error_code ignored;
+    std::filesystem::remove(directory / previousStateFile, ignored);
+  }
+}
+
+/// Reads <directory>/checkpoint.json; throws naming the file and the key.
+Checkpoint readCheckpoint(const std::filesystem::path& directory) {
+  const std::filesystem::path json = directory / "checkpoint.json";
+  std::ifstream in(json);
+  if (!in) throw std::runtime_error(json.string() + ": no checkpoint to resume from (run with --checkpoint-every N first)");
+  nlohmann::json record;
+  try {
+    in >> record;
+  } catch (const nlohmann::json::exception& e) {
+    throw std::runtime_error(json.string() + ": not a checkpoint record: " + e.what());
+  }
+  Checkpoint c;
+  if (!record.contains("frame") || !record["frame"].is_number_integer() || record["frame"].get<int>() < 0)
+    throw std::runtime_error(json.string() + ": frame: expected an integer >= 0");
+  if (!record.contains("state") || !record["state"].is_string())
+    throw std::runtime_error(json.string() + ": state: expected a file name");
+  if (!record.contains("state_hash") || !record["state_hash"].is_string())
+    throw std::runtime_error(json.string() + ": state_hash: expected a hex string");
+  c.frame = record["frame"].get<int>();
+  c.stateFile = record["state"].get<std::string>();
+  c.stateHash = std::stoull(record["state_hash"].get<std::string>(), nullptr, 16);
+  return c;
+}
 
 /// Per-vertex attributes of one frame (DESIGN.md "Outputs"), densities in kg/m², velocity in m/s.
 engine::PlyFrame plyFrame(const engine::Engine& e) {
@@ -163,11 +234,34 @@ int runScene(const RunOptions& options) {
     plyPaths.push_back(lastGood);
   };
   const int every = scene.outputs.plyEvery;
-  if (every > 0) writeFrame(0);
+  int firstFrame = 1;
+  std::string checkpointState;
+  if (options.resume) {
+    try {
+      const Checkpoint c = readCheckpoint(directory);
+      engine->load((std::filesystem::path(directory) / c.stateFile).string());
+      if (engine->stateHash() != c.stateHash)
+        throw std::runtime_error(c.stateFile + ": state hash " + hexHash(engine->stateHash()) +
+                                 " does not match checkpoint.json's " + hexHash(c.stateHash));
+      if (c.frame > frames)
+        throw std::runtime_error("checkpoint.json: frame " + std::to_string(c.frame) + " is past --frames " +
+                                 std::to_string(frames));
+      firstFrame = c.frame + 1;
+      checkpointState = c.stateFile;
+      for (int frame = 0; frame <= c.frame; ++frame)  // frames already on disk
+        if (every > 0 && (frame % every == 0)) plyPaths.push_back(lastGood = writer.framePath(frame));
+      std::cerr << "blot run: resuming after frame " << c.frame << " from " << c.stateFile << "\n";
+    } catch (const std::exception& e) {
+      std::cerr << "blot run: error: cannot resume in " << directory << ": " << e.what() << "\n";
+      return 1;
+    }
+  } else if (every > 0) {
+    writeFrame(0);
+  }
 
   Progress progress(frames, options.quiet);
   const auto start = std::chrono::steady_clock::now();
-  for (int frame = 1; frame <= frames; ++frame) {
+  for (int frame = firstFrame; frame <= frames; ++frame) {
     const stain::StepReport report = engine->advanceSteps(scene.outputs.stepsPerFrame);
     const cloth::BulletCloth* bullet = engine->surface().bulletCloth();
     std::string failure;
@@ -186,7 +280,18 @@ int runScene(const RunOptions& options) {
       return 3;
     }
     if (every > 0 && (frame % every == 0 || frame == frames)) writeFrame(frame);
+    if (options.checkpointEvery > 0 && frame % options.checkpointEvery == 0 && frame < frames) {
+      try {
+        writeCheckpoint(*engine, directory, frame, checkpointState);
+        checkpointState = "checkpoint_" + std::to_string(frame) + ".state";
+      } catch (const std::exception& e) {
+        progress.interrupt();
+        std::cerr << "blot run: error: checkpoint after frame " << frame << ": " << e.what() << "\n";
+        return 1;
+      }
+    }
     progress.update(frame, engine->time(), engine->statistics().stepsPerSecond);
+    if (options.killAfterFrame > 0 && frame == options.killAfterFrame) ::kill(::getpid(), SIGKILL);
   }
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
@@ -239,11 +344,7 @@ int runScene(const RunOptions& options) {
       {"mean_ms_per_step", meanTimesJson(s)},
       {"intrinsic_refreshes", s.intrinsicRefreshes},
       {"drops_applied", s.dropsApplied},
-      {"state_hash", [&] {
-         char hex[17];
-         std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(engine->stateHash()));
-         return std::string(hex);
-       }()},
+      {"state_hash", hexHash(engine->stateHash())},
       {"terms", termsJson(d)},
       {"mass_budget_kg", massBudgetJson(s.massBudget)},
       {"outputs", {{"directory", directory}, {"ply", plyPaths}, {"preview", previewPath}, {"preview_rest_shape", restPreviewPath}, {"summary", summaryPath}}}};
@@ -263,6 +364,12 @@ void registerRunCommand(CLI::App& app, int& exitCode) {
   command->add_option("--out", options->outputDirectory, "Output folder (default: the scene's outputs.directory)");
   command->add_option("--threads", options->threads, "OpenMP threads (default: all cores)");
   command->add_flag("--quiet", options->quiet, "No progress output");
+  command->add_option("--checkpoint-every", options->checkpointEvery,
+                      "Save the whole state every N frames to <out>/checkpoint_<frame>.state (0: never)");
+  command->add_flag("--resume", options->resume,
+                    "Continue from <out>/checkpoint.json; frames and results equal an uninterrupted run's");
+  command->add_option("--kill-after-frame", options->killAfterFrame,
+                      "Testing only: the process kills itself with SIGKILL after this frame");
   command->callback([options, &exitCode]() { exitCode = runScene(*options); });
 }
 
