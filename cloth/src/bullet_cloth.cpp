@@ -475,7 +475,7 @@ ClothCollider ClothCollider::sphere(const Eigen::Vector3d& center, double radius
 }
 
 BulletCloth::BulletCloth(const ClothDef& def) : def_(def), bullet_(std::make_unique<Bullet>()) {
-  RecyclingBulletAllocator::install();
+  if (def.recycleBulletAllocations) RecyclingBulletAllocator::install();
   validate(def_);
   const Eigen::MatrixX3d& rest = def_.restPositions;
   const int n = static_cast<int>(rest.rows());

@@ -409,6 +409,7 @@ TEST(BulletCloth, InvalidDefinitionsNameTheField) {
   ClothDef def = hangingFlag(4);
   def.totalMass = 0;
   EXPECT_NE(message(def).find("totalMass"), std::string::npos);
+  EXPECT_NE(message(ClothDef{}).find("restPositions is empty"), std::string::npos) << message(ClothDef{});
   def = hangingFlag(4);
   def.pins.push_back(ClothPin{1000, {}});
   EXPECT_NE(message(def).find("pins[2].vertex"), std::string::npos);

@@ -176,6 +176,13 @@ struct ClothDef {
   /// cloth–collider contact. 0 = automatic: the smaller of 0.25 m and a quarter
   /// of the smallest sphere radius or box half extent.
   double collisionVoxelSize = 0;
+  /// Bullet 3.24 allocates scratch arrays on every substep (4 mallocs, in
+  /// btSoftBody::applyClusters, even without clusters). With true, the first
+  /// BulletCloth routes Bullet's raw allocations (btAlignedAllocSetCustom,
+  /// process-wide) through a small recycling cache so a steady step allocates
+  /// nothing. Set false when the host application installs its own Bullet
+  /// allocator: Bullet has only one, and ours would then free the host's blocks.
+  bool recycleBulletAllocations = true;
 };
 
 /// Everything a BulletCloth carries from one advance() to the next, as plain
