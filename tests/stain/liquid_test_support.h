@@ -41,7 +41,7 @@ inline FabricField isotropicFabric(int faceCount) {
   return uniformFabric(faceCount, fabricTensor(1, 1), fabricTensor(1, 1), 0.0);
 }
 
-/// Both geometry tiers of one static mesh, computed the way SurfaceGeometry does.
+/// Both geometry tiers of one static mesh, as SurfaceGeometry builds them.
 struct LiquidMesh {
   TriangleMesh mesh;
   SurfaceTopology topology;
@@ -51,33 +51,10 @@ struct LiquidMesh {
   LiquidMesh(TriangleMesh m, const FabricField& fabric)
       : mesh(std::move(m)),
         topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()), "liquid test mesh") {
-    const RowVectors3& p = mesh.vertexPositions;
-    IntrinsicGeometry& g = intrinsic;
-    g.edgeLengths = edgeLengths(topology, p);
-    g.faceCornerAngles = faceCornerAngles(topology, g.edgeLengths);
-    g.faceAreas = faceAreas(topology, g.edgeLengths);
-    g.edgeCotanWeights = edgeCotanWeights(topology, g.faceCornerAngles);
-    g.vertexDualAreas = vertexDualAreas(topology, g.faceAreas);
-    g.polarMap = geodesicPolarMap(topology, g.faceCornerAngles);
-    g.edgeTransportAngles = edgeTransportAngles(topology, g.polarMap);
-    g.faceTransportAngles = faceTransportAngles(topology, g.faceCornerAngles, g.polarMap);
-    g.densityStiffness = anisotropicStiffness(topology, p, fabric.densityTensors, fabric.weftDirections);
-    g.velocityStiffness = connectionLaplacian(topology, p, g.faceTransportAngles, fabric.velocityTensors,
-                                              fabric.weftDirections);
-    g.rebuildCount = 1;
-
-    ExtrinsicGeometry& e = extrinsic;
-    e.previousPositions = p;
-    e.positions = p;
-    e.nextPositions = p;
-    e.vertexNormals = vertexNormals(topology, p);
-    const VertexFrames frames = vertexTangentFrames(topology, p, e.vertexNormals);
-    for (int i = 0; i < topology.vertexCount(); ++i) e.restFrames.push_back(frames.frame(i));
-    e.frames = e.restFrames;
-    e.nextFrames = e.restFrames;
-    e.kabschRotations.assign(static_cast<size_t>(topology.vertexCount()), Matrix3::Identity());
-    e.vertexAccelerations = RowVectors3::Zero(topology.vertexCount(), 3);
-    e.vertexAngularVelocities = RowVectors3::Zero(topology.vertexCount(), 3);
+    // The geometry tiers exactly as the solver builds them on the rest shape.
+    const SurfaceGeometry geometry(topology, mesh.vertexPositions, fabric);
+    intrinsic = geometry.intrinsic();
+    extrinsic = geometry.extrinsic();
   }
   int vertexCount() const { return topology.vertexCount(); }
   int faceCount() const { return topology.faceCount(); }

@@ -1,7 +1,7 @@
 #pragma once
 // Shared by the stage tests (forces, advection): the intrinsic and extrinsic
-// tiers of a static mesh filled by hand from the geometry free functions (what
-// SurfaceGeometry builds), a zero state, and frame <-> world conversions.
+// tiers of a static mesh as SurfaceGeometry builds them, a zero state, and
+// frame <-> world conversions.
 #include <blot/stain/stain_state.h>
 #include <blot/stain/surface_geometry.h>
 
@@ -17,28 +17,12 @@ struct StageGeometry {
   ExtrinsicGeometry extrinsic;
 
   explicit StageGeometry(TriangleMesh mesh) : geometry(std::move(mesh)) {
-    intrinsic.edgeLengths = geometry.lengths;
-    intrinsic.faceCornerAngles = geometry.angles;
-    intrinsic.faceAreas = geometry.areas;
-    intrinsic.edgeCotanWeights = geometry.cotanWeights;
-    intrinsic.vertexDualAreas = geometry.dualAreas;
-    intrinsic.polarMap = geometry.polarMap;
-    intrinsic.edgeTransportAngles = geometry.edgeAngles;
-    intrinsic.faceTransportAngles = geometry.faceAngles;
-    intrinsic.rebuildCount = 1;
-    const int n = geometry.vertexCount();
-    const RowVectors3& p = geometry.mesh.vertexPositions;
-    extrinsic.previousPositions = p;
-    extrinsic.positions = p;
-    extrinsic.nextPositions = p;
-    extrinsic.vertexNormals = geometry.normals;
-    extrinsic.frames.resize(static_cast<size_t>(n));
-    for (int i = 0; i < n; ++i) extrinsic.frames[static_cast<size_t>(i)] = geometry.frames.frame(i);
-    extrinsic.restFrames = extrinsic.frames;
-    extrinsic.nextFrames = extrinsic.frames;
-    extrinsic.kabschRotations.assign(static_cast<size_t>(n), Matrix3::Identity());
-    extrinsic.vertexAccelerations = RowVectors3::Zero(n, 3);
-    extrinsic.vertexAngularVelocities = RowVectors3::Zero(n, 3);
+    // The tiers as the solver builds them on the rest shape (the stage tests
+    // use no stiffness, so any fabric will do).
+    const SurfaceGeometry built(geometry.topology, geometry.mesh.vertexPositions,
+                                isotropicFabricField(geometry.topology.faceCount(), 1.0, 1.0));
+    intrinsic = built.intrinsic();
+    extrinsic = built.extrinsic();
   }
   const SurfaceTopology& topology() const { return geometry.topology; }
   int vertexCount() const { return geometry.vertexCount(); }
