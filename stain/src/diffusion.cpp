@@ -62,9 +62,17 @@
 //    (or Re and Im of u) share every pass over the matrix. Above the ratio,
 //    or when CG has not converged in kMaxIterations, the factor solves it
 //    (it is kept up to date either way, so the fallback is always there).
-//    Serial: a few thousand rows per iteration are below what an OpenMP
-//    fork/join repays on two cores, and a serial sum is the same for any
-//    thread count. Rejected: running CG on the whole mesh (4-8x the rows of a
+//    Threads: the row loops (A p with pᵀq, the x/r update with rᵀD⁻¹r and
+//    rᵀr, the p update, the start's residual) work on fixed chunks of
+//    kKrylovChunkRows active rows, each chunk's partial sums stored and added
+//    in chunk order, so the sums depend on the active count only, never on
+//    the thread count or on whether threads ran (bit-identical for 1 and N
+//    threads; with one chunk it is the old plain serial sum). The chunks run
+//    on OpenMP threads from kKrylovParallelRows active rows: below that a
+//    fork/join (three per iteration) costs more than the loop on two cores.
+//    Rejected: OpenMP's reduction(+), whose combination order is the
+//    runtime's and changes with the thread count.
+//    Rejected: running CG on the whole mesh (4-8x the rows of a
 //    10 % drop), and a stronger preconditioner (IC(0), SSOR: fewer iterations
 //    but the triangular sweeps fill the whole active region at once, and the
 //    solution must reach the same rings anyway).
@@ -440,54 +448,115 @@ struct KrylovOutcome {
 // neighbour of the active rows: zeros or fixed (Dirichlet) values outside.
 // x, r, p must be zero outside `active` on entry; x is written on the active
 // rows only. mass[c] = compensated Σ_{active} A_i x0_c,i.
+// Runs body(begin, end, sums) over the active rows [0, count) in fixed chunks
+// of kKrylovChunkRows, on OpenMP threads from kKrylovParallelRows rows on;
+// each chunk's kSums partial sums go to partials[chunk * kSums + s] and are
+// added in chunk order into total. The chunking depends on count only, so
+// the sums (and the whole solve) are the same to the bit for any thread
+// count, threaded or not; with one chunk it is the plain serial sum.
+template <int kSums, typename Body>
+void chunkedSums(int count, double* partials, double total[kSums], const Body& body) {
+  const int chunks = (count + kKrylovChunkRows - 1) / kKrylovChunkRows;
+#pragma omp parallel for schedule(static) if (count >= kKrylovParallelRows)
+  for (int c = 0; c < chunks; ++c) {
+    double sums[kSums] = {};
+    body(c * kKrylovChunkRows, std::min(count, (c + 1) * kKrylovChunkRows), sums);
+    for (int k = 0; k < kSums; ++k) partials[c * kSums + k] = sums[k];
+  }
+  for (int k = 0; k < kSums; ++k) total[k] = 0.0;
+  for (int c = 0; c < chunks; ++c) {
+    for (int k = 0; k < kSums; ++k) total[k] += partials[c * kSums + k];
+  }
+}
+
+// Jacobi-PCG on pairs: every vector holds two numbers per vertex (v[2i],
+// v[2i + 1]). kComplex = false: two independent real systems A x_c = M x0_c
+// (solvent and solute) sharing each pass over A, each with its own α, β and
+// stopping test. kComplex = true: one Hermitian system on (Re, Im); column i
+// holds A(j, i) = conj(A(i, j)), so row i of A p is Σ conj(a) p_j over column
+// i, and α, β use the sums over both components (Re pᴴq = p·q on pairs).
+// Runs on the active set `active` (seeded by the caller with every row whose
+// residual can be non-zero); with `grow`, each iteration first adds the next
+// ring (the support of A p), otherwise the active rows are a fixed domain.
+// x0 (component c of vertex j at x0[c][j * x0Stride]) is read at every
+// neighbour of the active rows: zeros or fixed (Dirichlet) values outside.
+// x, r, p must be zero outside `active` on entry; x is written on the active
+// rows only. mass[c] = compensated Σ_{active} A_i x0_c,i. `partials`: room
+// for kKrylovPartialsPerChunk numbers per chunk of the largest active set
+// (chunkedSums). Every row loop writes only its own rows, and reads of p at
+// neighbours happen in the product loop, which writes q only.
 template <bool kComplex>
 KrylovOutcome pairConjugateGradients(const int* outer, const int* inner, const double* values,
                                      const double* inverseDiagonal, const double* area, const double* const x0[2],
                                      int x0Stride, double* __restrict x, double* __restrict r,
                                      double* __restrict p, double* __restrict q, ActiveSet& active, bool grow,
-                                     double mass[2]) {
+                                     double mass[2], double* partials) {
   KrylovOutcome outcome;
   double rz[2] = {0, 0}, rr[2] = {0, 0}, bb[2] = {0, 0}, largest[2] = {0, 0};
-  CompensatedSum massSum[2];
   {
     const int* list = active.list();
     const int count = active.size();
-    for (int k = 0; k < count; ++k) {
-      const int i = list[k];
-      double a0 = 0.0, a1 = 0.0;  // (A x0)_i
-      for (int e = outer[i]; e < outer[i + 1]; ++e) {
-        const size_t j = static_cast<size_t>(inner[e]) * static_cast<size_t>(x0Stride);
-        if (kComplex) {
-          const double re = values[2 * e], im = values[2 * e + 1];
-          a0 += re * x0[0][j] + im * x0[1][j];
-          a1 += re * x0[1][j] - im * x0[0][j];
-        } else {
-          a0 += values[e] * x0[0][j];
-          a1 += values[e] * x0[1][j];
+    // Per chunk: rz, rr, bb (two each), the two compensated masses as (sum,
+    // compensation) and the two largest |x0| (max: order-free).
+    double sums[kKrylovPartialsPerChunk];
+    chunkedSums<kKrylovPartialsPerChunk>(count, partials, sums, [&](int begin, int end, double* out) {
+      CompensatedSum massSum[2];
+      double top0 = 0.0, top1 = 0.0;
+      for (int k = begin; k < end; ++k) {
+        const int i = list[k];
+        double a0 = 0.0, a1 = 0.0;  // (A x0)_i
+        for (int e = outer[i]; e < outer[i + 1]; ++e) {
+          const size_t j = static_cast<size_t>(inner[e]) * static_cast<size_t>(x0Stride);
+          if (kComplex) {
+            const double re = values[2 * e], im = values[2 * e + 1];
+            a0 += re * x0[0][j] + im * x0[1][j];
+            a1 += re * x0[1][j] - im * x0[0][j];
+          } else {
+            a0 += values[e] * x0[0][j];
+            a1 += values[e] * x0[1][j];
+          }
         }
+        const size_t ii = static_cast<size_t>(i) * static_cast<size_t>(x0Stride);
+        const double invD = inverseDiagonal[i];
+        const double v0 = x0[0][ii], v1 = x0[1][ii];
+        const double b0 = area[i] * v0, b1 = area[i] * v1;
+        const double r0 = b0 - a0, r1 = b1 - a1;
+        x[2 * i] = v0;
+        x[2 * i + 1] = v1;
+        r[2 * i] = r0;
+        r[2 * i + 1] = r1;
+        p[2 * i] = invD * r0;
+        p[2 * i + 1] = invD * r1;
+        out[0] += invD * r0 * r0;
+        out[1] += invD * r1 * r1;
+        out[2] += r0 * r0;
+        out[3] += r1 * r1;
+        out[4] += b0 * b0;
+        out[5] += b1 * b1;
+        massSum[0].add(b0);
+        massSum[1].add(b1);
+        top0 = std::max(top0, std::abs(v0));
+        top1 = std::max(top1, std::abs(v1));
       }
-      const size_t ii = static_cast<size_t>(i) * static_cast<size_t>(x0Stride);
-      const double invD = inverseDiagonal[i];
-      const double v0 = x0[0][ii], v1 = x0[1][ii];
-      const double b0 = area[i] * v0, b1 = area[i] * v1;
-      const double r0 = b0 - a0, r1 = b1 - a1;
-      x[2 * i] = v0;
-      x[2 * i + 1] = v1;
-      r[2 * i] = r0;
-      r[2 * i + 1] = r1;
-      p[2 * i] = invD * r0;
-      p[2 * i + 1] = invD * r1;
-      rz[0] += invD * r0 * r0;
-      rz[1] += invD * r1 * r1;
-      rr[0] += r0 * r0;
-      rr[1] += r1 * r1;
-      bb[0] += b0 * b0;
-      bb[1] += b1 * b1;
-      massSum[0].add(b0);
-      massSum[1].add(b1);
-      largest[0] = std::max(largest[0], std::abs(v0));
-      largest[1] = std::max(largest[1], std::abs(v1));
+      out[6] = massSum[0].value();
+      out[7] = massSum[1].value();
+      out[8] = top0;
+      out[9] = top1;
+    });
+    rz[0] = sums[0], rz[1] = sums[1], rr[0] = sums[2], rr[1] = sums[3], bb[0] = sums[4], bb[1] = sums[5];
+    // The masses and maxima are combined from the chunks' own values, not
+    // the plain sums chunkedSums made of them.
+    const int chunks = (count + kKrylovChunkRows - 1) / kKrylovChunkRows;
+    CompensatedSum massSum[2];
+    for (int c = 0; c < chunks; ++c) {
+      const double* chunk = partials + c * kKrylovPartialsPerChunk;
+      massSum[0].add(chunk[6]);
+      massSum[1].add(chunk[7]);
+      largest[0] = std::max(largest[0], chunk[8]);
+      largest[1] = std::max(largest[1], chunk[9]);
     }
+    mass[0] = massSum[0].value();
+    mass[1] = massSum[1].value();
   }
   if (kComplex) largest[0] = largest[1] = std::max(largest[0], largest[1]);
   // Growth stops while the next correction on the outermost ring, D⁻¹r, is
@@ -495,8 +564,6 @@ KrylovOutcome pairConjugateGradients(const int* outer, const int* inner, const d
   // further out is smaller still and would be flushed anyway (design note).
   const double growthFloor[2] = {kGrowthFraction * kIterativeTolerance * largest[0],
                                  kGrowthFraction * kIterativeTolerance * largest[1]};
-  mass[0] = massSum[0].value();
-  mass[1] = massSum[1].value();
   if (!std::isfinite(bb[0] + bb[1] + rr[0] + rr[1])) {
     outcome.finite = false;
     return outcome;
@@ -525,49 +592,54 @@ KrylovOutcome pairConjugateGradients(const int* outer, const int* inner, const d
     }
     const int* list = active.list();
     const int count = active.size();
-    double pq0 = 0.0, pq1 = 0.0;
-    for (int k = 0; k < count; ++k) {
-      const int i = list[k];
-      // Two partial sums per component (even and odd entries): halves the
-      // chain of dependent additions that bounds this loop.
-      double s0 = 0.0, s1 = 0.0, t0 = 0.0, t1 = 0.0;
-      const int begin = outer[i], end = outer[i + 1];
-      int e = begin;
-      for (; e + 1 < end; e += 2) {
-        const int j = inner[e], l = inner[e + 1];
-        if (kComplex) {
-          const double re = values[2 * e], im = values[2 * e + 1];
-          const double re2 = values[2 * e + 2], im2 = values[2 * e + 3];
-          s0 += re * p[2 * j] + im * p[2 * j + 1];
-          s1 += re * p[2 * j + 1] - im * p[2 * j];
-          t0 += re2 * p[2 * l] + im2 * p[2 * l + 1];
-          t1 += re2 * p[2 * l + 1] - im2 * p[2 * l];
-        } else {
-          s0 += values[e] * p[2 * j];
-          s1 += values[e] * p[2 * j + 1];
-          t0 += values[e + 1] * p[2 * l];
-          t1 += values[e + 1] * p[2 * l + 1];
+    // q = A p on the active rows, and pᵀq per component.
+    double pq[2];
+    chunkedSums<2>(count, partials, pq, [&](int begin, int end, double* out) {
+      double pq0 = 0.0, pq1 = 0.0;
+      for (int k = begin; k < end; ++k) {
+        const int i = list[k];
+        // Two partial sums per component (even and odd entries): halves the
+        // chain of dependent additions that bounds this loop.
+        double s0 = 0.0, s1 = 0.0, t0 = 0.0, t1 = 0.0;
+        const int rowBegin = outer[i], rowEnd = outer[i + 1];
+        int e = rowBegin;
+        for (; e + 1 < rowEnd; e += 2) {
+          const int j = inner[e], l = inner[e + 1];
+          if (kComplex) {
+            const double re = values[2 * e], im = values[2 * e + 1];
+            const double re2 = values[2 * e + 2], im2 = values[2 * e + 3];
+            s0 += re * p[2 * j] + im * p[2 * j + 1];
+            s1 += re * p[2 * j + 1] - im * p[2 * j];
+            t0 += re2 * p[2 * l] + im2 * p[2 * l + 1];
+            t1 += re2 * p[2 * l + 1] - im2 * p[2 * l];
+          } else {
+            s0 += values[e] * p[2 * j];
+            s1 += values[e] * p[2 * j + 1];
+            t0 += values[e + 1] * p[2 * l];
+            t1 += values[e + 1] * p[2 * l + 1];
+          }
         }
-      }
-      if (e < end) {
-        const int j = inner[e];
-        if (kComplex) {
-          const double re = values[2 * e], im = values[2 * e + 1];
-          s0 += re * p[2 * j] + im * p[2 * j + 1];
-          s1 += re * p[2 * j + 1] - im * p[2 * j];
-        } else {
-          s0 += values[e] * p[2 * j];
-          s1 += values[e] * p[2 * j + 1];
+        if (e < rowEnd) {
+          const int j = inner[e];
+          if (kComplex) {
+            const double re = values[2 * e], im = values[2 * e + 1];
+            s0 += re * p[2 * j] + im * p[2 * j + 1];
+            s1 += re * p[2 * j + 1] - im * p[2 * j];
+          } else {
+            s0 += values[e] * p[2 * j];
+            s1 += values[e] * p[2 * j + 1];
+          }
         }
+        s0 += t0;
+        s1 += t1;
+        q[2 * i] = s0;
+        q[2 * i + 1] = s1;
+        pq0 += p[2 * i] * s0;
+        pq1 += p[2 * i + 1] * s1;
       }
-      s0 += t0;
-      s1 += t1;
-      q[2 * i] = s0;
-      q[2 * i + 1] = s1;
-      pq0 += p[2 * i] * s0;
-      pq1 += p[2 * i + 1] * s1;
-    }
-    double pq[2] = {pq0, pq1};
+      out[0] = pq0;
+      out[1] = pq1;
+    });
     if (kComplex) pq[0] += pq[1];
     double alpha[2] = {0.0, 0.0};
     for (int c = 0; c < systems; ++c) {
@@ -576,21 +648,29 @@ KrylovOutcome pairConjugateGradients(const int* outer, const int* inner, const d
       if (!(pq[c] > 0.0) || !std::isfinite(alpha[c])) return outcome;  // breakdown: not converged
     }
     if (kComplex) alpha[1] = alpha[0];
-    double z0 = 0.0, z1 = 0.0, s0 = 0.0, s1 = 0.0;
-    for (int k = 0; k < count; ++k) {
-      const int i = list[k];
-      x[2 * i] += alpha[0] * p[2 * i];
-      x[2 * i + 1] += alpha[1] * p[2 * i + 1];
-      const double r0 = r[2 * i] - alpha[0] * q[2 * i];
-      const double r1 = r[2 * i + 1] - alpha[1] * q[2 * i + 1];
-      r[2 * i] = r0;
-      r[2 * i + 1] = r1;
-      z0 += inverseDiagonal[i] * r0 * r0;
-      z1 += inverseDiagonal[i] * r1 * r1;
-      s0 += r0 * r0;
-      s1 += r1 * r1;
-    }
-    double nextRz[2] = {z0, z1}, nextRr[2] = {s0, s1};
+    // x += α p, r −= α q, and the new rᵀD⁻¹r, rᵀr per component.
+    double next[4];
+    chunkedSums<4>(count, partials, next, [&](int begin, int end, double* out) {
+      double z0 = 0.0, z1 = 0.0, s0 = 0.0, s1 = 0.0;
+      for (int k = begin; k < end; ++k) {
+        const int i = list[k];
+        x[2 * i] += alpha[0] * p[2 * i];
+        x[2 * i + 1] += alpha[1] * p[2 * i + 1];
+        const double r0 = r[2 * i] - alpha[0] * q[2 * i];
+        const double r1 = r[2 * i + 1] - alpha[1] * q[2 * i + 1];
+        r[2 * i] = r0;
+        r[2 * i + 1] = r1;
+        z0 += inverseDiagonal[i] * r0 * r0;
+        z1 += inverseDiagonal[i] * r1 * r1;
+        s0 += r0 * r0;
+        s1 += r1 * r1;
+      }
+      out[0] = z0;
+      out[1] = z1;
+      out[2] = s0;
+      out[3] = s1;
+    });
+    double nextRz[2] = {next[0], next[1]}, nextRr[2] = {next[2], next[3]};
     if (kComplex) {
       nextRz[0] += nextRz[1];
       nextRr[0] += nextRr[1];
@@ -604,11 +684,17 @@ KrylovOutcome pairConjugateGradients(const int* outer, const int* inner, const d
       }
     }
     if (kComplex) beta[1] = beta[0];
-    for (int k = 0; k < count; ++k) {
-      const int i = list[k];
-      const double invD = inverseDiagonal[i];
-      p[2 * i] = invD * r[2 * i] + beta[0] * p[2 * i];
-      p[2 * i + 1] = invD * r[2 * i + 1] + beta[1] * p[2 * i + 1];
+    // p = D⁻¹ r + β p (no sums).
+    const int chunks = (count + kKrylovChunkRows - 1) / kKrylovChunkRows;
+#pragma omp parallel for schedule(static) if (count >= kKrylovParallelRows)
+    for (int c = 0; c < chunks; ++c) {
+      const int end = std::min(count, (c + 1) * kKrylovChunkRows);
+      for (int k = c * kKrylovChunkRows; k < end; ++k) {
+        const int i = list[k];
+        const double invD = inverseDiagonal[i];
+        p[2 * i] = invD * r[2 * i] + beta[0] * p[2 * i];
+        p[2 * i + 1] = invD * r[2 * i + 1] + beta[1] * p[2 * i + 1];
+      }
     }
     outcome.iterations = iteration;
     for (int c = 0; c < systems; ++c) {
@@ -656,6 +742,12 @@ double inverseDiagonal(const Eigen::SparseMatrix<Scalar>& system, const Vector& 
 }  // namespace
 
 DiffusionSystems::DiffusionSystems() = default;
+
+void DiffusionSystems::releaseFactors() {
+  scalar_.releaseFactor();
+  vector_.releaseFactor();
+  h_ = 0;  // diffuse() refuses to run until the systems are factorized again
+}
 
 SolverStatus DiffusionSystems::factorize(const IntrinsicGeometry& geometry, double h) {
   const Vector& areas = geometry.vertexDualAreas;
@@ -728,6 +820,8 @@ void DiffusionScratch::resize(int vertexCount) {
   densityMarks.assign(static_cast<size_t>(vertexCount), 0);
   velocityMarks.assign(static_cast<size_t>(vertexCount), 0);
   densityActiveCount = velocityActiveCount = 0;
+  const int chunks = (vertexCount + kKrylovChunkRows - 1) / kKrylovChunkRows;
+  krylovPartials.assign(static_cast<size_t>(chunks) * kKrylovPartialsPerChunk, 0.0);
 }
 
 DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometry,
@@ -743,6 +837,8 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
       scratch.rhs.size() != n || scratch.solution.size() != n || scratch.complexRhs.size() != n ||
       scratch.complexSolution.size() != n || scratch.densityX.size() != 2 * n || scratch.velocityX.size() != 2 * n ||
       static_cast<Eigen::Index>(scratch.densityMarks.size()) != n ||
+      static_cast<Eigen::Index>(scratch.krylovPartials.size()) <
+          (n + kKrylovChunkRows - 1) / kKrylovChunkRows * kKrylovPartialsPerChunk ||
       (wet != nullptr && static_cast<Eigen::Index>(wet->size()) != n)) {
     report.status = SolverStatus::SizeMismatch;
     return report;
@@ -777,7 +873,7 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
     const KrylovOutcome outcome = pairConjugateGradients<false>(
         scalarSystem.outerIndexPtr(), scalarSystem.innerIndexPtr(), scalarSystem.valuePtr(),
         systems.scalarInverseDiagonal().data(), areas.data(), x0, 1, dx, scratch.densityR.data(),
-        scratch.densityP.data(), scratch.densityQ.data(), densityActive, true, mass);
+        scratch.densityP.data(), scratch.densityQ.data(), densityActive, true, mass, scratch.krylovPartials.data());
     report.densityIterations = outcome.iterations;
     report.densityActiveVertices = densityActive.size();
     if (!outcome.finite) {
@@ -790,20 +886,33 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
       report.densityMethod = DiffusionMethod::ConjugateGradient;
       // Flush the far tail and restore the exact mass (design note), over
       // the active rows only.
+      // Chunked like the CG's sums (the same bits for any thread count).
       const int* list = densityActive.list();
       const int count = densityActive.size();
+      const int chunks = (count + kKrylovChunkRows - 1) / kKrylovChunkRows;
+      double* partials = scratch.krylovPartials.data();
+      const bool threaded = count >= kKrylovParallelRows;
       for (int c = 0; c < 2; ++c) {
-        double largest = 0.0;
+        double largest = 0.0;  // a max: the same in any order
+#pragma omp parallel for schedule(static) reduction(max : largest) if (threaded)
         for (int k = 0; k < count; ++k) largest = std::max(largest, std::abs(dx[2 * list[k] + c]));
         const double floor = kIterativeTolerance * largest;
-        CompensatedSum solved;
-        for (int k = 0; k < count; ++k) {
-          double& v = dx[2 * list[k] + c];
-          if (std::abs(v) < floor) v = 0.0;
-          solved.add(areas[list[k]] * v);
+#pragma omp parallel for schedule(static) if (threaded)
+        for (int chunk = 0; chunk < chunks; ++chunk) {
+          CompensatedSum solved;
+          const int end = std::min(count, (chunk + 1) * kKrylovChunkRows);
+          for (int k = chunk * kKrylovChunkRows; k < end; ++k) {
+            double& v = dx[2 * list[k] + c];
+            if (std::abs(v) < floor) v = 0.0;
+            solved.add(areas[list[k]] * v);
+          }
+          partials[chunk] = solved.value();
         }
+        CompensatedSum solved;
+        for (int chunk = 0; chunk < chunks; ++chunk) solved.add(partials[chunk]);
         if (mass[c] > 0.0 && solved.value() > 0.0) {
           const double scale = mass[c] / solved.value();
+#pragma omp parallel for schedule(static) if (threaded)
           for (int k = 0; k < count; ++k) dx[2 * list[k] + c] *= scale;
         }
       }
@@ -863,7 +972,7 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
         vectorSystem.outerIndexPtr(), vectorSystem.innerIndexPtr(),
         reinterpret_cast<const double*>(vectorSystem.valuePtr()), systems.vectorInverseDiagonal().data(),
         areas.data(), x0, 2, ux, scratch.velocityR.data(), scratch.velocityP.data(), scratch.velocityQ.data(),
-        velocityActive, wet == nullptr, mass);
+        velocityActive, wet == nullptr, mass, scratch.krylovPartials.data());
     report.velocityIterations = outcome.iterations;
     report.velocityActiveVertices = velocityActive.size();
     if (!outcome.finite) {

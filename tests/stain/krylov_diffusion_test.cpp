@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 #include <omp.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -166,12 +167,15 @@ TEST(KrylovDiffusion, VelocityIsDiffusedOnTheWetRegionWithDryValuesFixed) {
 
 // The whole step on a rotating n x n grid with a drop, every term on, CG on
 // (max h L_ii / A_i ≈ 0.5 at n = 40).
-StainState runRotatingDrop(int n, int threads, int steps, MassBudget* worst, double* lowest, long* cgIterations) {
+StainState runRotatingDrop(int n, int threads, int steps, MassBudget* worst, double* lowest, long* cgIterations,
+                           int* fewestCgRows = nullptr, double diffusivityScale = 1.0, double dropRadius = 0.3) {
   omp_set_num_threads(threads);
   const TriangleMesh mesh = gridMesh(n, n, 1, 1);
   const int faces = static_cast<int>(mesh.faces.rows());
   const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()), "krylov test grid");
-  const FabricField fabric = uniformFabric(faces, fabricTensor(2e-3, 2e-4), fabricTensor(2e-4, 2e-4), kPi / 6);
+  const double d = diffusivityScale;
+  const FabricField fabric =
+      uniformFabric(faces, fabricTensor(2e-3 * d, 2e-4 * d), fabricTensor(2e-4 * d, 2e-4 * d), kPi / 6);
   StainSolver solver(topology, mesh.vertexPositions, fabric, StainSolverDef{});
   const Vector3 center = mesh.vertexPositions.colwise().mean().transpose();
   const RowVectors3 centered = mesh.vertexPositions.rowwise() - center.transpose();
@@ -183,7 +187,7 @@ StainState runRotatingDrop(int n, int threads, int steps, MassBudget* worst, dou
   solver.setInitialMotion(mesh.vertexPositions, velocities);
   DropDef drop;
   drop.centerPoint = center;
-  drop.radius = 0.3;  // ~1/4 of the area
+  drop.radius = dropRadius;  // 0.3: ~1/4 of the area
   drop.solventMass = 0.02;
   drop.soluteMass = 0.002;
   drop.velocity = Vector3(0.05, 0.02, 0);
@@ -197,6 +201,10 @@ StainState runRotatingDrop(int n, int threads, int steps, MassBudget* worst, dou
     EXPECT_EQ(report.status, StepStatus::Ok) << report.stage << ": " << report.message;
     if (report.status != StepStatus::Ok) break;
     *cgIterations += solver.profile().diffusionIterations;
+    if (fewestCgRows != nullptr) {  // [0] density, [1] velocity
+      fewestCgRows[0] = std::min(fewestCgRows[0], solver.profile().densityDiffusionVertices);
+      fewestCgRows[1] = std::min(fewestCgRows[1], solver.profile().velocityDiffusionVertices);
+    }
     const MassBudget b = solver.massBudget();
     worst->freeSolvent = std::max(worst->freeSolvent, b.solventError());
     worst->freeSolute = std::max(worst->freeSolute, b.soluteError());
@@ -224,7 +232,7 @@ TEST(KrylovDiffusion, StainStepConservesMassForAThousandSteps) {
 
 TEST(KrylovDiffusion, StainStepIsBitIdenticalForOneAndTwoThreads) {
   // 5,041 vertices, a quarter wet: the geometry refresh runs in parallel; the
-  // CG is serial by design (its sums must not depend on the thread count).
+  // CG's active rows (~1,500-2,500) stay below kKrylovParallelRows.
   MassBudget worst1, worst2;
   double lowest1 = 0, lowest2 = 0;
   long iterations1 = 0, iterations2 = 0;
@@ -234,6 +242,38 @@ TEST(KrylovDiffusion, StainStepIsBitIdenticalForOneAndTwoThreads) {
   omp_set_num_threads(previous);
   EXPECT_GT(iterations1, 40);
   EXPECT_EQ(iterations1, iterations2);
+  EXPECT_TRUE((one.solvent.array() == two.solvent.array()).all());
+  EXPECT_TRUE((one.solute.array() == two.solute.array()).all());
+  EXPECT_TRUE((one.velocities.array() == two.velocities.array()).all());
+  EXPECT_TRUE((one.absorbedSolvent.array() == two.absorbedSolvent.array()).all());
+  EXPECT_TRUE((one.adsorbedSolute.array() == two.adsorbedSolute.array()).all());
+}
+
+TEST(KrylovDiffusion, ThreadedCgIsBitIdenticalForOneAndTwoThreads) {
+  // 22,801 vertices, a drop over almost all of the sheet, diffusivities / 10
+  // (max h L_ii / A_i ≈ 0.7, so Auto picks CG): every step's density and
+  // velocity CG runs on more than kKrylovParallelRows active rows (4 steps:
+  // absorption then shrinks the free liquid's support), so with two
+  // threads its chunks run in parallel; the chunked sums must give the
+  // one-thread bits.
+  MassBudget worst1, worst2;
+  double lowest1 = 0, lowest2 = 0;
+  long iterations1 = 0, iterations2 = 0;
+  int rows1[2] = {1 << 30, 1 << 30}, rows2[2] = {1 << 30, 1 << 30};
+  const int previous = omp_get_max_threads();
+  const StainState one = runRotatingDrop(151, 1, 4, &worst1, &lowest1, &iterations1, rows1, 0.1, 0.6);
+  const StainState two = runRotatingDrop(151, 2, 4, &worst2, &lowest2, &iterations2, rows2, 0.1, 0.6);
+  omp_set_num_threads(previous);
+  std::printf("  fewest CG rows in a step: density %d, velocity %d (threaded from %d); CG iterations %ld\n", rows1[0],
+              rows1[1], kKrylovParallelRows, iterations1);
+  EXPECT_GE(rows1[0], kKrylovParallelRows) << "the threaded density CG must run on every step";
+  EXPECT_GE(rows1[1], kKrylovParallelRows) << "the threaded velocity CG must run on every step";
+  EXPECT_EQ(rows1[0], rows2[0]);
+  EXPECT_EQ(rows1[1], rows2[1]);
+  EXPECT_GT(iterations1, 4);
+  EXPECT_EQ(iterations1, iterations2);
+  EXPECT_LE(worst1.freeSolvent, 1e-12);
+  EXPECT_LE(worst1.freeSolute, 1e-12);
   EXPECT_TRUE((one.solvent.array() == two.solvent.array()).all());
   EXPECT_TRUE((one.solute.array() == two.solute.array()).all());
   EXPECT_TRUE((one.velocities.array() == two.velocities.array()).all());

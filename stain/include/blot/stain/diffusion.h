@@ -34,6 +34,16 @@ inline constexpr double kIterativeStiffnessRatio = 4.0;
 inline constexpr double kIterativeTolerance = 1e-9;
 /// CG iterations before the solve falls back to the factorization.
 inline constexpr int kMaxIterations = 60;
+/// The CG's row loops (product, updates, dot products) work in chunks of this
+/// many active rows, fixed whatever the thread count; each chunk's partial
+/// sums are added in chunk order, so 1 and N threads give the same bits.
+inline constexpr int kKrylovChunkRows = 1024;
+/// Active rows from which those chunks run on OpenMP threads (below, one
+/// thread does them in the same order: three fork/joins per iteration cost
+/// more than the loops; measured in docs/performance.md, "Threads").
+inline constexpr int kKrylovParallelRows = 16384;
+/// Partial sums stored per chunk (DiffusionScratch::krylovPartials).
+inline constexpr int kKrylovPartialsPerChunk = 10;
 
 /// The factorized systems. Built once (symbolic analysis on the pattern), and
 /// refactorized numerically when h or the intrinsic geometry changes.
@@ -45,6 +55,11 @@ class DiffusionSystems {
   /// stores the inverse diagonals (Jacobi preconditioner) and chooses each
   /// system's method (setSolverChoice).
   SolverStatus factorize(const IntrinsicGeometry& geometry, double h);
+  /// Frees both numeric factors (keeping the symbolic analysis and the
+  /// systems) until the next factorize(): call before an intrinsic rebuild, so
+  /// the stale factors (~120 MB at 140K vertices) are not alive while the new
+  /// operators are assembled. factorizedStep() is 0 until then.
+  void releaseFactors();
   double factorizedStep() const { return h_; }
   int factorizationCount() const { return factorizations_; }
   const RealCholeskySolver& scalarSolver() const { return scalar_; }
@@ -94,6 +109,9 @@ struct DiffusionScratch {
   /// capacity) and their membership marks (#V, 0 between calls).
   std::vector<int> densityActive, velocityActive;
   std::vector<char> densityMarks, velocityMarks;
+  /// Per-chunk partial sums of the CG's reductions (kKrylovPartialsPerChunk
+  /// per kKrylovChunkRows rows of #V).
+  std::vector<double> krylovPartials;
   int densityActiveCount = 0, velocityActiveCount = 0;
   void resize(int vertexCount);
 };

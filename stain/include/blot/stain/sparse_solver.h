@@ -56,8 +56,15 @@ class CholeskySolver {
   /// pattern (e.g. the scalar solver's for the complex connection system).
   template <typename OtherScalar>
   SolverStatus shareAnalysisFrom(const CholeskySolver<OtherScalar>& other);
-  /// Numeric factorization on the analysed pattern.
+  /// Numeric factorization on the analysed pattern. The previous numeric
+  /// factor is freed first and the new one starts from the symbolic analysis,
+  /// so at most one numeric factor is alive and the result depends on A only.
   SolverStatus factorize(const Matrix& A);
+  /// Frees the numeric factor (and CHOLMOD's workspace), keeping the symbolic
+  /// analysis: for a caller about to build new values (an intrinsic rebuild),
+  /// so the old factor is not held while they are assembled. The solver is
+  /// then "not factorized" until the next factorize.
+  void releaseFactor();
   /// analyzePattern + factorize.
   SolverStatus compute(const Matrix& A);
   /// x = A⁻¹ rhs. x is resized only if its size differs.
