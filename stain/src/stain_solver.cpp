@@ -3,23 +3,32 @@
 // Design note: every stage is a free function over explicit inputs (context,
 // geometry, scratch, state); this file only decides which stages run and in
 // what order, times them, and guarantees that a failed step leaves the state
-// as it was (the state is copied into a preallocated backup first, which is a
-// memcpy of a few vectors, far cheaper than any stage). Terms a scene does not
-// need are skipped here, visibly: inertia on a surface that has not moved,
-// solute transport when there is no solute, stages on dry vertices.
+// as it was (the state is copied into a preallocated backup before its first
+// change, which is a memcpy of a few vectors, far cheaper than any stage; a
+// dry step changes nothing and skips it). Terms a scene does not need are
+// skipped here, visibly: inertia on a surface that has not moved, solute
+// transport when there is no solute, terms with a zero coefficient, stages on
+// dry vertices; StepProfile::terms records which ran (describeTerms).
 #include <blot/stain/external_forces.h>
 #include <blot/stain/film_pressure.h>
 #include <blot/stain/interaction.h>
 #include <blot/stain/stain_solver.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
+#include <iterator>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
 
 namespace blot::stain {
 namespace {
+
+// A density below −1e-12 of the largest magnitude is negative mass, not
+// rounding (the limiter and the solves keep densities ≥ 0 to rounding).
+constexpr double kNegativeDensityTolerance = 1e-12;
 
 /// Adds the elapsed wall-clock milliseconds to `out` when it goes out of scope.
 class ScopedTimer {
@@ -124,6 +133,7 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   velocityScratch_.resize(n);
   densityScratch_.resize(n, topology.edgeCount());
   wet_.assign(static_cast<size_t>(n), 0);
+  wetList_.reserve(static_cast<size_t>(n));
   initialVelocities_ = RowVectors3::Zero(n, 3);
 }
 
@@ -140,7 +150,117 @@ void StainSolver::setInitialMotion(const RowVectors3& positions, const RowVector
   initialVelocities_ = velocities;
 }
 
+Complex StainSolver::velocityInCurrentFrame(int i) const {
+  const Complex u = state_.velocities[i];
+  const PhysicsSwitches& on = def_.switches;
+  // Only a step that ran the frame change leaves u at the midpoint; any other
+  // moving step had ω = 0 or no liquid (where u plays no part).
+  if (!started_ || !on.coriolis || !on.velocityAdvection || on.coriolisScheme != CoriolisScheme::ExactRotation)
+    return u;
+  const RowVectors3& omega = geometry_.extrinsic().vertexAngularVelocities;
+  if (omega.rows() != state_.vertexCount() || omega(i, 2) == 0.0) return u;
+  return u * std::polar(1.0, -0.5 * omega(i, 2) * systems_.factorizedStep());
+}
+
+void StainSolver::restartMotion(const RowVectors3& positions, const RowVectors3& velocities) {
+  // The state is kept to the bit (u stays in the frame convention the steps
+  // use); only the geometry restarts: p(t) with frames fitted to it, and
+  // p(t − h) = p − h v as the first step sets it.
+  setInitialMotion(positions, velocities);
+  const double h = systems_.factorizedStep();
+  if (h > 0) {
+    geometry_.setPreviousPositions(geometry_.extrinsic().nextPositions - h * initialVelocities_);
+  } else {
+    started_ = false;  // no step yet: the first step does it
+  }
+  undoable_ = false;
+}
+
+void StainSolver::undoLastStep() {
+  if (!undoable_) throw std::logic_error("StainSolver::undoLastStep: no successful step to undo");
+  restoreBackup();
+  time_ = backupTime_;
+  --steps_;
+  undoable_ = false;
+}
+
+void StainSolver::restoreBackup() {
+  if (!backedUp_) return;  // the step changed nothing yet
+  state_ = backup_;
+  if (profile_.intrinsicRefreshes > 0)
+    for (Vector* f : {&state_.solvent, &state_.solute, &state_.absorbedSolvent, &state_.absorbedSolute,
+                      &state_.adsorbedSolute})
+      f->array() *= areaScratch_.array();
+}
+
+void StainSolver::injectFaultForTesting(const InjectedFault& fault) {
+  static const char* const kStages[] = {"forces",         "film-pressure", "advect-velocity", "coriolis",
+                                        "advect-density", "diffuse",       "interact",        "sources"};
+  if (std::find(std::begin(kStages), std::end(kStages), fault.stage) == std::end(kStages))
+    throw std::invalid_argument("injected fault: unknown stain stage '" + fault.stage + "'");
+  if (fault.vertex < 0 || fault.vertex >= state_.vertexCount())
+    throw std::invalid_argument("injected fault: vertex " + std::to_string(fault.vertex) + " out of range [0, " +
+                                std::to_string(state_.vertexCount()) + ")");
+  fault_ = fault;
+}
+
+bool StainSolver::checkStage(const char* stage, StepReport& report) {
+  if (!fault_.stage.empty() && fault_.step == steps_ + 1 && fault_.stage == stage) {
+    state_.solvent[fault_.vertex] = std::numeric_limits<double>::quiet_NaN();
+    fault_.stage.clear();  // fires once
+  }
+  // One pass over the vertices the stages touched (wet + halo, held ones
+  // after "sources"): the extremes of every field and a flag that is false
+  // for NaN or ±inf. The search for the vertex runs only on a failure.
+  const Vector* fields[] = {&state_.solvent, &state_.solute, &state_.absorbedSolvent, &state_.absorbedSolute,
+                            &state_.adsorbedSolute};
+  constexpr double kLargest = std::numeric_limits<double>::max();
+  double largest = 0, smallest = 0;
+  bool finite = true;
+  const auto scan = [&](int i) {
+    for (const Vector* f : fields) {
+      const double v = (*f)[i];
+      largest = std::max(largest, v);
+      smallest = std::min(smallest, v);
+      finite &= std::abs(v) <= kLargest;
+    }
+    finite &= std::abs(state_.velocities[i].real()) <= kLargest && std::abs(state_.velocities[i].imag()) <= kLargest;
+  };
+  const bool held = std::strcmp(stage, "sources") == 0;
+  for (int i : wetList_) scan(i);
+  if (held)
+    for (const HeldRegion& region : heldRegions_)
+      for (int v : region.vertices) scan(v);
+  const double floor = -kNegativeDensityTolerance * std::max(largest, -smallest);
+  if (finite && smallest >= floor) return true;
+
+  const auto bad = [&](int i) {
+    for (const Vector* f : fields)
+      if (!std::isfinite((*f)[i]) || (*f)[i] < floor) return true;
+    return !std::isfinite(state_.velocities[i].real()) || !std::isfinite(state_.velocities[i].imag());
+  };
+  int vertex = -1;
+  for (int i : wetList_)
+    if (bad(i)) {
+      vertex = i;
+      break;
+    }
+  if (vertex < 0 && held)
+    for (const HeldRegion& region : heldRegions_)
+      for (int v : region.vertices)
+        if (vertex < 0 && bad(v)) vertex = v;
+  report.status = finite ? StepStatus::NegativeMass : StepStatus::NonFinite;
+  report.stage = stage;
+  report.vertex = vertex;
+  report.message = std::string(finite ? "negative density" : "non-finite value") + " at vertex " +
+                   std::to_string(vertex) + " after stage '" + stage + "' of step " + std::to_string(steps_ + 1) +
+                   "; state restored";
+  restoreBackup();
+  return false;
+}
+
 void StainSolver::addDrop(const DropDef& drop) {
+  undoable_ = false;
   stain::addDrop(drop, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), state_);
 }
 
@@ -160,7 +280,7 @@ void StainSolver::updateWetMask() {
   const SurfaceTopology& topo = geometry_.topology();
   const double threshold = def_.liquid.wetThreshold;
   const int n = state_.vertexCount();
-  int wetCount = 0;
+  int wetCount = 0, haloCount = 0;
   for (int i = 0; i < n; ++i) {
     const bool holds = state_.solvent[i] > threshold || state_.absorbedSolvent[i] > threshold ||
                        state_.solute[i] > threshold;
@@ -171,10 +291,14 @@ void StainSolver::updateWetMask() {
     ++wetCount;
     for (int m = topo.ringOffsets()[static_cast<size_t>(i)]; m < topo.ringOffsets()[static_cast<size_t>(i) + 1]; ++m) {
       char& w = wet_[static_cast<size_t>(topo.ringNeighbors()[static_cast<size_t>(m)])];
-      if (w == 0) w = 1;
+      if (w == 0) {
+        w = 1;
+        ++haloCount;
+      }
     }
   }
   profile_.wetVertices = wetCount;
+  profile_.haloVertices = haloCount;
 }
 
 StepReport StainSolver::step(double h, const RowVectors3& nextPositions) {
@@ -209,11 +333,19 @@ StepReport StainSolver::advance(double h, const RowVectors3& nextPositions, cons
     return report;
   }
   profile_ = StepProfile{};
-  backup_ = state_;  // same sizes: no allocation
+  profile_.vertexCount = state_.vertexCount();
+  // The backup (a copy of every field, O(#V)) is taken only before the first
+  // change to the state: the area rescale of a rebuild, or the first stage.
+  // A dry step without sources changes nothing and copies nothing.
+  backedUp_ = false;  // backup_ is taken lazily, once the step changes the state
+  undoable_ = false;
+  backupTime_ = time_;
   const StepContext ctx = makeStepContext(h, def_.gravity, def_.switches, def_.liquid);
   ScopedTimer total(profile_.total);
 
   bool surfaceMoved = false;
+  // On the first step u is in the frames at t, not in a last step's midpoint frame.
+  const bool firstStep = !started_;
   {
     ScopedTimer t(profile_.geometry);
     if (!started_) {
@@ -226,17 +358,22 @@ StepReport StainSolver::advance(double h, const RowVectors3& nextPositions, cons
                                                   : geometry_.refreshExtrinsic(nextPositions, h);
     profile_.maxEdgeStrain = geometry_.maxEdgeStrain();
     if (rebuild) {
+      backup_ = state_;  // same sizes: no allocation
+      backedUp_ = true;
       // Densities are per area: when the dual areas change, rescale them so
       // each vertex keeps its mass (A_old σ_old = A_new σ_new).
       areaScratch_ = geometry_.intrinsic().vertexDualAreas;
+      systems_.releaseFactors();  // the stale factors are not kept while new operators are assembled
       geometry_.refreshIntrinsic();
       areaScratch_.array() /= geometry_.intrinsic().vertexDualAreas.array();
       for (Vector* f : {&state_.solvent, &state_.solute, &state_.absorbedSolvent, &state_.absorbedSolute,
                         &state_.adsorbedSolute})
         f->array() *= areaScratch_.array();
       profile_.intrinsicRefreshes = 1;
+      profile_.markRan(StepTerm::IntrinsicRebuild);
     }
     if (rebuild || systems_.factorizedStep() != h) {
+      profile_.markRan(StepTerm::Factorization);
       const SolverStatus status = systems_.factorize(geometry_.intrinsic(), h);
       if (status != SolverStatus::Ok) {
         report.status = StepStatus::SolverFailure;
@@ -247,11 +384,25 @@ StepReport StainSolver::advance(double h, const RowVectors3& nextPositions, cons
     }
     const ExtrinsicGeometry& e = geometry_.extrinsic();
     surfaceMoved = !(e.previousPositions == e.positions && e.positions == e.nextPositions);
+    if (geometry_.rotationFitStats().fittedVertices > 0) {
+      profile_.markRan(StepTerm::RotationFits);
+    } else if (rigidRotation != nullptr && surfaceMoved) {
+      profile_.markRan(StepTerm::RigidFrames);
+    }
+    profile_.geometryVertices = surfaceMoved ? state_.vertexCount() : 0;
   }
 
   updateWetMask();
   const bool anyLiquid = profile_.wetVertices > 0;
   const PhysicsSwitches& on = ctx.switches;
+  wetList_.clear();  // reserved for #V: no allocation
+  if (anyLiquid)
+    for (int i = 0; i < state_.vertexCount(); ++i)
+      if (wet_[static_cast<size_t>(i)] != 0) wetList_.push_back(i);
+  if (!backedUp_ && (anyLiquid || (on.sources && !heldRegions_.empty()))) {
+    backup_ = state_;  // the state as the step found it (no rebuild above)
+    backedUp_ = true;
+  }
 
   // Forces are split around the velocity advection: gravity and linear
   // inertia before it, the Coriolis rotation after it (docs/transport.md).
@@ -260,28 +411,56 @@ StepReport StainSolver::advance(double h, const RowVectors3& nextPositions, cons
   // first-order global error (the blob of Fig. 5 ran 9 % of a radian ahead
   // over half a turn at ωh = 0.01); rotating after advection cancels it to
   // O((ωh)³) per step, at the cost of one more pass over the wet vertices.
+  // The default Coriolis is the discrete frame change instead (docs/transport.md):
+  // half the frame increment here (u kept in the last step's midpoint frame
+  // goes into F^t), the frame velocity along the backtrack and the other half
+  // after the advection; no energy is created at any ωh.
+  // A zero coefficient is a term switched off: zero gravity adds nothing
+  // (and drives no film pressure), a zero rate transfers nothing.
   const bool coriolis = anyLiquid && on.coriolis && surfaceMoved;
-  if (anyLiquid && (on.gravity || (surfaceMoved && on.linearInertia))) {
+  const bool frameChange = coriolis && on.velocityAdvection && on.coriolisScheme == CoriolisScheme::ExactRotation;
+  const bool gravity = on.gravity && !ctx.gravity.isZero(0.0);
+  const bool inertia = on.linearInertia && surfaceMoved;
+  if (frameChange && !firstStep) {
+    ScopedTimer t(profile_.forces);
+    applyHalfFrameRotation(ctx, geometry_.extrinsic(), wet_, state_);
+  }
+  if (anyLiquid && (gravity || inertia)) {
     ScopedTimer t(profile_.forces);
     StepContext forceCtx = ctx;
-    forceCtx.switches.linearInertia = on.linearInertia && surfaceMoved;
+    forceCtx.switches.gravity = gravity;
+    forceCtx.switches.linearInertia = inertia;
     forceCtx.switches.coriolis = false;
     applyExternalForces(forceCtx, geometry_.extrinsic(), wet_, state_);
+    if (gravity) profile_.markRan(StepTerm::Gravity);
+    if (inertia) profile_.markRan(StepTerm::LinearInertia);
+    if (!checkStage("forces", report)) return report;
   }
-  if (anyLiquid && on.filmPressure) {
+  if (anyLiquid && on.filmPressure && gravity) {
     ScopedTimer t(profile_.forces);
     applyFilmPressure(ctx, geometry_.topology(), geometry_.extrinsic(), wet_, state_);
+    profile_.markRan(StepTerm::FilmPressure);
+    if (!checkStage("film-pressure", report)) return report;
   }
   if (anyLiquid && on.velocityAdvection) {
     ScopedTimer t(profile_.advectVelocity);
     advectVelocity(ctx, geometry_.topology(), geometry_.intrinsic(), wet_, velocityScratch_, state_);
+    profile_.markRan(StepTerm::VelocityAdvection);
+    if (!checkStage("advect-velocity", report)) return report;
   }
   if (coriolis) {
     ScopedTimer t(profile_.forces);
-    StepContext coriolisCtx = ctx;
-    coriolisCtx.switches.gravity = false;
-    coriolisCtx.switches.linearInertia = false;
-    applyExternalForces(coriolisCtx, geometry_.extrinsic(), wet_, state_);
+    profile_.markRan(StepTerm::Coriolis);
+    if (frameChange) {
+      applyFrameVelocityChange(ctx, geometry_.extrinsic(), velocityScratch_.footVertices,
+                               velocityScratch_.footWeights, wet_, state_);
+    } else {
+      StepContext coriolisCtx = ctx;
+      coriolisCtx.switches.gravity = false;
+      coriolisCtx.switches.linearInertia = false;
+      applyExternalForces(coriolisCtx, geometry_.extrinsic(), wet_, state_);
+    }
+    if (!checkStage("coriolis", report)) return report;
   }
   if (anyLiquid && on.densityAdvection) {
     ScopedTimer t(profile_.advectDensity);
@@ -289,6 +468,9 @@ StepReport StainSolver::advance(double h, const RowVectors3& nextPositions, cons
         advectDensities(ctx, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), wet_,
                         densityScratch_, state_, &geometry_.restEdgeFrameNormals());
     profile_.advectionSubsteps = r.substeps;
+    profile_.advectionVertices = r.activeVertices;
+    profile_.markRan(StepTerm::DensityAdvection);
+    if (!checkStage("advect-density", report)) return report;
   }
   if (anyLiquid && (on.densityDiffusion || on.velocityDiffusion)) {
     ScopedTimer t(profile_.diffuse);
@@ -296,26 +478,53 @@ StepReport StainSolver::advance(double h, const RowVectors3& nextPositions, cons
     profile_.diffusionIterations = r.densityIterations + r.velocityIterations;
     profile_.limiterCorrectedVertices = r.limiterCorrectedVertices;
     profile_.limiterMovedMass = r.limiterMovedMass;
+    const int n = state_.vertexCount();
+    if (r.densityMethod != DiffusionMethod::None) {
+      const bool krylov = r.densityMethod == DiffusionMethod::ConjugateGradient;
+      profile_.markRan(krylov ? StepTerm::DensityDiffusionKrylov : StepTerm::DensityDiffusionDirect);
+      profile_.densityDiffusionVertices = krylov ? r.densityActiveVertices : n;
+    }
+    if (r.velocityMethod != DiffusionMethod::None) {
+      const bool krylov = r.velocityMethod == DiffusionMethod::ConjugateGradient;
+      profile_.markRan(krylov ? StepTerm::VelocityDiffusionKrylov : StepTerm::VelocityDiffusionDirect);
+      profile_.velocityDiffusionVertices = krylov ? r.velocityActiveVertices : n;
+    }
     if (r.status != SolverStatus::Ok) {
-      state_ = backup_;
+      restoreBackup();
       report.status = StepStatus::SolverFailure;
       report.stage = "diffuse";
       report.message = toString(r.status);
       return report;
     }
+    if (!checkStage("diffuse", report)) return report;
   }
-  if (anyLiquid && (on.absorption || on.adsorption || on.evaporation)) {
+  // With every rate zero the stage (and its drying deposit, which follows
+  // solvent that absorption or evaporation removed) is skipped.
+  StepContext interactCtx = ctx;
+  interactCtx.switches.absorption = on.absorption && ctx.liquid.absorptionRate > 0;
+  interactCtx.switches.adsorption = on.adsorption && ctx.liquid.desorptionRate > 0;
+  interactCtx.switches.evaporation = on.evaporation && ctx.liquid.evaporationRate > 0;
+  const PhysicsSwitches& transfers = interactCtx.switches;
+  if (anyLiquid && (transfers.absorption || transfers.adsorption || transfers.evaporation)) {
     ScopedTimer t(profile_.interact);
-    interact(ctx, geometry_.topology(), geometry_.intrinsic(), wet_, state_);
+    interact(interactCtx, geometry_.topology(), geometry_.intrinsic(), wet_, state_);
+    if (transfers.absorption) profile_.markRan(StepTerm::Absorption);
+    if (transfers.adsorption) profile_.markRan(StepTerm::Adsorption);
+    if (transfers.evaporation) profile_.markRan(StepTerm::Evaporation);
+    if (!checkStage("interact", report)) return report;
   }
   if (on.sources && !heldRegions_.empty()) {
     ScopedTimer t(profile_.sources);
     applySources(ctx, heldRegions_, geometry_.intrinsic(), state_);
+    profile_.markRan(StepTerm::Sources);
+    if (!checkStage("sources", report)) return report;
   }
 
-  const int bad = firstBadVertex(state_, 1e-12);
+  // Validated even when nothing ran (a bad value put in through
+  // mutableState is reported the same way); restored only if changed.
+  const int bad = firstBadVertex(state_, kNegativeDensityTolerance);
   if (bad >= 0) {
-    state_ = backup_;
+    if (backedUp_) restoreBackup();
     report.status = StepStatus::NonFinite;
     report.stage = "validate";
     report.vertex = bad;
@@ -325,6 +534,7 @@ StepReport StainSolver::advance(double h, const RowVectors3& nextPositions, cons
   }
   time_ += h;
   ++steps_;
+  undoable_ = true;
   return report;
 }
 

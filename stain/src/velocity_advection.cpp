@@ -48,6 +48,10 @@
 //  - Bounds: the barycentric weights are clamped to ≥ 0 (only rounding makes
 //    them negative) and renormalised, and transports are unit complex numbers,
 //    so |u_i(t+h)| ≤ max |u(t)|: no new extrema at any Courant number.
+//  - Foot stencil: each walk also records the foot point as (at most) three
+//    vertices and the convex weights it interpolated with (before the
+//    transports), kept in the scratch for the Coriolis stage, which
+//    interpolates the surface's own velocity there (external_forces.h).
 //  - Cost: unit-complex tables (ring points, ring transports, apex ratios,
 //    face rotations) are built from the intrinsic tier once per rebuild, so a
 //    step needs no trigonometry: the sector is found with cross products (a
@@ -92,16 +96,32 @@ struct Tables {
 
 struct Walk {
   Complex value;
+  // The foot point as a convex combination of (at most) three vertices, the
+  // weights that produced `value` (before the transports): the frame-velocity
+  // stencil of the Coriolis stage (VelocityAdvectionScratch::foot*).
+  int footVertices[3] = {0, 0, 0};
+  double footWeights[3] = {1.0, 0.0, 0.0};
   int stripSteps = 0;
   bool boundaryStop = false;
   bool capped = false;
 };
 
+// Sets walk's foot stencil to Σ w_k vertex_k (weights already normalised).
+inline void setFoot(Walk& walk, int a, double wa, int b, double wb, int c, double wc) {
+  walk.footVertices[0] = a;
+  walk.footVertices[1] = b;
+  walk.footVertices[2] = c;
+  walk.footWeights[0] = wa;
+  walk.footWeights[1] = wb;
+  walk.footWeights[2] = wc;
+}
+
 // Interpolates the velocity at point x of strip face g (corner positions z in
 // frame i's plane), each corner's velocity carried into frame i through the
-// face frame (see design note). `fallback` if the face is degenerate.
-Complex interpolateInFace(const Tables& t, const ComplexVector& u, int g, const Complex (&z)[3],
-                          const Complex& x, const Complex& anchor, const Complex& fallback) {
+// face frame (see design note), into walk.value with its foot stencil; false
+// (walk untouched) if the face is degenerate.
+bool interpolateInFace(const Tables& t, const ComplexVector& u, int g, const Complex (&z)[3], const Complex& x,
+                       const Complex& anchor, Walk& walk) {
   const Complex axis = z[1] - z[0];
   const double axisLength = std::sqrt(std::norm(axis));
   double l0 = cross(z[1] - x, z[2] - x), l1 = cross(z[2] - x, z[0] - x), l2 = cross(z[0] - x, z[1] - x);
@@ -109,13 +129,15 @@ Complex interpolateInFace(const Tables& t, const ComplexVector& u, int g, const 
   l1 = l1 > 0.0 ? l1 : 0.0;
   l2 = l2 > 0.0 ? l2 : 0.0;
   const double sum = l0 + l1 + l2;
-  if (!(axisLength > 0.0) || !(sum > 0.0)) return fallback;
+  if (!(axisLength > 0.0) || !(sum > 0.0)) return false;
   const Complex toPlane = anchor * (axis / axisLength);
   const int h0 = 3 * g;
   const Complex blend = l0 * (t.faceRotations(h0) * u(t.faces(g, 0))) +
                         l1 * (t.faceRotations(h0 + 1) * u(t.faces(g, 1))) +
                         l2 * (t.faceRotations(h0 + 2) * u(t.faces(g, 2)));
-  return toPlane * blend / sum;
+  walk.value = toPlane * blend / sum;
+  setFoot(walk, t.faces(g, 0), l0 / sum, t.faces(g, 1), l1 / sum, t.faces(g, 2), l2 / sum);
+  return true;
 }
 
 // Backtracks vertex i by the plane displacement d and returns the interpolated,
@@ -123,6 +145,7 @@ Complex interpolateInFace(const Tables& t, const ComplexVector& u, int g, const 
 Walk backtrack(const Tables& t, const ComplexVector& u, int i, const Complex& d) {
   Walk walk;
   walk.value = u(i);
+  walk.footVertices[0] = i;  // foot = i until a branch below moves it
   if (d == Complex(0.0, 0.0)) return walk;
   const int begin = t.offsets[static_cast<size_t>(i)], end = t.offsets[static_cast<size_t>(i) + 1];
   const bool boundary = t.isBoundary[static_cast<size_t>(i)] != 0;
@@ -158,8 +181,10 @@ Walk backtrack(const Tables& t, const ComplexVector& u, int i, const Complex& d)
   const double s = l1 + l2;
   const Complex u1 = t.ringTransports(m) * u(t.neighbors[static_cast<size_t>(m)]);
   const Complex u2 = t.ringTransports(m2) * u(t.neighbors[static_cast<size_t>(m2)]);
+  const int j1 = t.neighbors[static_cast<size_t>(m)], j2 = t.neighbors[static_cast<size_t>(m2)];
   if (s <= 1.0) {
     walk.value = (1.0 - s) * u(i) + l1 * u1 + l2 * u2;
+    setFoot(walk, i, 1.0 - s, j1, l1, j2, l2);
     return walk;
   }
   // The ray leaves the ring through the far edge j_m -> j_m2 (half-edge of
@@ -167,9 +192,12 @@ Walk backtrack(const Tables& t, const ComplexVector& u, int i, const Complex& d)
   const int f = t.ringFaces[static_cast<size_t>(m)];
   const int farHalfedge = 3 * f + (cornerOf(t.faces, f, i) + 1) % 3;
   int h = t.twins[static_cast<size_t>(farHalfedge)];
+  // Where the ray crosses the far edge: the fallback of a degenerate strip face.
+  const Complex edgeValue = (l1 * u1 + l2 * u2) / s;
   if (h < 0) {
     walk.boundaryStop = true;
-    walk.value = (l1 * u1 + l2 * u2) / s;
+    walk.value = edgeValue;
+    setFoot(walk, j1, l1 / s, j2, l2 / s, j1, 0.0);
     return walk;
   }
 
@@ -195,7 +223,12 @@ Walk backtrack(const Tables& t, const ComplexVector& u, int i, const Complex& d)
     anchor = length > 1e-12 ? mean / length : fromA;
   }
   walk.stripSteps = 1;
-  const Complex fallback = (l1 * u1 + l2 * u2) / s;
+  const auto interpolateOrEdge = [&](const Complex& x) {
+    if (!interpolateInFace(t, u, g, z, x, anchor, walk)) {
+      walk.value = edgeValue;
+      setFoot(walk, j1, l1 / s, j2, l2 / s, j1, 0.0);
+    }
+  };
   while (true) {
     // Exit through b -> c if the apex is left of the ray, else through c -> a.
     int exitHalfedge;
@@ -214,14 +247,14 @@ Walk backtrack(const Tables& t, const ComplexVector& u, int i, const Complex& d)
     const double tExit =
         denominator > 0.0 ? cross(p, edge) / denominator : std::numeric_limits<double>::infinity();
     if (tExit >= 1.0) {
-      walk.value = interpolateInFace(t, u, g, z, d, anchor, fallback);
+      interpolateOrEdge(d);
       return walk;
     }
     const Complex exitPoint = tExit * d;
     const int twin = t.twins[static_cast<size_t>(exitHalfedge)];
     if (twin < 0 || walk.stripSteps >= kMaxStripTriangles) {
       (twin < 0 ? walk.boundaryStop : walk.capped) = true;
-      walk.value = interpolateInFace(t, u, g, z, exitPoint, anchor, fallback);
+      interpolateOrEdge(exitPoint);
       return walk;
     }
     h = twin;
@@ -244,7 +277,7 @@ void VelocityAdvectionScratch::prepare(const SurfaceTopology& topology, const In
   const std::vector<int>& neighbors = topology.ringNeighbors();
   const std::vector<int>& ringEdges = topology.ringEdges();
   const auto entries = static_cast<Eigen::Index>(neighbors.size());
-  advected.resize(topology.vertexCount());
+  resize(topology.vertexCount());
   ringPoints.resize(entries);
   ringTransports.resize(entries);
   for (int v = 0; v < topology.vertexCount(); ++v) {
@@ -276,6 +309,7 @@ VelocityAdvectionReport advectVelocity(const StepContext& ctx, const SurfaceTopo
                                        VelocityAdvectionScratch& scratch, StainState& state) {
   const int n = topology.vertexCount();
   if (scratch.preparedRebuildCount != geometry.rebuildCount || scratch.advected.size() != n ||
+      scratch.footVertices.rows() != n ||
       scratch.ringPoints.size() != static_cast<Eigen::Index>(topology.ringNeighbors().size()) ||
       scratch.halfedgeApexRatios.size() != topology.halfedgeCount()) {
     scratch.prepare(topology, geometry);
@@ -296,6 +330,10 @@ VelocityAdvectionReport advectVelocity(const StepContext& ctx, const SurfaceTopo
     if (!allWet && !wet[static_cast<size_t>(i)]) continue;
     const Walk walk = backtrack(tables, u, i, -h * u(i));
     advected(i) = walk.value;
+    for (int c = 0; c < 3; ++c) {
+      scratch.footVertices(i, c) = walk.footVertices[c];
+      scratch.footWeights(i, c) = walk.footWeights[c];
+    }
     stripSteps += walk.stripSteps;
     boundaryStops += walk.boundaryStop ? 1 : 0;
     cappedWalks += walk.capped ? 1 : 0;

@@ -78,7 +78,11 @@ void runClosedSystem(RelativeMomentum relative) {
               budget.addedSolvent + budget.addedSolute);
   EXPECT_LT(worstExchange, 1e-12);
   EXPECT_LT(worstMass, 1e-14);  // the stain's transport rounding (measured: docs/coupling.md)
-  EXPECT_LT(drift, 1e-3);  // Bullet's float steps; measured value in docs/coupling.md
+  // Bullet's float steps; measured values in docs/coupling.md. The free film
+  // pushes the cloth harder (its relative momentum goes through the cloth),
+  // so Bullet's rounding adds up to more: 1.7e-3 since the discrete frame
+  // change (Coriolis) moves the film more freely, against 3.6e-4 dragged.
+  EXPECT_LT(drift, relative == RelativeMomentum::Free ? 3e-3 : 1e-3);
   EXPECT_EQ(surface.evaporatedMomentum(), Eigen::Vector3d::Zero());
   // The liquid is on the nodes: Bullet's masses are the cloth's plus the liquid's.
   EXPECT_EQ(cloth.nodeMasses(), cloth.lumpedMasses() + surface.liquidNodeMasses());

@@ -11,7 +11,7 @@
 //      vs the same with one sub-step vs the naive un-limited upwind.
 //  (c) paper Fig. 5: centroid of liquid moving in a straight line in the
 //      inertial frame on a disc rotating at 2 rad/s, through the StainSolver,
-//      vs h, for ExactRotation, Explicit and no Coriolis.
+//      vs h, for ExactRotation, SplitRotation, Explicit and no Coriolis.
 //  (d) homogenization (eq. 1) vs the refinement K, against a K = 128 solve.
 //
 // Milliseconds are wall-clock per step (std::chrono), on a shared machine: the
@@ -152,7 +152,7 @@ TEST(AccuracyCostStudy, CoriolisTrajectoryOnTheRotatingDisc) {
   // Lines: scheme at 48 rings, and ExactRotation at 24 and 96 rings (the
   // error floor at small h is the upwind smear of the blob, first order in dx).
   const std::pair<const char*, int> lines[] = {{"ExactRotation", 48}, {"Explicit", 48}, {"no Coriolis", 48},
-                                               {"ExactRotation", 24}, {"ExactRotation", 96}};
+                                               {"ExactRotation", 24}, {"ExactRotation", 96}, {"SplitRotation", 48}};
   for (const auto& [method, rings] : lines) {
     for (const double h : {0.04, 0.02, 0.01, 0.005, 0.0025}) {
       test::RotatingDiscSetup setup;
@@ -161,7 +161,9 @@ TEST(AccuracyCostStudy, CoriolisTrajectoryOnTheRotatingDisc) {
       setup.blobCenter = Vector3(0.5, 0, 0);
       setup.inertialVelocity = Vector3(-0.2, 0.2, 0);  // a straight line from (0.5, 0) to (0.19, 0.31)
       setup.coriolis = std::string(method) != "no Coriolis";
-      setup.scheme = std::string(method) == "Explicit" ? CoriolisScheme::Explicit : CoriolisScheme::ExactRotation;
+      setup.scheme = std::string(method) == "Explicit"        ? CoriolisScheme::Explicit
+                     : std::string(method) == "SplitRotation" ? CoriolisScheme::SplitRotation
+                                                              : CoriolisScheme::ExactRotation;
       const test::RotatingDiscResult r = test::runRotatingDisc(setup);
       std::printf("  %-14s rings %2d  h = %.4f  %.3f ms/step  final %.4f R  max %.4f R  energy ratio %.3f %s\n", method, rings, h,
                   r.msPerStep, r.finalError, r.maxError, r.energyRatio, r.ok ? "" : r.failure.c_str());

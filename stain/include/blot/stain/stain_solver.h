@@ -14,6 +14,7 @@
 #include <blot/stain/velocity_advection.h>
 
 #include <memory>
+#include <string>
 #include <vector>
 
 namespace blot::stain {
@@ -38,6 +39,19 @@ struct MassBudget {
 /// (topology, rest shape, fabric, def): restoring it into a solver built from
 /// the same inputs makes every later step bit-identical (engine save/load).
 /// Drops are applied immediately by addDrop, so none are pending here.
+/// Testing only: a NaN written on purpose inside a step, so that tests and
+/// `blot run --testing-inject-fault` exercise the fault path end to end (the
+/// stage check, the rollback, the report). Never set it in production.
+struct InjectedFault {
+  /// Stage after which the NaN is written, as StepReport::stage names it:
+  /// "cloth" and "coupling" (CoupledSurface), or a stain stage ("forces",
+  /// "film-pressure", "advect-velocity", "coriolis", "advect-density",
+  /// "diffuse", "interact", "sources").
+  std::string stage;
+  int step = 1;    ///< 1-based number of the step it fires in; it fires once
+  int vertex = 0;  ///< where (the solvent density there; a node impulse for "cloth")
+};
+
 struct StainSolverSnapshot {
   StainState state;
   SurfaceGeometry::DynamicState geometry;  ///< positions at t−h, t, t+h, frames, rotation history, intrinsic tier
@@ -78,6 +92,12 @@ class StainSolver {
   void addHeldRegion(const HeldRegion& region);
 
   const StainState& state() const { return state_; }
+  /// u_i (m/s, complex) in vertex i's frame at time(), extrinsic().nextFrames.
+  /// With the discrete frame change (CoriolisScheme::ExactRotation) the state
+  /// keeps u in the last step's midpoint frame, half a frame increment
+  /// behind: this turns it the rest of the way, exp(−iω_n h/2). Everything
+  /// that reads u in world coordinates (coupling, views, outputs) uses it.
+  Complex velocityInCurrentFrame(int i) const;
   StainState& mutableState() { return state_; }
   const SurfaceGeometry& geometry() const { return geometry_; }
   const StepProfile& profile() const { return profile_; }
@@ -94,14 +114,43 @@ class StainSolver {
   /// std::invalid_argument naming the field whose size differs.
   void restore(const StainSolverSnapshot& snapshot);
 
+  /// Puts the geometry on a surface at (positions, velocities), #V by 3 (m,
+  /// m/s), keeping the state to the bit: as setInitialMotion, and
+  /// p(t − h) = p − h v as the first step sets it. CoupledSurface calls it
+  /// after a failed step has put the cloth back at t. The metric is kept (the
+  /// strain test rebuilds it if the surface is stretched past the tolerance).
+  void restartMotion(const RowVectors3& positions, const RowVectors3& velocities);
+  /// Undoes the last successful step's state change (densities, velocities,
+  /// evaporated and added totals, time, step count; held at the backup taken
+  /// when it began), for a coupled step whose later stage failed. Only valid
+  /// once, right after a step that returned Ok; the geometry is not undone
+  /// (follow with restartMotion). Throws std::logic_error otherwise.
+  void undoLastStep();
+  /// Arms a testing fault for one of this solver's stages (InjectedFault).
+  /// Throws std::invalid_argument for an unknown stage or a vertex out of range.
+  void injectFaultForTesting(const InjectedFault& fault);
+
  private:
   void updateWetMask();
+  /// state_ = backup_, rescaled to the present dual areas when the step being
+  /// abandoned rebuilt the metric (each vertex keeps its mass).
+  void restoreBackup();
+  /// After `stage` (a string literal): writes an armed testing fault due now,
+  /// then checks the wet + halo vertices (and held ones after "sources") for
+  /// non-finite values and negative densities. Fills `report` and restores
+  /// the state when one is bad; returns false then.
+  bool checkStage(const char* stage, StepReport& report);
   /// step and stepRigid: rigidRotation is R for a known rigid motion, or null.
   StepReport advance(double h, const RowVectors3& nextPositions, const Matrix3* rigidRotation);
 
   StainSolverDef def_;
   SurfaceGeometry geometry_;
   StainState state_, backup_;
+  double backupTime_ = 0;   // time_ when backup_ was taken
+  InjectedFault fault_;      // testing; stage empty when none is armed
+  std::vector<int> wetList_;  // wet + halo vertices this step (the stage checks' domain)
+  bool undoable_ = false;   // the last step succeeded and undoLastStep has not run
+  bool backedUp_ = false;   // backup_ holds the state this step began with
   DiffusionSystems systems_;
   DiffusionScratch diffusionScratch_;
   VelocityAdvectionScratch velocityScratch_;

@@ -28,9 +28,15 @@ struct LiquidParameters {
   double liquidDensity = 1000.0;      ///< ρ (kg/m³), for the film pressure (PhysicsSwitches::filmPressure).
 };
 
-/// How the Coriolis term is integrated. ExactRotation rotates u by −2 ω_n h
-/// (energy-preserving); Explicit adds −2h ω × u (gains energy; kept only for comparison).
-enum class CoriolisScheme { ExactRotation, Explicit };
+/// How the Coriolis term is integrated. ExactRotation (default): after the
+/// velocity advection, the exact frame increment exp(−iω_n h) plus the frame
+/// velocity's change along the backtrack (applyHalfFrameRotation and
+/// applyFrameVelocityChange; no energy is
+/// created at any ωh), or exp(−2iω_n h) when the velocity is not advected.
+/// SplitRotation: always exp(−2iω_n h) after advection (the previous default;
+/// energy grows at ωh ≳ 1). Explicit adds −2h ω × u (gains energy; kept only
+/// for comparison).
+enum class CoriolisScheme { ExactRotation, Explicit, SplitRotation };
 
 /// Every physics term can be switched off. Terms a scene does not need are
 /// also skipped automatically (static mesh: no inertia; no solute: no solute
@@ -76,6 +82,33 @@ inline StepContext makeStepContext(double h, const Vector3& gravity, const Physi
   return ctx;
 }
 
+/// One bit per term of the stain step (StepProfile::terms). A bit is set when
+/// the term did work this step; a term switched off (PhysicsSwitches), with a
+/// zero coefficient (rate, gravity), or with nothing to act on (no wet vertex,
+/// a surface that did not move) is skipped and its bit stays clear.
+enum class StepTerm : unsigned {
+  RotationFits = 1u << 0,        ///< extrinsic refresh with a rotation fit per vertex (all #V)
+  RigidFrames = 1u << 1,         ///< extrinsic refresh of a known rigid motion, no fits (all #V)
+  IntrinsicRebuild = 1u << 2,    ///< metric rebuilt: the strain passed the tolerance (all #V)
+  Factorization = 1u << 3,       ///< diffusion systems refactorized (new metric or new h)
+  Gravity = 1u << 4,             ///< tangential gravity (wet + halo)
+  LinearInertia = 1u << 5,       ///< −Fᵀ p̈ (wet + halo)
+  Coriolis = 1u << 6,            ///< −2 ω × u (wet + halo)
+  FilmPressure = 1u << 7,        ///< −∇p_ext/ρ (wet + halo)
+  VelocityAdvection = 1u << 8,   ///< semi-Lagrangian u (wet + halo)
+  DensityAdvection = 1u << 9,    ///< upwind σ fluxes (wet + sub-step halo)
+  DensityDiffusionKrylov = 1u << 10,   ///< σ_f, σ_s by CG on the liquid's Krylov support
+  DensityDiffusionDirect = 1u << 11,   ///< σ_f, σ_s by the factorization (all #V)
+  VelocityDiffusionKrylov = 1u << 12,  ///< u by CG on the wet + halo vertices
+  VelocityDiffusionDirect = 1u << 13,  ///< u by the factorization (all #V)
+  Absorption = 1u << 14,         ///< K_p > 0 (wet + halo)
+  Adsorption = 1u << 15,         ///< K_d > 0 (wet + halo)
+  Evaporation = 1u << 16,        ///< K_evap > 0 (wet + halo)
+  Sources = 1u << 17,            ///< held regions
+};
+/// Number of StepTerm bits (bit k = 1u << k for k in [0, kStepTermCount)).
+inline constexpr int kStepTermCount = 18;
+
 /// Wall-clock milliseconds per stage of the last step, and counters.
 struct StepProfile {
   double geometry = 0, forces = 0, advectVelocity = 0, advectDensity = 0, diffuse = 0, interact = 0,
@@ -87,7 +120,25 @@ struct StepProfile {
   int diffusionIterations = 0;     ///< CG iterations, density + velocity (0: direct solves)
   int limiterCorrectedVertices = 0;  ///< vertices whose negative density the limiter fixed
   double limiterMovedMass = 0;     ///< kg moved by the positivity limiter
+  unsigned terms = 0;              ///< StepTerm bits of the terms that ran (see describeTerms)
+  int vertexCount = 0;             ///< #V of the surface
+  int haloVertices = 0;            ///< dry vertices next to wet ones, worked on with them
+  int geometryVertices = 0;        ///< vertices the extrinsic refresh recomputed (#V, 0 if the surface did not move)
+  int advectionVertices = 0;       ///< vertices density advection worked on (wet + sub-step halo, or #V)
+  int densityDiffusionVertices = 0;   ///< rows of the density solve (Krylov support, #V if direct)
+  int velocityDiffusionVertices = 0;  ///< rows of the velocity solve (wet + halo, #V if direct)
+  bool ran(StepTerm term) const { return (terms & static_cast<unsigned>(term)) != 0; }
+  void markRan(StepTerm term) { terms |= static_cast<unsigned>(term); }
 };
+
+/// Short name of one term ("gravity", "density-diffusion-krylov", ...).
+const char* stepTermName(StepTerm term);
+/// The terms that ran in `profile`, in StepTerm order, with the vertices they
+/// worked on, e.g. "rigid-frames[140625] gravity coriolis velocity-advection
+/// density-advection[612] density-diffusion-krylov[890] ... (wet 420 + halo 96
+/// of 140625)"; "none" when nothing ran. Allocates (a report, not for the
+/// frame loop).
+std::string describeTerms(const StepProfile& profile);
 
 /// Numerical failure inside a step (tier c): the stage, the vertex, and why.
 enum class StepStatus { Ok, SolverFailure, NonFinite, NegativeMass, InvalidArgument };

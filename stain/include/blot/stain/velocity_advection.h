@@ -8,10 +8,21 @@
 
 namespace blot::stain {
 
+/// Per vertex, the three vertices and convex weights of a foot point (#V by 3).
+using FootVertices = Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor>;
+using FootWeights = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+
 /// Scratch sized once (no allocation per step), plus unit-complex tables taken
 /// from the intrinsic tier so the per-step walk needs no trigonometry.
 struct VelocityAdvectionScratch {
   ComplexVector advected;  ///< #V
+  /// #V by 3, per vertex advected last: the foot point of its backtrack as
+  /// Σ_c footWeights(i, c) · vertex footVertices(i, c) (convex weights; the
+  /// vertex itself with weight 1 when it did not move). What the Coriolis
+  /// stage interpolates the frame velocity with
+  /// (applyFrameVelocityChange in external_forces.h).
+  FootVertices footVertices;
+  FootWeights footWeights;  ///< #V by 3, see footVertices
   /// Per ring entry (SurfaceTopology::ringNeighbors) of vertex i, neighbour j:
   /// ℓ_ij exp(iα_ij), j's position in i's flattened one-ring (m).
   ComplexVector ringPoints;
@@ -25,7 +36,11 @@ struct VelocityAdvectionScratch {
   /// IntrinsicGeometry::rebuildCount the tables were built from (−1: never).
   int preparedRebuildCount = -1;
 
-  void resize(int vertexCount) { advected.resize(vertexCount); }
+  void resize(int vertexCount) {
+    advected.resize(vertexCount);
+    footVertices.resize(vertexCount, 3);
+    footWeights.resize(vertexCount, 3);
+  }
   /// Sizes everything and fills the tables from `geometry` (allocates: call at
   /// build time and after each intrinsic rebuild). advectVelocity calls it
   /// itself when preparedRebuildCount differs from geometry.rebuildCount, so
