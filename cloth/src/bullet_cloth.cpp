@@ -646,6 +646,7 @@ BulletCloth::BulletCloth(const ClothDef& def) : def_(def), bullet_(std::make_uni
   positions_.resize(n, 3);
   velocities_.resize(n, 3);
   copyOut();
+  keepRollbackPoint();  // rollBack() before any step returns here
 }
 
 BulletCloth::~BulletCloth() = default;
@@ -758,9 +759,18 @@ void BulletCloth::copyOut() {
 }
 
 BulletClothState BulletCloth::captureState() const {
+  BulletClothState state;
+  captureState(state);
+  return state;
+}
+
+void BulletCloth::keepRollbackPoint() { captureState(rollbackState_); }
+
+void BulletCloth::rollBack() { restoreState(rollbackState_); }
+
+void BulletCloth::captureState(BulletClothState& state) const {
   const btSoftBody& body = *bullet_->body;
   const int n = vertexCount();
-  BulletClothState state;
   state.time = time_;
   state.positions.resize(n, 3);
   state.previousPositions.resize(n, 3);
@@ -788,7 +798,6 @@ BulletClothState BulletCloth::captureState() const {
   state.pendingImpulses = pendingImpulses_;
   state.loadsPending = loadsPending_;
   state.releasedPins = released_;
-  return state;
 }
 
 void BulletCloth::restoreState(const BulletClothState& state) {

@@ -211,6 +211,11 @@ void MeshSequence::advance(double h) {
   evaluate(time_, positions_, velocities_);
 }
 
+void MeshSequence::rollBack() {
+  time_ = rollbackTime_;
+  evaluate(time_, positions_, velocities_);
+}
+
 void MeshSequence::evaluate(double t, Eigen::MatrixX3d& positions, Eigen::MatrixX3d& velocities) const {
   const int frameCount = static_cast<int>(frames_.size());
   const Eigen::Index n = frames_.front().rows();

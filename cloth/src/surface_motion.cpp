@@ -41,6 +41,11 @@ void RigidMotion::advance(double h) {
   evaluate();
 }
 
+void RigidMotion::rollBack() {
+  time_ = rollbackTime_;
+  evaluate();
+}
+
 void RigidMotion::evaluate() {
   const Eigen::Matrix3d R = rotationAt(time_);
   const Eigen::Vector3d c = pivotAt(time_);

@@ -38,6 +38,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -120,6 +122,7 @@ CoupledSurface::CoupledSurface(std::unique_ptr<cloth::SurfaceMotion> motion, con
   endRelative_ = Eigen::MatrixX3d::Zero(n, 3);
   evaporationWeights_ = Eigen::VectorXd::Zero(n);
   impulses_ = Eigen::MatrixX3d::Zero(n, 3);
+  previousImpulses_ = Eigen::MatrixX3d::Zero(n, 3);
   wallPrevious_.assign(static_cast<size_t>(n), -1);
   wallNext_.assign(static_cast<size_t>(n), -1);
   for (const std::vector<int>& loop : topology_->boundaryLoops()) {
@@ -137,7 +140,7 @@ CoupledSurface::~CoupledSurface() = default;
 Eigen::Vector3d CoupledSurface::relativeVelocity(int i) const {
   const stain::ExtrinsicGeometry& e = stain_->geometry().extrinsic();
   const stain::Matrix3& f = e.nextFrames[static_cast<size_t>(i)];
-  const stain::Complex u = stain_->state().velocities[i];
+  const stain::Complex u = stain_->velocityInCurrentFrame(i);
   Eigen::Vector3d r = f.col(0) * u.real() + f.col(1) * u.imag();
   const int previous = wallPrevious_[static_cast<size_t>(i)];
   if (previous < 0) return r;
@@ -193,25 +196,42 @@ stain::StepReport CoupledSurface::step(double h) {
     exchange += millisecondsSince(mark);
   }
 
+  // Cloth. Its state now is the last good one: kept, so that a failure in any
+  // stage below puts cloth and stain back at t together.
   mark = Clock::now();
+  motion_->keepRollbackPoint();
+  const int stepNumber = stain_->stepCount() + 1;
+  if (fault_.stage == "cloth" && fault_.step == stepNumber) {
+    Eigen::MatrixX3d kick = impulses_;
+    kick.row(fault_.vertex).setConstant(1e30);
+    bullet_->setLiquidLoads(liquidMasses_, kick);
+    fault_.stage.clear();  // fires once
+  }
   motion_->advance(h);
   times_.cloth = millisecondsSince(mark);
+  stain::StepReport report = checkMotion();
+  if (report.status != stain::StepStatus::Ok) {
+    motion_->rollBack();
+    return report;
+  }
 
   mark = Clock::now();
   const double evaporatedBefore = s.evaporatedSolvent;
-  const stain::StepReport report =
-      rigid_ != nullptr ? stain_->stepRigid(h, motion_->positions(), rigid_->rotationAt(rigid_->time()))
-                        : stain_->step(h, motion_->positions());
+  report = rigid_ != nullptr ? stain_->stepRigid(h, motion_->positions(), rigid_->rotationAt(rigid_->time()))
+                             : stain_->step(h, motion_->positions());
   times_.stain = millisecondsSince(mark);
+  if (report.status != stain::StepStatus::Ok) {
+    // The stain kept its densities; cloth and stain geometry go back to t.
+    motion_->rollBack();
+    stain_->restartMotion(motion_->positions(), motion_->velocities());
+    return report;
+  }
 
   mark = Clock::now();
   if (!twoWay) {
     gatherLiquid(liquidMasses_, nullptr);
-  } else if (report.status != stain::StepStatus::Ok) {
-    // The stain kept its state: nothing moved between nodes, nothing is owed.
-    impulses_.setZero();
-    bullet_->setLiquidLoads(liquidMasses_, impulses_);
   } else {
+    impulses_.swap(previousImpulses_);  // kept until the impulses below are known to be finite
     gatherLiquid(liquidMasses_, &endRelative_);
     const Eigen::MatrixX3d& v = motion_->velocities();
     const double evaporated = s.evaporatedSolvent - evaporatedBefore;
@@ -228,19 +248,84 @@ stain::StepReport CoupledSurface::step(double h) {
       }
     }
     const double vapourPerWeight = weightSum > 0 ? evaporated / weightSum : 0.0;
+    Eigen::Vector3d vapourMomentum = evaporatedMomentum_;  // summed in the same order as before
+    int bad = -1;
     for (int i = 0; i < n; ++i) {
       const double vapour = vapourPerWeight * evaporationWeights_[i];
       const Eigen::Vector3d vi = v.row(i).transpose();
       const Eigen::Vector3d change =
           (liquidMasses_[i] - startMasses_[i]) * vi + (endRelative_.row(i) - startRelative_.row(i)).transpose();
       impulses_.row(i) = (-change - vapour * vi).transpose();
-      evaporatedMomentum_ += vapour * vi;
+      vapourMomentum += vapour * vi;
+      if (bad < 0 && !(impulses_.row(i).allFinite() && std::isfinite(liquidMasses_[i]))) bad = i;
     }
+    if (fault_.stage == "coupling" && fault_.step == stepNumber) {
+      impulses_(fault_.vertex, 0) = std::numeric_limits<double>::quiet_NaN();
+      if (bad < 0 || fault_.vertex < bad) bad = fault_.vertex;
+      fault_.stage.clear();  // fires once
+    }
+    if (bad >= 0) {
+      // Stage "coupling" failed: undo the stain step and the cloth step.
+      impulses_.swap(previousImpulses_);
+      liquidMasses_ = startMasses_;
+      stain_->undoLastStep();
+      motion_->rollBack();
+      stain_->restartMotion(motion_->positions(), motion_->velocities());
+      report.status = stain::StepStatus::NonFinite;
+      report.stage = "coupling";
+      report.vertex = bad;
+      report.message = "non-finite liquid mass or momentum exchange at vertex " + std::to_string(bad) +
+                       "; cloth and stain restored to the state before the step";
+      return report;
+    }
+    evaporatedMomentum_ = vapourMomentum;
     bullet_->setLiquidLoads(liquidMasses_, impulses_);
   }
   times_.coupling = exchange + millisecondsSince(mark);
   times_.total = millisecondsSince(start);
   return report;
+}
+
+stain::StepReport CoupledSurface::checkMotion() const {
+  stain::StepReport report;
+  const Eigen::MatrixX3d& x = motion_->positions();
+  const Eigen::MatrixX3d& v = motion_->velocities();
+  // One pass that is finite only if every value is; the search runs on failure.
+  double sum = 0;
+  for (Eigen::Index k = 0; k < x.size(); ++k) sum += 0 * x.data()[k] + 0 * v.data()[k];
+  if (std::isfinite(sum) && (bullet_ == nullptr || bullet_->isHealthy())) return report;
+  report.status = stain::StepStatus::NonFinite;
+  report.stage = "cloth";
+  for (Eigen::Index i = 0; i < x.rows() && report.vertex < 0; ++i)
+    if (!x.row(i).allFinite() || !v.row(i).allFinite()) report.vertex = static_cast<int>(i);
+  if (report.vertex >= 0) {
+    report.message = "non-finite position or velocity at vertex " + std::to_string(report.vertex);
+  } else {
+    // Finite but exploded: name the fastest node, where it started.
+    Eigen::Index fastest = 0;
+    v.rowwise().squaredNorm().maxCoeff(&fastest);
+    report.vertex = static_cast<int>(fastest);
+    report.message = "the Bullet cloth exploded (bounding box past 10x its rest diagonal, an edge stretched past "
+                     "10x, or Bullet disabled the body); fastest node " + std::to_string(report.vertex) + " at " +
+                     std::to_string(v.row(fastest).norm()) + " m/s";
+  }
+  report.message += "; cloth and stain restored to the state before the step";
+  return report;
+}
+
+void CoupledSurface::injectFaultForTesting(const stain::InjectedFault& fault) {
+  if (fault.stage != "cloth" && fault.stage != "coupling") {
+    stain_->injectFaultForTesting(fault);
+    return;
+  }
+  if (fault.vertex < 0 || fault.vertex >= motion_->vertexCount())
+    throw std::invalid_argument("injected fault: vertex " + std::to_string(fault.vertex) + " out of range [0, " +
+                                std::to_string(motion_->vertexCount()) + ")");
+  if (fault.stage == "cloth" && bullet_ == nullptr)
+    throw std::invalid_argument("injected fault: stage 'cloth' needs a Bullet cloth source");
+  if (fault.stage == "coupling" && mode_ != CouplingMode::TwoWay)
+    throw std::invalid_argument("injected fault: stage 'coupling' needs two-way coupling");
+  fault_ = fault;
 }
 
 Eigen::Vector3d CoupledSurface::totalMomentum() const {

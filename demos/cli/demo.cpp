@@ -285,7 +285,8 @@ int runRotatingCloth(const DemoOptions& options) {
     const stain::ExtrinsicGeometry& geometry = solver.geometry().extrinsic();
     for (int i = 0; i < vertexCount; ++i) {
       const stain::Matrix3& F = geometry.nextFrames[static_cast<size_t>(i)];
-      worldVelocities.row(i) = (F.col(0) * s.velocities[i].real() + F.col(1) * s.velocities[i].imag()).transpose();
+      const stain::Complex u = solver.velocityInCurrentFrame(i);
+      worldVelocities.row(i) = (F.col(0) * u.real() + F.col(1) * u.imag()).transpose();
     }
     engine::stainColors(mapping, s.solvent, s.solute, s.absorbedSolute, s.adsorbedSolute, colors);
     engine::PlyFrame ply;

@@ -50,7 +50,28 @@ struct RunOptions {
   int checkpointEvery = 0;  // frames between checkpoints; 0: none
   bool resume = false;      // continue from <out>/checkpoint.json
   int killAfterFrame = 0;   // testing only: SIGKILL this process after that frame
+  std::string injectFault;  // testing only: STAGE:STEP:VERTEX (Engine::injectFaultForTesting)
 };
+
+/// "STAGE:STEP:VERTEX" (e.g. "diffuse:12:140") into an InjectedFault; throws
+/// std::invalid_argument naming the malformed part.
+stain::InjectedFault parseInjectedFault(const std::string& text) {
+  const size_t a = text.find(':'), b = text.find(':', a == std::string::npos ? a : a + 1);
+  if (a == std::string::npos || b == std::string::npos)
+    throw std::invalid_argument("--testing-inject-fault: expected STAGE:STEP:VERTEX, got '" + text + "'");
+  stain::InjectedFault fault;
+  fault.stage = text.substr(0, a);
+  try {
+    size_t used = 0;
+    fault.step = std::stoi(text.substr(a + 1, b - a - 1), &used);
+    if (used != b - a - 1) throw std::invalid_argument("trailing characters");
+    fault.vertex = std::stoi(text.substr(b + 1), &used);
+    if (used != text.size() - b - 1) throw std::invalid_argument("trailing characters");
+  } catch (const std::exception&) {
+    throw std::invalid_argument("--testing-inject-fault: STEP and VERTEX must be integers, got '" + text + "'");
+  }
+  return fault;
+}
 
 // Checkpoints (issue 8): every `checkpointEvery` frames the whole engine state
 // goes to <out>/checkpoint_<frame>.state (Engine::save writes a temporary and
@@ -187,6 +208,16 @@ nlohmann::json termsJson(const engine::EngineDef& d) {
           {"two_way_coupling", d.coupling == coupling::CouplingMode::TwoWay}};
 }
 
+/// Internal steps in which each term of the stain step ran (terms that never
+/// ran are left out), e.g. {"gravity": 240, "density-diffusion-krylov": 238}.
+nlohmann::json termStepsJson(const engine::EngineStatistics& s) {
+  nlohmann::json ran = nlohmann::json::object();
+  for (int k = 0; k < stain::kStepTermCount; ++k)
+    if (s.totals.termSteps[static_cast<size_t>(k)] > 0)
+      ran[stain::stepTermName(static_cast<stain::StepTerm>(1u << k))] = s.totals.termSteps[static_cast<size_t>(k)];
+  return ran;
+}
+
 nlohmann::json meanTimesJson(const engine::EngineStatistics& s) {
   const double n = s.steps > 0 ? static_cast<double>(s.steps) : 1.0;
   const engine::PhaseTotals& t = s.totals;
@@ -220,6 +251,14 @@ int runScene(const RunOptions& options) {
   } catch (const std::exception& e) {
     std::cerr << "blot run: error: " << options.scenePath << ": " << e.what() << "\n";
     return 1;
+  }
+  if (!options.injectFault.empty()) {
+    try {
+      engine->injectFaultForTesting(parseInjectedFault(options.injectFault));
+    } catch (const std::exception& e) {
+      std::cerr << "blot run: error: " << e.what() << "\n";
+      return 1;
+    }
   }
   std::filesystem::create_directories(directory);
   engine::PlyWriteOptions plyOptions;
@@ -263,20 +302,26 @@ int runScene(const RunOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   for (int frame = firstFrame; frame <= frames; ++frame) {
     const stain::StepReport report = engine->advanceSteps(scene.outputs.stepsPerFrame);
-    const cloth::BulletCloth* bullet = engine->surface().bulletCloth();
     std::string failure;
     if (report.status != stain::StepStatus::Ok) {
       failure = "stage '" + report.stage + "'" +
                 (report.vertex >= 0 ? ", vertex " + std::to_string(report.vertex) : std::string()) + ": " +
                 report.message;
-    } else if (bullet != nullptr && !bullet->isHealthy()) {
-      failure = "stage 'cloth': the Bullet cloth became unhealthy (non-finite or exploded) by internal step " +
-                std::to_string(engine->stepCount());
     }
     if (!failure.empty()) {
+      // The engine undid the failed step: it holds the last good state, which
+      // goes to a state file beside the frames (Engine::load reads it).
       progress.interrupt();
       std::cerr << "blot run: numerical failure in frame " << frame << ": " << failure
                 << "\nblot run: last good frame written: " << lastGood << "\n";
+      const std::string statePath = (std::filesystem::path(directory) / "last_good.state").string();
+      try {
+        engine->save(statePath);
+        std::cerr << "blot run: state at the last good internal step " << engine->stepCount() << " (t = "
+                  << engine->time() << " s) saved to " << statePath << "\n";
+      } catch (const std::exception& e) {
+        std::cerr << "blot run: could not save the last good state: " << e.what() << "\n";
+      }
       return 3;
     }
     if (every > 0 && (frame % every == 0 || frame == frames)) writeFrame(frame);
@@ -346,6 +391,8 @@ int runScene(const RunOptions& options) {
       {"drops_applied", s.dropsApplied},
       {"state_hash", hexHash(engine->stateHash())},
       {"terms", termsJson(d)},
+      {"terms_ran_steps", termStepsJson(s)},
+      {"last_step_terms", stain::describeTerms(s.lastProfile)},
       {"mass_budget_kg", massBudgetJson(s.massBudget)},
       {"outputs", {{"directory", directory}, {"ply", plyPaths}, {"preview", previewPath}, {"preview_rest_shape", restPreviewPath}, {"summary", summaryPath}}}};
   std::ofstream(summaryPath) << summary.dump(2) << "\n";
@@ -370,6 +417,9 @@ void registerRunCommand(CLI::App& app, int& exitCode) {
                     "Continue from <out>/checkpoint.json; frames and results equal an uninterrupted run's");
   command->add_option("--kill-after-frame", options->killAfterFrame,
                       "Testing only: the process kills itself with SIGKILL after this frame");
+  command->add_option("--testing-inject-fault", options->injectFault,
+                      "Testing only: STAGE:STEP:VERTEX puts a NaN after that stage of that internal step "
+                      "(docs/reliability.md)");
   command->callback([options, &exitCode]() { exitCode = runScene(*options); });
 }
 

@@ -267,14 +267,15 @@ stain::StepReport Engine::runInternalStep() {
     return report;
   }
   stain::StepReport report = surface_->step(def_.timeStep);
-  // The cloth has moved on either way (on a failure the stain kept its state
-  // and the geometry follows the cloth), so the engine's clock moves too.
-  ++steps_;
   wallSeconds_ += 1e-3 * millisecondsSince(start);
   if (report.status != stain::StepStatus::Ok) {
-    report.message += " (internal step " + std::to_string(steps_) + ", t = " + std::to_string(time()) + " s)";
+    // CoupledSurface undid the step: cloth and stain are at the last good
+    // time, so the clock stays there too (drops applied above stay applied).
+    report.message += " (internal step " + std::to_string(steps_ + 1) + " from t = " + std::to_string(time()) +
+                      " s; the engine keeps the state at t)";
     return report;
   }
+  ++steps_;
   const stain::StepProfile& p = surface_->stain().profile();
   const coupling::CoupledStepTimes& t = surface_->lastTimes();
   totals_.geometry += p.geometry;
@@ -284,6 +285,7 @@ stain::StepReport Engine::runInternalStep() {
   totals_.diffuse += p.diffuse;
   totals_.interact += p.interact;
   totals_.sources += p.sources;
+  for (int k = 0; k < stain::kStepTermCount; ++k) totals_.termSteps[static_cast<size_t>(k)] += (p.terms >> k) & 1u;
   totals_.stainTotal += p.total;
   totals_.cloth += t.cloth;
   totals_.stain += t.stain;
@@ -356,7 +358,7 @@ void Engine::publishViews() {
   for (int i = 0; i < s.vertexCount(); ++i) {
     const stain::Matrix3& frame = ex.nextFrames[static_cast<std::size_t>(i)];
     normals_.row(i) = frame.col(2).transpose();
-    const stain::Complex u = s.velocities[i];
+    const stain::Complex u = surface_->stain().velocityInCurrentFrame(i);
     liquidVelocities_.row(i) = (frame.col(0) * u.real() + frame.col(1) * u.imag()).transpose();
   }
   stainColors(def_.colors, s.solvent, s.solute, s.absorbedSolute, s.adsorbedSolute, colors_);

@@ -361,5 +361,26 @@ TEST(EngineTest, BuildsFromSceneJsonWithFabricPatches) {
   EXPECT_LT(engine->statistics().massBudget.soluteError(), 1e-12);
 }
 
+TEST(EngineTest, StatisticsCountTheStepsEachTermRanIn) {
+  Engine engine(rotatingPatch());
+  ASSERT_EQ(engine.advanceSteps(20).status, stain::StepStatus::Ok);
+  const auto& ran = engine.statistics().totals.termSteps;
+  const auto steps = [&](stain::StepTerm term) {
+    for (int k = 0; k < stain::kStepTermCount; ++k)
+      if (static_cast<unsigned>(term) == 1u << k) return ran[static_cast<size_t>(k)];
+    return std::int64_t{-1};
+  };
+  // Spinning and wet every step: frames, inertia, Coriolis, transport and
+  // absorption each ran 20 times; film pressure (off) and sources (none) never.
+  EXPECT_EQ(steps(stain::StepTerm::RigidFrames), 20);
+  EXPECT_EQ(steps(stain::StepTerm::LinearInertia), 20);
+  EXPECT_EQ(steps(stain::StepTerm::Coriolis), 20);
+  EXPECT_EQ(steps(stain::StepTerm::DensityAdvection), 20);
+  EXPECT_EQ(steps(stain::StepTerm::Absorption), 20);
+  EXPECT_EQ(steps(stain::StepTerm::FilmPressure), 0);
+  EXPECT_EQ(steps(stain::StepTerm::Sources), 0);
+  EXPECT_EQ(steps(stain::StepTerm::IntrinsicRebuild), 0) << "a rigid motion keeps the metric";
+}
+
 }  // namespace
 }  // namespace blot::engine

@@ -283,11 +283,19 @@ class BulletCloth final : public SurfaceMotion {
   bool isHealthy() const;
   /// The state between two advance() calls (allocates; for save/load).
   BulletClothState captureState() const;
+  /// The same into `state`, reusing its arrays: no allocation once they have
+  /// this cloth's sizes (keepRollbackPoint calls it every step).
+  void captureState(BulletClothState& state) const;
   /// Puts a captured state back (same ClothDef: vertex, face and pin counts
   /// must match, std::invalid_argument naming the field otherwise). Rebuilds
   /// what Bullet derives from it: link constants from the inverse masses, the
   /// node bounding-volume tree and the body's bounds from the positions.
   void restoreState(const BulletClothState& state);
+  /// Captures the state into a kept BulletClothState (O(#V + #F) copies,
+  /// about 1 % of a step; the copy costs ~250 bytes per vertex of memory).
+  void keepRollbackPoint() override;
+  /// restoreState(kept state); the construction state before any keepRollbackPoint().
+  void rollBack() override;
 
   /// Distance nodes keep from colliders (m), after the automatic choice.
   double collisionMargin() const { return collisionMargin_; }
@@ -318,6 +326,7 @@ class BulletCloth final : public SurfaceMotion {
   Eigen::VectorXd restLinkLengths_;
   Eigen::MatrixX3d positions_, velocities_;
   Eigen::AlignedBox3d boundingBox_;
+  BulletClothState rollbackState_;  // keepRollbackPoint / rollBack
   double restDiagonal_ = 0;
   double collisionMargin_ = 0;
   double time_ = 0;

@@ -81,6 +81,9 @@ class MeshSequence final : public SurfaceMotion {
   const Eigen::MatrixX3d& velocities() const override { return velocities_; }
   /// Moves to time() + h (h > 0, s); allocates nothing.
   void advance(double h) override;
+  void keepRollbackPoint() override { rollbackTime_ = time_; }
+  /// Evaluates the sequence at the kept time (a pure function of time).
+  void rollBack() override;
 
   /// Positions (m) and velocities (m/s) at any time t ≥ 0 (s), written into
   /// caller-owned #V by 3 arrays (resized only if their size differs).
@@ -101,7 +104,7 @@ class MeshSequence final : public SurfaceMotion {
   std::vector<std::string> paths_;
   SequencePlayback playback_;
   Eigen::MatrixX3d positions_, velocities_;
-  double time_ = 0;
+  double time_ = 0, rollbackTime_ = 0;
 };
 
 }  // namespace blot::cloth

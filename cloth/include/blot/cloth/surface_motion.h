@@ -26,6 +26,15 @@ class SurfaceMotion {
   virtual const Eigen::MatrixX3d& velocities() const = 0;
   /// Moves the surface to time() + h (h > 0, seconds).
   virtual void advance(double h) = 0;
+  /// Remembers the present state for rollBack(). The coupled step calls it
+  /// before every advance() so that a step failing later (a stain stage, the
+  /// coupling) can leave the surface where it was. Allocates nothing after
+  /// the first call.
+  virtual void keepRollbackPoint() = 0;
+  /// Returns to the state of the last keepRollbackPoint(): time, positions
+  /// and velocities bit-identical, and the same steps after it. Before any
+  /// keepRollbackPoint() it returns to the state at construction.
+  virtual void rollBack() = 0;
 };
 
 /// A surface that does not move.
@@ -38,10 +47,12 @@ class StaticSurface final : public SurfaceMotion {
   const Eigen::MatrixX3d& positions() const override { return positions_; }
   const Eigen::MatrixX3d& velocities() const override { return velocities_; }
   void advance(double h) override;
+  void keepRollbackPoint() override { rollbackTime_ = time_; }
+  void rollBack() override { time_ = rollbackTime_; }
 
  private:
   Eigen::MatrixX3d positions_, velocities_;
-  double time_ = 0;
+  double time_ = 0, rollbackTime_ = 0;
 };
 
 /// Analytic rigid motion: rotation at constant angular velocity ω (rad/s, world
@@ -63,6 +74,10 @@ class RigidMotion final : public SurfaceMotion {
   const Eigen::MatrixX3d& positions() const override { return positions_; }
   const Eigen::MatrixX3d& velocities() const override { return velocities_; }
   void advance(double h) override;
+  void keepRollbackPoint() override { rollbackTime_ = time_; }
+  /// Evaluates the closed form at the kept time (the same value of time()
+  /// gives the same positions).
+  void rollBack() override;
 
   /// Rotation exp(t [ω]×) at time t.
   Eigen::Matrix3d rotationAt(double t) const;
@@ -74,7 +89,7 @@ class RigidMotion final : public SurfaceMotion {
   void evaluate();
   Eigen::MatrixX3d rest_, positions_, velocities_;
   RigidMotionDef def_;
-  double time_ = 0;
+  double time_ = 0, rollbackTime_ = 0;
 };
 
 }  // namespace blot::cloth

@@ -63,9 +63,23 @@ class CoupledSurface {
 
   /// One step of h seconds: motion->advance(h) → stain step on the new
   /// positions (stepRigid for a RigidMotion) → coupling loads for the next
-  /// cloth step (two-way). On a stain failure the report says so and the
-  /// stain state is the one before the step.
+  /// cloth step (two-way). Each stage is checked (the cloth: finite positions
+  /// and velocities, and BulletCloth::isHealthy; the stain: its own stages;
+  /// the coupling: finite loads). On a failure the report names the stage
+  /// ("cloth", a stain stage, "coupling") and the vertex, and the step is
+  /// undone: the cloth is back at t exactly (SurfaceMotion::rollBack), the
+  /// stain keeps its densities and velocities of t, and its geometry restarts
+  /// from the cloth at t (StainSolver::restartMotion). Drops added before the
+  /// step stay added.
   stain::StepReport step(double h);
+
+  /// Testing only: arms a fault (stain::InjectedFault) for the step numbered
+  /// fault.step (stain().stepCount() + 1 when it runs). "cloth": an impulse of
+  /// 1e30 N·s at the vertex before the cloth step, so Bullet itself blows up
+  /// (a Bullet cloth only); "coupling": that vertex's exchange is made
+  /// non-finite; any other stage is the stain's. Throws
+  /// std::invalid_argument for an unknown stage or vertex.
+  void injectFaultForTesting(const stain::InjectedFault& fault);
 
   CouplingMode mode() const { return mode_; }
   RelativeMomentum relativeMomentum() const { return relative_; }
@@ -117,6 +131,9 @@ class CoupledSurface {
 
  private:
   void gatherLiquid(Eigen::VectorXd& masses, Eigen::MatrixX3d* relativeMomenta) const;
+  /// Stage "cloth": finite positions and velocities (naming the first bad
+  /// vertex), and a healthy Bullet body.
+  stain::StepReport checkMotion() const;
   /// World velocity (m/s) of the free liquid at vertex i relative to the
   /// cloth: Fᵢuᵢ, without its outward part at boundary vertices (the edge is
   /// a wall; docs/coupling.md).
@@ -135,6 +152,8 @@ class CoupledSurface {
   Eigen::VectorXd startMasses_;        // #V kg, at the start of this step
   Eigen::MatrixX3d startRelative_;     // #V by 3, free mass × F u at the start of this step (kg m/s)
   Eigen::MatrixX3d endRelative_;       // the same after the stain step
+  stain::InjectedFault fault_;         // testing: "cloth" or "coupling"; stage empty when none
+  Eigen::MatrixX3d previousImpulses_;  // #V by 3, the impulses before this step's (restored on a coupling failure)
   Eigen::VectorXd evaporationWeights_; // #V, where this step's vapour is attributed
   // Per vertex: its neighbours before and after it along its boundary loop
   // (the wall direction), or -1 for interior vertices.

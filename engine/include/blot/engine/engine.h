@@ -20,6 +20,7 @@
 #include <blot/stain/surface_topology.h>
 #include <blot/stain/triangle_mesh.h>
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <stdexcept>
@@ -101,6 +102,9 @@ struct PhaseTotals {
   double geometry = 0, forces = 0, advectVelocity = 0, advectDensity = 0, diffuse = 0, interact = 0, sources = 0,
          stainTotal = 0;
   double cloth = 0, stain = 0, coupling = 0, total = 0;
+  /// Per stain::StepTerm bit k: the internal steps in which that term ran
+  /// (StepProfile::terms), so a run reports which terms it needed.
+  std::array<std::int64_t, stain::kStepTermCount> termSteps{};
 };
 
 struct EngineStatistics {
@@ -145,10 +149,14 @@ class Engine {
   /// accumulator counts in units of h, and ⌊·⌋ forgives 1e-9 of a step, so
   /// frame times that add up to whole steps (e.g. 0.016 + 0.004 at h = 0.01)
   /// run exactly those steps. Results depend only on the sequence of internal
-  /// steps and drops, not on how frame time was split. On a numerical failure
-  /// the report names stage, vertex and step; the stain keeps the state before
-  /// the failing step, the remaining steps of this call are not run and the
-  /// accumulator is cleared. Allocates nothing after the first call, except
+  /// steps and drops, not on how frame time was split. Every stage of every
+  /// internal step is checked for non-finite values and negative mass (cloth,
+  /// each stain stage, coupling). On a failure the report names the stage, the
+  /// vertex and the internal step; the step is undone so the engine keeps the
+  /// last good state (cloth bit-identical, stain densities and velocities as
+  /// at that time, time() and stepCount() unchanged, drops already applied
+  /// stay; see CoupledSurface::step); the remaining steps of this call are
+  /// not run and the accumulator is cleared. Allocates nothing after the first call, except
   /// that a step applying a drop allocates its footprint, the stain's
   /// intrinsic rebuild (edge strain past StainSolverDef::strainTolerance)
   /// allocates, and Bullet allocates contact lists when a cloth meets a
@@ -156,6 +164,10 @@ class Engine {
   stain::StepReport step(double frameDt);
   /// Runs exactly `count` internal steps (≥ 0), bypassing the accumulator.
   stain::StepReport advanceSteps(int count);
+  /// Testing only: arms a NaN for internal step fault.step (1-based) after
+  /// fault.stage (CoupledSurface::injectFaultForTesting), to exercise the
+  /// fault path end to end. Throws std::invalid_argument naming the problem.
+  void injectFaultForTesting(const stain::InjectedFault& fault) { surface_->injectFaultForTesting(fault); }
 
   /// Queues a drop for the next internal step. Vertex drops (centerVertex ≥ 0)
   /// land there; otherwise centerPoint is projected onto the cloth (nearest
