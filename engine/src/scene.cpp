@@ -283,6 +283,11 @@ stain::TriangleMesh parseMesh(ObjectReader& r, std::string& description) {
   r.finish();
   mesh.vertexPositions *= scale;
   mesh.vertexPositions.rowwise() += translate.transpose();
+  // Finite keys can still overflow together ("scale": 1e308 on a 10 m patch).
+  for (Eigen::Index i = 0; i < mesh.vertexPositions.rows(); ++i)
+    if (!mesh.vertexPositions.row(i).allFinite())
+      ctx.fail(r.path(), "vertex " + std::to_string(i) +
+                             " is not finite after size, scale and translate (the coordinates overflow a double)");
   description += " (" + std::to_string(mesh.vertexPositions.rows()) + " vertices, " +
                  std::to_string(mesh.faces.rows()) + " faces)";
   return mesh;
@@ -646,7 +651,9 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
   json root;
   try {
     root = json::parse(jsonText);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {
+    // Not only parse_error: a number too large for a double ("1e999") is an
+    // out_of_range, and it must not escape as a foreign exception.
     throw SceneError(sourceName + ": invalid JSON: " + e.what());
   }
   ObjectReader r(ctx, root, "");

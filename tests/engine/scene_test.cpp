@@ -236,3 +236,63 @@ TEST(SceneTest, MissingFileIsAnError) {
 
 }  // namespace
 }  // namespace blot::engine
+
+// Issue 8, found by tests/fuzz/scene_fuzz.cpp (fuzz_scene): regressions and the
+// seed corpus replayed in the normal and the sanitized build.
+namespace blot::engine {
+namespace {
+
+// A number too large for a double makes nlohmann throw out_of_range.406, not a
+// parse_error; parseScene caught only the latter, so it escaped as a foreign
+// exception ("terminate called" in `blot run`). Fuzz reproducer:
+// tests/fuzz/corpus/scene/number_overflow.json.
+TEST(SceneFuzzRegression, NumberTooLargeForADoubleIsASceneErrorNamingTheToken) {
+  for (const std::string number : {"1e999", "0.1e3084", "-1e400"}) {
+    const std::string message = errorOf(withExtra(R"("time_step": )" + number));
+    EXPECT_EQ(message.rfind("scene.json: invalid JSON", 0), 0u) << message;
+    EXPECT_NE(message.find("number overflow parsing '" + number + "'"), std::string::npos) << message;
+  }
+}
+
+// Keys that are each finite can overflow together: a 10 m patch scaled by 1e308
+// had infinite coordinates and parsed. Reproducer: corpus scale_overflow.json.
+TEST(SceneFuzzRegression, MeshThatOverflowsAfterScaleNamesTheMeshAndVertex) {
+  const std::string message = errorOf(
+      R"({"mesh": {"patch": {"size": [10, 10], "resolution": [2, 2]}, "scale": 1e308}, "cloth": {"source": "static"}})");
+  EXPECT_EQ(message.rfind("scene.json: mesh: vertex 0 is not finite after size, scale and translate", 0), 0u)
+      << message;
+  const std::string translated = errorOf(
+      R"({"mesh": {"patch": {"size": [1, 1], "resolution": [2, 2], "center": [1e308, 0, 0]}, "translate": [1e308, 0, 0]},
+          "cloth": {"source": "static"}})");
+  EXPECT_NE(translated.find("scene.json: mesh: vertex "), std::string::npos) << translated;
+  EXPECT_NE(translated.find("overflow a double"), std::string::npos) << translated;
+}
+
+// Every seed of fuzz_scene (shipped scenes, hand-written ones for the other
+// mesh and cloth kinds, and reproducers of findings) parses, or fails with a
+// SceneError that starts with its source name: the fuzz target's oracle.
+TEST(SceneFuzzCorpus, EverySeedParsesOrFailsWithASceneErrorNamingTheSource) {
+  namespace fs = std::filesystem;
+  const fs::path folder = fs::path(BLOT_TEST_DATA_DIR) / ".." / "fuzz" / "corpus" / "scene";
+  ASSERT_TRUE(fs::is_directory(folder)) << folder;
+  int files = 0, parsed = 0;
+  for (const auto& entry : fs::directory_iterator(folder)) {
+    const std::string source = entry.path().filename().string();
+    std::ifstream in(entry.path(), std::ios::binary);
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    ++files;
+    try {
+      parseScene(text, source, std::string(BLOT_ASSETS_DIR) + "/scenes");
+      ++parsed;
+    } catch (const SceneError& error) {
+      EXPECT_EQ(std::string(error.what()).rfind(source + ": ", 0), 0u) << error.what();
+    } catch (const std::exception& error) {
+      ADD_FAILURE() << source << ": not a SceneError: " << error.what();
+    }
+  }
+  EXPECT_GE(files, 12);
+  EXPECT_GE(parsed, 8) << "the corpus should hold valid scenes too";
+}
+
+}  // namespace
+}  // namespace blot::engine
