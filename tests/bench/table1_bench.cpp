@@ -265,6 +265,7 @@ void BM_Table1(benchmark::State& state) {
   const EngineStatistics before = engine.statistics();
   double bareMs = 0;
   long refreshes = 0, substeps = 0;
+  unsigned terms = 0;  // StepTerm bits of the terms that ran in any timed step
   for (auto _ : state) {
     const auto start = Clock::now();
     const stain::StepReport report = engine.advanceSteps(1);
@@ -278,6 +279,7 @@ void BM_Table1(benchmark::State& state) {
     bareMs += msSince(bareStart);
     refreshes += engine.surface().stain().profile().intrinsicRefreshes;
     substeps += engine.surface().stain().profile().advectionSubsteps;
+    terms |= engine.surface().stain().profile().terms;
   }
   const EngineStatistics after = engine.statistics();
   const double n = static_cast<double>(after.steps - before.steps);
@@ -301,6 +303,13 @@ void BM_Table1(benchmark::State& state) {
   state.counters["refreshes_per_step"] = static_cast<double>(refreshes) / n;
   state.counters["advection_substeps"] = static_cast<double>(substeps) / n;
   state.counters["wet_vertices"] = engine.surface().stain().profile().wetVertices;
+  state.counters["halo_vertices"] = engine.surface().stain().profile().haloVertices;
+  state.counters["terms"] = terms;
+  // "scene: terms that ran (vertex counts of the last step)"; scripts/table1
+  // keys the rows by the scene name before the colon.
+  stain::StepProfile last = engine.surface().stain().profile();
+  last.terms = terms;
+  state.SetLabel(std::string(kSceneNames[id]) + ": " + stain::describeTerms(last));
   state.counters["vertices"] = engine.vertexCount();
   state.counters["faces"] = static_cast<double>(engine.faces().rows());
   state.counters["load_ms_inproc"] = loadMs;

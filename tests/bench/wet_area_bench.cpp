@@ -1,0 +1,180 @@
+// Cost of the stain step against wet area on a 140,625-vertex cloth (issue 7:
+// "model no more than a scene needs").
+//
+// Design note. A 1 m square grid (375 x 375 vertices) turns rigidly about a
+// tilted axis (so tangential gravity, inertia and Coriolis all act and the
+// frames change every step) and carries a stain over a disc covering a given
+// fraction of its area, from 0 (dry) to 100 %. Each row reports ms per stain
+// step (manual time = StainSolver::stepRigid, the surface positions built
+// outside the timer) and the per-phase times of StepProfile, so the fixed
+// cost per step (geometry on all #V, the state backup and validation) can be
+// told from the cost that grows with the wet area (forces, advection,
+// diffusion on the Krylov support, interaction). The stain is set directly in
+// the state (a uniform film on the disc) instead of with addDrop, whose bump
+// would make the wet area depend on the threshold. Two fabrics: diffusivity
+// and viscosity 1e-4 m²/s keep max h L_ii / A_i below
+// kIterativeStiffnessRatio, so both solves run by CG on the liquid's support;
+// 4e-3 and 2e-3 m²/s (the Table 1 flag's) pass it, so Auto picks the direct
+// factorizations, whole-mesh solves however small the stain. Static rows (no
+// motion) show the geometry refresh skipped. Rejected: the coupled engine (Bullet cloth dominates at 140K and
+// would hide the stain's own scaling; table1_bench has that scene).
+//
+// Run: wet_area_bench --benchmark_counters_tabular=true
+//      scripts/wet_area [--update] [BUILD_DIR]  (docs/performance.md table)
+#include <blot/stain/mesh_primitives.h>
+#include <blot/stain/stain_solver.h>
+
+#include <benchmark/benchmark.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <string>
+
+namespace blot::stain {
+namespace {
+
+constexpr int kCells = 374;          // (374 + 1)² = 140,625 vertices
+constexpr double kOmega = 1.0;       // rad/s about the tilted axis
+constexpr double kStep = 0.01;       // s
+constexpr double kFilm = 0.5;        // kg/m² of free solvent on the wet disc
+constexpr double kPi = 3.14159265358979323846;
+
+using Clock = std::chrono::steady_clock;
+
+long peakResidentKb() {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.compare(0, 6, "VmHWM:") == 0) return std::atol(line.c_str() + 6);
+  return -1;
+}
+
+Matrix3 rotationAt(double t) {
+  return Eigen::AngleAxisd(kOmega * t, Vector3(0.4, 0.2, 1.0).normalized()).toRotationMatrix();
+}
+
+// Args: wet area in basis points of the cloth (0..10000), moving (0/1),
+// fabric (0: D = ν = 1e-4 m²/s, Krylov; 1: D = 4e-3, ν = 2e-3 m²/s, direct).
+void BM_WetArea(benchmark::State& state) {
+  const double fraction = static_cast<double>(state.range(0)) * 1e-4;
+  const bool moving = state.range(1) != 0;
+  const bool stiff = state.range(2) != 0;
+  const double diffusivity = stiff ? 4e-3 : 1e-4, viscosity = stiff ? 2e-3 : 1e-4;
+  TriangleMesh mesh = gridMesh(kCells, kCells, 1.0, 1.0);
+  mesh.vertexPositions.col(0).array() -= 0.5;
+  mesh.vertexPositions.col(1).array() -= 0.5;
+  const int n = static_cast<int>(mesh.vertexPositions.rows());
+  const SurfaceTopology topology(mesh.faces, n);
+  StainSolverDef def;
+  def.liquid.evaporationRate = 0.002;
+  StainSolver solver(topology, mesh.vertexPositions,
+                     isotropicFabricField(static_cast<int>(mesh.faces.rows()), diffusivity, viscosity), def);
+  const Vector3 axis = Vector3(0.4, 0.2, 1.0).normalized();
+  if (moving) {
+    RowVectors3 velocities(n, 3);
+    for (int i = 0; i < n; ++i)
+      velocities.row(i) = (kOmega * axis).cross(Vector3(mesh.vertexPositions.row(i))).transpose();
+    solver.setInitialMotion(mesh.vertexPositions, velocities);
+  }
+  // A uniform film on the disc of area fraction × 1 m² about the centre (the
+  // whole cloth at 100 %).
+  const double radius = fraction >= 1.0 ? 1.0 : std::sqrt(fraction / kPi);
+  StainState& s = solver.mutableState();
+  for (int i = 0; i < n; ++i) {
+    if (fraction > 0 && mesh.vertexPositions.row(i).head<2>().norm() <= radius) {
+      s.solvent[i] = kFilm;
+      s.solute[i] = 0.2 * kFilm;
+    }
+  }
+  int step = 0;
+  RowVectors3 next = mesh.vertexPositions;
+  auto advance = [&]() {
+    ++step;
+    const Matrix3 R = moving ? rotationAt(step * kStep) : Matrix3::Identity();
+    if (moving) next.noalias() = mesh.vertexPositions * R.transpose();
+    const auto start = Clock::now();
+    const StepReport r = solver.stepRigid(kStep, next, R);
+    const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
+    if (r.status != StepStatus::Ok) state.SkipWithError(("step failed: " + r.stage + ": " + r.message).c_str());
+    return seconds;
+  };
+  // Warm-up: the first step factorizes; the second and third settle the
+  // rotation history (shared-axis fast path) and the wet mask.
+  for (int k = 0; k < 3; ++k) advance();
+
+  StepProfile sum;
+  double wet = 0, halo = 0, advected = 0, densityRows = 0, velocityRows = 0;
+  unsigned terms = 0;
+  int steps = 0;
+  for (auto _ : state) {
+    state.SetIterationTime(advance());
+    const StepProfile& p = solver.profile();
+    sum.geometry += p.geometry;
+    sum.forces += p.forces;
+    sum.advectVelocity += p.advectVelocity;
+    sum.advectDensity += p.advectDensity;
+    sum.diffuse += p.diffuse;
+    sum.interact += p.interact;
+    sum.total += p.total;
+    wet += p.wetVertices;
+    halo += p.haloVertices;
+    advected += p.advectionVertices;
+    densityRows += p.densityDiffusionVertices;
+    velocityRows += p.velocityDiffusionVertices;
+    sum.diffusionIterations += p.diffusionIterations;
+    terms |= p.terms;
+    ++steps;
+  }
+  if (steps == 0) return;
+  const double k = 1.0 / steps;
+  const double stages =
+      sum.geometry + sum.forces + sum.advectVelocity + sum.advectDensity + sum.diffuse + sum.interact;
+  state.counters["vertices"] = n;
+  state.counters["wet_fraction"] = wet * k / n;
+  state.counters["wet_vertices"] = wet * k;
+  state.counters["halo_vertices"] = halo * k;
+  state.counters["advection_vertices"] = advected * k;
+  state.counters["density_diffusion_rows"] = densityRows * k;
+  state.counters["velocity_diffusion_rows"] = velocityRows * k;
+  state.counters["cg_iterations"] = sum.diffusionIterations * k;
+  state.counters["geometry_ms"] = sum.geometry * k;
+  state.counters["forces_ms"] = sum.forces * k;
+  state.counters["advection_ms"] = (sum.advectVelocity + sum.advectDensity) * k;
+  state.counters["diffusion_ms"] = sum.diffuse * k;
+  state.counters["interaction_ms"] = sum.interact * k;
+  // Backup, wet mask and validation: the step's own passes over #V.
+  state.counters["other_ms"] = (sum.total - stages) * k;
+  state.counters["total_ms"] = sum.total * k;
+  state.counters["terms"] = terms;
+  state.counters["peak_rss_mb"] = peakResidentKb() / 1024.0;
+  StepProfile last = solver.profile();
+  last.terms = terms;
+  state.SetLabel(describeTerms(last));
+}
+
+// Rows: Krylov diffusion, moving, 0 % .. 100 %; the same static at 0 and 1 %;
+// the direct (stiff) diffusion, moving, at 0.1 %, 10 % and 100 %.
+BENCHMARK(BM_WetArea)
+    ->ArgNames({"wet_bp", "moving", "stiff"})
+    ->Args({0, 1, 0})
+    ->Args({10, 1, 0})
+    ->Args({100, 1, 0})
+    ->Args({1000, 1, 0})
+    ->Args({5000, 1, 0})
+    ->Args({10000, 1, 0})
+    ->Args({0, 0, 0})
+    ->Args({100, 0, 0})
+    ->Args({10, 1, 1})
+    ->Args({1000, 1, 1})
+    ->Args({10000, 1, 1})
+    ->Iterations(20)
+    ->UseManualTime()
+    ->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace blot::stain
+
+BENCHMARK_MAIN();
