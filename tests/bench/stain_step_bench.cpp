@@ -165,14 +165,7 @@ void stainStep(benchmark::State& bench) {
     }
     const StepProfile& p = scene.solver->profile();
     bench.SetIterationTime(p.total * 1e-3);
-    sum.geometry += p.geometry;
-    sum.forces += p.forces;
-    sum.advectVelocity += p.advectVelocity;
-    sum.advectDensity += p.advectDensity;
-    sum.diffuse += p.diffuse;
-    sum.interact += p.interact;
-    sum.sources += p.sources;
-    sum.total += p.total;
+    sum.addTimes(p);
     sum.advectionSubsteps += p.advectionSubsteps;
     wet += p.wetVertices;
     fixes += p.limiterCorrectedVertices;

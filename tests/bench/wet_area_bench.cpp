@@ -112,13 +112,7 @@ void BM_WetArea(benchmark::State& state) {
   for (auto _ : state) {
     state.SetIterationTime(advance());
     const StepProfile& p = solver.profile();
-    sum.geometry += p.geometry;
-    sum.forces += p.forces;
-    sum.advectVelocity += p.advectVelocity;
-    sum.advectDensity += p.advectDensity;
-    sum.diffuse += p.diffuse;
-    sum.interact += p.interact;
-    sum.total += p.total;
+    sum.addTimes(p);
     wet += p.wetVertices;
     halo += p.haloVertices;
     advected += p.advectionVertices;

@@ -5,39 +5,26 @@
 // The faults are real: a 1e30 N·s impulse makes Bullet itself blow up; the
 // stain and coupling faults write a NaN where the stage just wrote.
 #include <blot/engine/engine.h>
-#include <blot/stain/mesh_primitives.h>
 
 #include <gtest/gtest.h>
 
 #include <cstring>
 #include <string>
 
+#include "bullet_flag_def.h"
+
 namespace blot::engine {
 namespace {
 
-constexpr int kDropVertex = 8 * 17 + 8;
+constexpr int kDropVertex = kBulletFlagDropVertex;
 
-/// A Bullet flag (xz plane, 17 x 17) pinned at its top corners with a drop in
-/// the middle; two-way or one-way.
+/// The engine tests' Bullet flag, two-way or one-way, without metric rebuilds
+/// in the failing step (its rescaled densities keep each vertex's mass but not
+/// the bits: tests/stain/stage_fault_test.cpp), so the kept state can be
+/// compared by its hash.
 EngineDef flag(coupling::CouplingMode mode) {
-  EngineDef def;
-  def.mesh = stain::gridMesh(16, 16, 0.6, 0.6);
-  def.mesh.vertexPositions.col(2) = def.mesh.vertexPositions.col(1);
-  def.mesh.vertexPositions.col(1).setZero();
-  def.source = MotionSource::Bullet;
-  def.cloth.pins = {{16 * 17, {}}, {16 * 17 + 16, {}}};
-  def.coupling = mode;
-  def.timeStep = 0.01;
-  // No metric rebuild in the failing step (its rescaled densities keep each
-  // vertex's mass but not the bits: tests/stain/stage_fault_test.cpp), so the
-  // kept state can be compared by its hash.
+  EngineDef def = bulletFlag(mode);
   def.stain.strainTolerance = 0.5;
-  TimedDrop drop;
-  drop.drop.centerVertex = kDropVertex;
-  drop.drop.radius = 0.15;
-  drop.drop.solventMass = 0.05;
-  drop.drop.soluteMass = 0.01;
-  def.drops.push_back(drop);
   return def;
 }
 

@@ -10,6 +10,8 @@
 #include <filesystem>
 #include <fstream>
 
+#include "bullet_flag_def.h"
+
 namespace blot::engine {
 namespace {
 
@@ -214,23 +216,7 @@ TEST(EngineTest, SaveThenLoadContinuesBitIdentically) {
 }
 
 /// A two-way Bullet flag (xz plane) pinned at its two top corners, with a heavy drop.
-EngineDef twoWayFlag() {
-  EngineDef def;
-  def.mesh = stain::gridMesh(16, 16, 0.6, 0.6);
-  def.mesh.vertexPositions.col(2) = def.mesh.vertexPositions.col(1);
-  def.mesh.vertexPositions.col(1).setZero();
-  def.source = MotionSource::Bullet;
-  def.cloth.pins = {{16 * 17, {}}, {16 * 17 + 16, {}}};
-  def.coupling = coupling::CouplingMode::TwoWay;
-  def.timeStep = 0.01;
-  TimedDrop drop;
-  drop.drop.centerVertex = 8 * 17 + 8;
-  drop.drop.radius = 0.15;
-  drop.drop.solventMass = 0.05;
-  drop.drop.soluteMass = 0.01;
-  def.drops.push_back(drop);
-  return def;
-}
+EngineDef twoWayFlag() { return bulletFlag(coupling::CouplingMode::TwoWay); }
 
 TEST(EngineTest, TwoWayBulletSaveThenLoadContinuesBitIdentically) {
   const std::string path = temporaryPath("bullet.state");

@@ -11,18 +11,10 @@
 #include <cstring>
 #include <string>
 
+#include "waving_flag_motion.h"
+
 namespace blot::stain {
 namespace {
-
-/// A flag waving in z (deforming: the strain test trips now and then).
-RowVectors3 wavingPositions(const TriangleMesh& rest, double t) {
-  RowVectors3 p = rest.vertexPositions;
-  for (int i = 0; i < p.rows(); ++i) {
-    const double x = rest.vertexPositions(i, 0), y = rest.vertexPositions(i, 1);
-    p(i, 2) = 0.05 * x * std::sin(6.0 * x - 4.0 * t) * (1.0 + 0.3 * y);
-  }
-  return p;
-}
 
 bool sameBits(const Vector& a, const Vector& b) {
   return a.size() == b.size() && std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<size_t>(a.size())) == 0;

@@ -10,20 +10,12 @@
 #include <cstdlib>
 #include <cstring>
 
+#include "waving_flag_motion.h"
+
 namespace blot::stain {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-
-/// A flag waving in z: a non-isometric deformation, so the strain test trips.
-RowVectors3 wavingPositions(const TriangleMesh& rest, double t) {
-  RowVectors3 p = rest.vertexPositions;
-  for (int i = 0; i < p.rows(); ++i) {
-    const double x = rest.vertexPositions(i, 0), y = rest.vertexPositions(i, 1);
-    p(i, 2) = 0.05 * x * std::sin(6.0 * x - 4.0 * t) * (1.0 + 0.3 * y);
-  }
-  return p;
-}
 
 TEST(StainSolver, ConservesMassOnADeformingMeshWithStrongAnisotropy) {
   const TriangleMesh mesh = gridMesh(24, 16, 1.2, 0.8);

@@ -128,6 +128,17 @@ struct StepProfile {
   int densityDiffusionVertices = 0;   ///< rows of the density solve (Krylov support, #V if direct)
   int velocityDiffusionVertices = 0;  ///< rows of the velocity solve (wet + halo, #V if direct)
   bool ran(StepTerm term) const { return (terms & static_cast<unsigned>(term)) != 0; }
+  /// Adds another step's stage times (ms), for sums over steps.
+  void addTimes(const StepProfile& other) {
+    geometry += other.geometry;
+    forces += other.forces;
+    advectVelocity += other.advectVelocity;
+    advectDensity += other.advectDensity;
+    diffuse += other.diffuse;
+    interact += other.interact;
+    sources += other.sources;
+    total += other.total;
+  }
   void markRan(StepTerm term) { terms |= static_cast<unsigned>(term); }
 };
 
