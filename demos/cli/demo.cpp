@@ -183,25 +183,18 @@ int runDropDiffusion(const DemoOptions& options) {
 
 /// Mean milliseconds per step of each stage, from the per-step profiles.
 struct ProfileSums {
-  double geometry = 0, forces = 0, advectVelocity = 0, advectDensity = 0, diffuse = 0, interact = 0,
-         sources = 0, total = 0;
+  stain::StepProfile sum;  // stage times summed with StepProfile::addTimes
   int steps = 0;
   void add(const stain::StepProfile& p) {
-    geometry += p.geometry;
-    forces += p.forces;
-    advectVelocity += p.advectVelocity;
-    advectDensity += p.advectDensity;
-    diffuse += p.diffuse;
-    interact += p.interact;
-    sources += p.sources;
-    total += p.total;
+    sum.addTimes(p);
     ++steps;
   }
   nlohmann::json meansJson() const {
     const double n = steps > 0 ? steps : 1;
-    return {{"geometry", geometry / n},   {"forces", forces / n},   {"advect_velocity", advectVelocity / n},
-            {"advect_density", advectDensity / n}, {"diffuse", diffuse / n}, {"interact", interact / n},
-            {"sources", sources / n},     {"total", total / n}};
+    return {{"geometry", sum.geometry / n},         {"forces", sum.forces / n},
+            {"advect_velocity", sum.advectVelocity / n}, {"advect_density", sum.advectDensity / n},
+            {"diffuse", sum.diffuse / n},               {"interact", sum.interact / n},
+            {"sources", sum.sources / n},               {"total", sum.total / n}};
   }
 };
 
