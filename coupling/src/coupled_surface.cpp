@@ -34,7 +34,7 @@
 //    counted once).
 #include <blot/coupling/coupled_surface.h>
 
-#include <blot/stain/intrinsic_geometry.h>
+#include <blot/stain/geometry/intrinsic_geometry.h>
 
 #include <algorithm>
 #include <chrono>

@@ -18,15 +18,15 @@
 #include <blot/engine/ply_frame_writer.h>
 #include <blot/engine/renderer.h>
 #include <blot/engine/stain_color.h>
-#include <blot/stain/homogenization.h>
-#include <blot/stain/intrinsic_geometry.h>
-#include <blot/stain/mesh_primitives.h>
-#include <blot/stain/mesh_io.h>
-#include <blot/stain/operators.h>
-#include <blot/stain/sparse_solver.h>
+#include <blot/stain/fabric/homogenization.h>
+#include <blot/stain/geometry/intrinsic_geometry.h>
+#include <blot/stain/geometry/mesh_primitives.h>
+#include <blot/stain/io/mesh_io.h>
+#include <blot/stain/geometry/operators.h>
+#include <blot/stain/numerics/sparse_solver.h>
 #include <blot/stain/stain_solver.h>
-#include <blot/stain/weave_pattern.h>
-#include <blot/stain/surface_topology.h>
+#include <blot/stain/fabric/weave_pattern.h>
+#include <blot/stain/geometry/surface_topology.h>
 
 #include <nlohmann/json.hpp>
 

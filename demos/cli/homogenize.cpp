@@ -14,8 +14,8 @@
 // printed on stdout then, so scripts never parse half a result.
 #include "commands.h"
 
-#include <blot/stain/homogenization.h>
-#include <blot/stain/weave_pattern.h>
+#include <blot/stain/fabric/homogenization.h>
+#include <blot/stain/fabric/weave_pattern.h>
 
 #include <nlohmann/json.hpp>
 

@@ -12,9 +12,9 @@
 
 #include <blot/engine/image.h>
 #include <blot/engine/renderer.h>
-#include <blot/stain/intrinsic_geometry.h>
-#include <blot/stain/mesh_io.h>
-#include <blot/stain/surface_topology.h>
+#include <blot/stain/geometry/intrinsic_geometry.h>
+#include <blot/stain/io/mesh_io.h>
+#include <blot/stain/geometry/surface_topology.h>
 
 #include <nlohmann/json.hpp>
 

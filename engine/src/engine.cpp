@@ -22,7 +22,7 @@
 #include <blot/engine/engine.h>
 #include <blot/engine/scene.h>
 
-#include <blot/stain/mesh_io.h>
+#include <blot/stain/io/mesh_io.h>
 
 #include <algorithm>
 #include <chrono>

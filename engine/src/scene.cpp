@@ -10,9 +10,9 @@
 // Rejected: a JSON-Schema file and a validator library — it would add a
 // dependency and still not know the mesh's vertex count.
 #include <blot/engine/scene.h>
-#include <blot/stain/mesh_io.h>
-#include <blot/stain/mesh_primitives.h>
-#include <blot/stain/weave_pattern.h>
+#include <blot/stain/io/mesh_io.h>
+#include <blot/stain/geometry/mesh_primitives.h>
+#include <blot/stain/fabric/weave_pattern.h>
 
 #include <nlohmann/json.hpp>
 

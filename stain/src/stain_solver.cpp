@@ -9,9 +9,9 @@
 // skipped here, visibly: inertia on a surface that has not moved, solute
 // transport when there is no solute, terms with a zero coefficient, stages on
 // dry vertices; StepProfile::terms records which ran (describeTerms).
-#include <blot/stain/external_forces.h>
-#include <blot/stain/film_pressure.h>
-#include <blot/stain/interaction.h>
+#include <blot/stain/stages/external_forces.h>
+#include <blot/stain/stages/film_pressure.h>
+#include <blot/stain/stages/interaction.h>
 #include <blot/stain/stain_solver.h>
 
 #include <algorithm>

@@ -13,8 +13,8 @@
 // Run: bullet_cloth_bench --benchmark_counters_tabular=true
 #include <blot/cloth/bullet_cloth.h>
 #include <blot/coupling/coupled_surface.h>
-#include <blot/stain/mesh_primitives.h>
-#include <blot/stain/surface_topology.h>
+#include <blot/stain/geometry/mesh_primitives.h>
+#include <blot/stain/geometry/surface_topology.h>
 
 #include <benchmark/benchmark.h>
 

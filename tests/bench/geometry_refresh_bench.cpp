@@ -8,10 +8,10 @@
 //
 // Counters: ns_per_vertex (wall time per vertex), newton_iterations (average
 // per vertex), strain (largest edge strain, ~1e-16 for rigid motion).
-#include <blot/stain/mesh_primitives.h>
-#include <blot/stain/operators.h>
-#include <blot/stain/surface_geometry.h>
-#include <blot/stain/surface_topology.h>
+#include <blot/stain/geometry/mesh_primitives.h>
+#include <blot/stain/geometry/operators.h>
+#include <blot/stain/geometry/surface_geometry.h>
+#include <blot/stain/geometry/surface_topology.h>
 
 #include <benchmark/benchmark.h>
 #include <omp.h>

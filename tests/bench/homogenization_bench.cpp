@@ -5,8 +5,8 @@
 //   homogenization_bench --benchmark_counters_tabular=true
 //
 // Counters: unknowns (torus vertices = rows·cols·K²), K.
-#include <blot/stain/homogenization.h>
-#include <blot/stain/weave_pattern.h>
+#include <blot/stain/fabric/homogenization.h>
+#include <blot/stain/fabric/weave_pattern.h>
 
 #include <benchmark/benchmark.h>
 

@@ -8,9 +8,9 @@
 // Counters: n (vertices), fixes (limiter corrections per step).
 // Run: liquid_stages_bench --benchmark_format=json > out.json.
 #include <benchmark/benchmark.h>
-#include <blot/stain/diffusion.h>
-#include <blot/stain/interaction.h>
-#include <blot/stain/sources.h>
+#include <blot/stain/stages/diffusion.h>
+#include <blot/stain/stages/interaction.h>
+#include <blot/stain/stages/sources.h>
 
 #include <cmath>
 #include <map>

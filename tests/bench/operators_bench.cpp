@@ -12,12 +12,12 @@
 // Counters: n (unknowns), nnzA (stored entries, both triangles), nnzL (factor).
 // Run: operators_bench --benchmark_format=json > out.json, then
 // scripts/bench_table.py out.json (the table in docs/performance.md).
-#include <blot/stain/intrinsic_geometry.h>
-#include <blot/stain/mesh_primitives.h>
-#include <blot/stain/operators.h>
-#include <blot/stain/sparse_solver.h>
-#include <blot/stain/surface_topology.h>
-#include <blot/stain/transport.h>
+#include <blot/stain/geometry/intrinsic_geometry.h>
+#include <blot/stain/geometry/mesh_primitives.h>
+#include <blot/stain/geometry/operators.h>
+#include <blot/stain/numerics/sparse_solver.h>
+#include <blot/stain/geometry/surface_topology.h>
+#include <blot/stain/geometry/transport.h>
 
 #include <benchmark/benchmark.h>
 

@@ -26,8 +26,8 @@
 // Run: stain_step_bench --benchmark_format=json > step.json
 //      (or --benchmark_counters_tabular=true for a readable table).
 #include <benchmark/benchmark.h>
-#include <blot/stain/mesh_io.h>
-#include <blot/stain/mesh_primitives.h>
+#include <blot/stain/io/mesh_io.h>
+#include <blot/stain/geometry/mesh_primitives.h>
 #include <blot/stain/stain_solver.h>
 #include <omp.h>
 

@@ -26,8 +26,8 @@
 #include <blot/coupling/coupled_surface.h>
 #include <blot/engine/engine.h>
 #include <blot/engine/scene.h>
-#include <blot/stain/fabric_layout.h>
-#include <blot/stain/surface_topology.h>
+#include <blot/stain/fabric/fabric_layout.h>
+#include <blot/stain/geometry/surface_topology.h>
 
 #include <benchmark/benchmark.h>
 

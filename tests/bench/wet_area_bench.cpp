@@ -21,7 +21,7 @@
 //
 // Run: wet_area_bench --benchmark_counters_tabular=true
 //      scripts/wet_area [--update] [BUILD_DIR]  (docs/performance.md table)
-#include <blot/stain/mesh_primitives.h>
+#include <blot/stain/geometry/mesh_primitives.h>
 #include <blot/stain/stain_solver.h>
 
 #include <benchmark/benchmark.h>

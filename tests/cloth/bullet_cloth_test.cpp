@@ -10,9 +10,9 @@
 
 #include "cloth_test_defs.h"
 
-#include <blot/stain/mesh_io.h>
-#include <blot/stain/mesh_primitives.h>
-#include <blot/stain/surface_topology.h>
+#include <blot/stain/io/mesh_io.h>
+#include <blot/stain/geometry/mesh_primitives.h>
+#include <blot/stain/geometry/surface_topology.h>
 #include <mesh_fixture.h>
 
 #include <gtest/gtest.h>

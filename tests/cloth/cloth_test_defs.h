@@ -3,8 +3,8 @@
 // through coupling::describeClothMesh, the way the engine builds them.
 #include <blot/cloth/bullet_cloth.h>
 #include <blot/coupling/coupled_surface.h>
-#include <blot/stain/mesh_primitives.h>
-#include <blot/stain/surface_topology.h>
+#include <blot/stain/geometry/mesh_primitives.h>
+#include <blot/stain/geometry/surface_topology.h>
 
 namespace blot::cloth::fixtures {
 

@@ -3,9 +3,9 @@
 // and rejection of frames whose connectivity differs from frame 0.
 #include <blot/cloth/mesh_sequence.h>
 
-#include <blot/stain/mesh_io.h>
-#include <blot/stain/mesh_primitives.h>
-#include <blot/stain/triangle_mesh.h>
+#include <blot/stain/io/mesh_io.h>
+#include <blot/stain/geometry/mesh_primitives.h>
+#include <blot/stain/geometry/triangle_mesh.h>
 
 #include <gtest/gtest.h>
 

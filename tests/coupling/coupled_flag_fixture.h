@@ -5,9 +5,9 @@
 // BulletCloth with the default (stable) settings, plus the stain pieces.
 #include <blot/cloth/bullet_cloth.h>
 #include <blot/coupling/coupled_surface.h>
-#include <blot/stain/mesh_primitives.h>
-#include <blot/stain/surface_geometry.h>
-#include <blot/stain/surface_topology.h>
+#include <blot/stain/geometry/mesh_primitives.h>
+#include <blot/stain/geometry/surface_geometry.h>
+#include <blot/stain/geometry/surface_topology.h>
 
 #include <memory>
 

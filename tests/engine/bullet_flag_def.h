@@ -2,7 +2,7 @@
 /// The engine tests' Bullet flag: 17 x 17 vertices, 0.6 m, hanging in the xz
 /// plane from its two top corners, with a heavy drop in the middle.
 #include <blot/engine/engine.h>
-#include <blot/stain/mesh_primitives.h>
+#include <blot/stain/geometry/mesh_primitives.h>
 
 namespace blot::engine {
 

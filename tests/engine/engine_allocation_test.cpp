@@ -8,7 +8,7 @@
 // every step. That is the stain module's rebuild path, not the engine's loop;
 // the test checks that no rebuild happened so it measures what it claims.
 #include <blot/engine/engine.h>
-#include <blot/stain/mesh_primitives.h>
+#include <blot/stain/geometry/mesh_primitives.h>
 
 #include <gtest/gtest.h>
 

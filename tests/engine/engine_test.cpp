@@ -2,7 +2,7 @@
 // views, statistics, determinism across frame-time splits, and save/load.
 #include <blot/engine/engine.h>
 #include <blot/engine/scene.h>
-#include <blot/stain/mesh_primitives.h>
+#include <blot/stain/geometry/mesh_primitives.h>
 
 #include <gtest/gtest.h>
 

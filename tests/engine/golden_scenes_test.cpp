@@ -35,7 +35,7 @@
 // describes how to add a scene to kScenes.
 #include <blot/engine/engine.h>
 #include <blot/engine/scene.h>
-#include <blot/stain/mesh_primitives.h>
+#include <blot/stain/geometry/mesh_primitives.h>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>

@@ -2,7 +2,7 @@
 // small independent reader), geometry read back by stain::loadMesh, refusal
 // of non-finite values, and atomic replacement.
 #include <blot/engine/ply_frame_writer.h>
-#include <blot/stain/mesh_io.h>
+#include <blot/stain/io/mesh_io.h>
 
 #include <gtest/gtest.h>
 

@@ -2,7 +2,7 @@
 // exact for linear fields), coverage follows the UV triangles, the gutter is
 // exactly `padding` texels wide, and bad input names the argument.
 #include <blot/engine/uv_texture.h>
-#include <blot/stain/mesh_primitives.h>
+#include <blot/stain/geometry/mesh_primitives.h>
 
 #include <gtest/gtest.h>
 

@@ -6,7 +6,7 @@
 // loader's contract (mesh_io.h): an input either gives a mesh that validates
 // again, or throws MeshError whose message starts with the source name. Any
 // other exception escapes and libFuzzer reports it as a crash.
-#include <blot/stain/mesh_io.h>
+#include <blot/stain/io/mesh_io.h>
 
 #include <cstddef>
 #include <cstdint>

@@ -4,7 +4,7 @@
 // the target fuzzes it directly. The oracle is the header's contract: a
 // pattern, whose tensors are then all finite and SPD, or a PatternError whose
 // message starts with the source name; any other exception is a finding.
-#include <blot/stain/weave_pattern.h>
+#include <blot/stain/fabric/weave_pattern.h>
 
 #include <cstddef>
 #include <cstdint>

@@ -3,11 +3,11 @@
 // and time steps, drops and held regions, and a replay of the fuzz seed
 // corpora. Every case checks that the error names the problem (what was
 // expected) and where it is (file and key/row/column, field, vertex).
-#include <blot/stain/mesh_io.h>
-#include <blot/stain/mesh_primitives.h>
+#include <blot/stain/io/mesh_io.h>
+#include <blot/stain/geometry/mesh_primitives.h>
 #include <blot/stain/stain_solver.h>
-#include <blot/stain/surface_geometry.h>
-#include <blot/stain/weave_pattern.h>
+#include <blot/stain/geometry/surface_geometry.h>
+#include <blot/stain/fabric/weave_pattern.h>
 
 #include <gtest/gtest.h>
 

@@ -5,9 +5,9 @@
 // midpoint frame) must be carried unchanged at any ωh, so liquid at rest in
 // the inertial frame stays at rest and no kinetic energy is created, and the
 // relative velocity must still converge to the continuous one as h → 0.
-#include <blot/stain/mesh_primitives.h>
+#include <blot/stain/geometry/mesh_primitives.h>
 #include <blot/stain/stain_solver.h>
-#include <blot/stain/velocity_advection.h>
+#include <blot/stain/stages/velocity_advection.h>
 
 #include <gtest/gtest.h>
 

@@ -2,7 +2,7 @@
 // rotating flow with sub-steps, sub-step count against the Courant number, the
 // limiter when the sub-step cap is hit, free-stream preservation, centroid
 // speed of a translated blob, and flux along (never through) the boundary.
-#include <blot/stain/density_advection.h>
+#include <blot/stain/stages/density_advection.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>

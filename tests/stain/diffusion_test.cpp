@@ -1,10 +1,10 @@
-// Tests for stage "diffuse" (stain/src/diffusion.cpp): convergence against the
+// Tests for stage "diffuse" (stain/src/stages/diffusion.cpp): convergence against the
 // exact anisotropic Gaussian, mass conservation, the positivity limiter under
 // strong anisotropy, velocity diffusion, factorization reuse, failure handling,
 // and zero allocation after the first call (with interact and applySources).
-#include <blot/stain/diffusion.h>
-#include <blot/stain/interaction.h>
-#include <blot/stain/sources.h>
+#include <blot/stain/stages/diffusion.h>
+#include <blot/stain/stages/interaction.h>
+#include <blot/stain/stages/sources.h>
 #include <gtest/gtest.h>
 
 #include <atomic>

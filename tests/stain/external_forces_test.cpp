@@ -1,9 +1,9 @@
 // applyExternalForces: linear inertia on a uniformly accelerated sheet,
 // tangential gravity on a tilted plane, Coriolis exact rotation against the
 // explicit update's closed-form energy gain, the wet mask and the switches.
-#include <blot/stain/external_forces.h>
-#include <blot/stain/operators.h>
-#include <blot/stain/surface_geometry.h>
+#include <blot/stain/stages/external_forces.h>
+#include <blot/stain/geometry/operators.h>
+#include <blot/stain/geometry/surface_geometry.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>

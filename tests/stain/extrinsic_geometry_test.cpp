@@ -1,5 +1,5 @@
 // Extrinsic geometry: face and vertex normals, per-vertex tangent frames.
-#include <blot/stain/extrinsic_geometry.h>
+#include <blot/stain/geometry/extrinsic_geometry.h>
 
 #include <gtest/gtest.h>
 

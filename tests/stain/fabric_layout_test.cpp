@@ -2,11 +2,11 @@
 // curved ones, constraints met exactly), three patches meeting at a corner,
 // the per-face output as consumed by anisotropicStiffness, and bad layouts
 // rejected with a message naming the patch and face.
-#include <blot/stain/fabric_layout.h>
+#include <blot/stain/fabric/fabric_layout.h>
 
-#include <blot/stain/extrinsic_geometry.h>
-#include <blot/stain/mesh_primitives.h>
-#include <blot/stain/operators.h>
+#include <blot/stain/geometry/extrinsic_geometry.h>
+#include <blot/stain/geometry/mesh_primitives.h>
+#include <blot/stain/geometry/operators.h>
 
 #include <gtest/gtest.h>
 

@@ -2,12 +2,12 @@
 // Shared by the geometry, transport and operator tests: the whole geometry
 // pipeline on one mesh, perturbed test meshes, angle helpers and the smallest
 // eigenvalues of a generalized problem L x = λ M x (M diagonal).
-#include <blot/stain/extrinsic_geometry.h>
-#include <blot/stain/intrinsic_geometry.h>
-#include <blot/stain/mesh_primitives.h>
-#include <blot/stain/operators.h>
-#include <blot/stain/surface_topology.h>
-#include <blot/stain/transport.h>
+#include <blot/stain/geometry/extrinsic_geometry.h>
+#include <blot/stain/geometry/intrinsic_geometry.h>
+#include <blot/stain/geometry/mesh_primitives.h>
+#include <blot/stain/geometry/operators.h>
+#include <blot/stain/geometry/surface_topology.h>
+#include <blot/stain/geometry/transport.h>
 
 #include "mesh_fixture.h"
 

@@ -15,7 +15,7 @@
 // place). Without the flow (pressure off) the deposit is highest at the
 // centre whatever the parameters (interaction_test pins the same finding
 // without advection).
-#include <blot/stain/mesh_primitives.h>
+#include <blot/stain/geometry/mesh_primitives.h>
 #include <blot/stain/stain_solver.h>
 
 #include <gtest/gtest.h>

@@ -2,7 +2,7 @@
 // and SPD-ness on random tiles, exact 90° rotation covariance, linearity in
 // the coefficients, monotone convergence under mesh refinement with the
 // observed order printed, eigen-decomposition conventions, and the cache.
-#include <blot/stain/homogenization.h>
+#include <blot/stain/fabric/homogenization.h>
 
 #include <gtest/gtest.h>
 

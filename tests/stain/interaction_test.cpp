@@ -1,10 +1,10 @@
-// Tests for stage "interact" (stain/src/interaction.cpp): each law against its
+// Tests for stage "interact" (stain/src/stages/interaction.cpp): each law against its
 // closed form, the boundary evaporation factor, exact conservation, drying,
 // the wet mask, and a spot on a disc run with diffusion + interaction (the
 // paper's Fig. 11 ring experiment, without advection).
-#include <blot/stain/diffusion.h>
-#include <blot/stain/interaction.h>
-#include <blot/stain/sources.h>
+#include <blot/stain/stages/diffusion.h>
+#include <blot/stain/stages/interaction.h>
+#include <blot/stain/stages/sources.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>

@@ -1,5 +1,5 @@
 // Intrinsic geometry: angles, areas, cotan weights, dual areas, angle sums.
-#include <blot/stain/intrinsic_geometry.h>
+#include <blot/stain/geometry/intrinsic_geometry.h>
 
 #include <gtest/gtest.h>
 

@@ -3,8 +3,8 @@
 // region for the velocity, with the factorization as the fallback. What must
 // hold whichever method runs: the same solution to the CG tolerance, mass to
 // rounding, no negative density, bit-identical results for 1 and 2 threads.
-#include <blot/stain/diffusion.h>
-#include <blot/stain/mesh_primitives.h>
+#include <blot/stain/stages/diffusion.h>
+#include <blot/stain/geometry/mesh_primitives.h>
 #include <blot/stain/stain_solver.h>
 #include <gtest/gtest.h>
 #include <omp.h>

@@ -2,15 +2,15 @@
 // Shared by the diffusion, interaction and source tests: a mesh with both
 // geometry tiers built by the free functions (positions at t − h = t = t + h)
 // and a fabric, a zero state, mass sums, and the exact anisotropic Gaussian.
-#include <blot/stain/diffusion.h>
-#include <blot/stain/extrinsic_geometry.h>
-#include <blot/stain/intrinsic_geometry.h>
-#include <blot/stain/mesh_primitives.h>
-#include <blot/stain/operators.h>
+#include <blot/stain/stages/diffusion.h>
+#include <blot/stain/geometry/extrinsic_geometry.h>
+#include <blot/stain/geometry/intrinsic_geometry.h>
+#include <blot/stain/geometry/mesh_primitives.h>
+#include <blot/stain/geometry/operators.h>
 #include <blot/stain/stain_state.h>
-#include <blot/stain/surface_geometry.h>
-#include <blot/stain/surface_topology.h>
-#include <blot/stain/transport.h>
+#include <blot/stain/geometry/surface_geometry.h>
+#include <blot/stain/geometry/surface_topology.h>
+#include <blot/stain/geometry/transport.h>
 
 #include <cmath>
 #include <stdexcept>

@@ -1,9 +1,9 @@
 // Tests for mesh_io: round trips through every format, polygon fans, labels
 // and UVs, the CGAL sample meshes, and one test per kind of malformed input
 // checking that the message names the file and the element or line at fault.
-#include <blot/stain/mesh_io.h>
-#include <blot/stain/mesh_primitives.h>
-#include <blot/stain/surface_topology.h>
+#include <blot/stain/io/mesh_io.h>
+#include <blot/stain/geometry/mesh_primitives.h>
+#include <blot/stain/geometry/surface_topology.h>
 #include <gtest/gtest-spi.h>
 #include <gtest/gtest.h>
 

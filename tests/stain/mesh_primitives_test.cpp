@@ -1,6 +1,6 @@
 // Generated meshes: counts, extents, orientation and radius.
-#include <blot/stain/mesh_primitives.h>
-#include <blot/stain/surface_topology.h>
+#include <blot/stain/geometry/mesh_primitives.h>
+#include <blot/stain/geometry/surface_topology.h>
 
 #include <gtest/gtest.h>
 

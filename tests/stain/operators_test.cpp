@@ -1,8 +1,8 @@
 // P1 operators: element kernel, anisotropic stiffness, cotan Laplacian, mass,
 // connection Laplacian (complex and real forms); spectra on icospheres, flat
 // invariants, and positive semidefiniteness on every mesh we have.
-#include <blot/stain/mesh_io.h>
-#include <blot/stain/operators.h>
+#include <blot/stain/io/mesh_io.h>
+#include <blot/stain/geometry/operators.h>
 
 #include <gtest/gtest.h>
 

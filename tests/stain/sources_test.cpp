@@ -1,7 +1,7 @@
-// Tests for drops and held regions (stain/src/sources.cpp): exact masses, the
+// Tests for drops and held regions (stain/src/stages/sources.cpp): exact masses, the
 // bump's shape and footprint, velocity projection and momentum, splash
 // determinism, input validation naming the field, and held regions.
-#include <blot/stain/sources.h>
+#include <blot/stain/stages/sources.h>
 #include <gtest/gtest.h>
 
 #include <cmath>

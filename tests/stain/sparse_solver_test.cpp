@@ -1,7 +1,7 @@
 // CholeskySolver: residuals on real SPD and complex Hermitian PD matrices, the
 // analysis/factorization/solve split, every error status, sharing the analysis
 // between the scalar and the complex system, and move semantics.
-#include <blot/stain/sparse_solver.h>
+#include <blot/stain/numerics/sparse_solver.h>
 
 #include <gtest/gtest.h>
 

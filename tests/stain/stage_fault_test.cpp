@@ -2,7 +2,7 @@
 // NaN put in after a stage is reported with that stage, the step and the
 // vertex, and the solver keeps the state it had before the step (to the bit;
 // with the masses kept when the failed step rebuilt the metric).
-#include <blot/stain/mesh_primitives.h>
+#include <blot/stain/geometry/mesh_primitives.h>
 #include <blot/stain/stain_solver.h>
 
 #include <gtest/gtest.h>

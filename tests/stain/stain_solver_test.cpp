@@ -1,7 +1,7 @@
 // The whole stain step on moving surfaces: conservation on a deforming mesh,
 // positivity under strong anisotropy, the rotating-disc experiment of paper
 // Fig. 5 (Coriolis on/off), determinism, and failure handling.
-#include <blot/stain/mesh_primitives.h>
+#include <blot/stain/geometry/mesh_primitives.h>
 #include <blot/stain/stain_solver.h>
 
 #include <gtest/gtest.h>

@@ -3,7 +3,7 @@
 // tiers of a static mesh as SurfaceGeometry builds them, a zero state, and
 // frame <-> world conversions.
 #include <blot/stain/stain_state.h>
-#include <blot/stain/surface_geometry.h>
+#include <blot/stain/geometry/surface_geometry.h>
 
 #include <utility>
 

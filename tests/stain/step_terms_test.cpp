@@ -3,8 +3,8 @@
 // transport, switched-off and zero-coefficient terms are skipped and reported
 // as not run, diffusion reports its method and rows, and skipping a term with
 // a zero coefficient leaves the results bit-identical.
-#include <blot/stain/interaction.h>
-#include <blot/stain/mesh_primitives.h>
+#include <blot/stain/stages/interaction.h>
+#include <blot/stain/geometry/mesh_primitives.h>
 #include <blot/stain/stain_solver.h>
 
 #include <gtest/gtest.h>

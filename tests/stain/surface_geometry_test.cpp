@@ -1,7 +1,7 @@
 // SurfaceGeometry: extrinsic refresh under analytic motions (rigid rotation,
 // uniform stretch, no motion), the strain test, intrinsic rebuilds, and the
 // rotation fits (exact Kabsch and the warm-started Newton path).
-#include <blot/stain/surface_geometry.h>
+#include <blot/stain/geometry/surface_geometry.h>
 
 #include "geometry_test_support.h"
 

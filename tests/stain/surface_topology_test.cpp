@@ -1,7 +1,7 @@
 // Connectivity invariants on generated meshes, and the manifold/orientation
 // errors SurfaceTopology must raise with the offending element named.
-#include <blot/stain/mesh_primitives.h>
-#include <blot/stain/surface_topology.h>
+#include <blot/stain/geometry/mesh_primitives.h>
+#include <blot/stain/geometry/surface_topology.h>
 
 #include <gtest/gtest.h>
 

@@ -22,7 +22,7 @@
 //      sense that v's corners carry exactly d_v of the face holonomies.
 //  So the statement maps to (1) exactly, and to (2) as the per-corner
 // share identity; both are tested to 1e-10 (they hold to ~1e-14).
-#include <blot/stain/transport.h>
+#include <blot/stain/geometry/transport.h>
 
 #include <gtest/gtest.h>
 

@@ -2,7 +2,7 @@
 // number), linear fields are reproduced exactly through the strip walk,
 // high Courant numbers stay bounded and never leave the mesh, curved surfaces
 // turn the field as the covariant derivative says, wet mask, determinism.
-#include <blot/stain/velocity_advection.h>
+#include <blot/stain/stages/velocity_advection.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>

@@ -1,7 +1,7 @@
 #pragma once
 /// A flag waving in z, for stain tests on a deforming surface: a
 /// non-isometric motion, so the strain test trips now and then.
-#include <blot/stain/triangle_mesh.h>
+#include <blot/stain/geometry/triangle_mesh.h>
 
 #include <cmath>
 

@@ -1,7 +1,7 @@
 // Weave patterns: both JSON forms, the pair-coefficient tensor rule with
 // wrap-around, presets and their asset files, content hashing, rotation, and
 // every kind of bad file rejected with a message naming key and position.
-#include <blot/stain/weave_pattern.h>
+#include <blot/stain/fabric/weave_pattern.h>
 
 #include <gtest/gtest.h>
 

@@ -17,9 +17,9 @@
 // Milliseconds are wall-clock per step (std::chrono), on a shared machine: the
 // CSV files record the load average. Assertions check only what must hold
 // whatever the timing (orders, conservation), with stated tolerances.
-#include <blot/stain/diffusion.h>
-#include <blot/stain/homogenization.h>
-#include <blot/stain/weave_pattern.h>
+#include <blot/stain/stages/diffusion.h>
+#include <blot/stain/fabric/homogenization.h>
+#include <blot/stain/fabric/weave_pattern.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>

@@ -5,8 +5,8 @@
 // Bullet-disabled body. docs/cloth.md has the numbers these bounds come from.
 #include <blot/cloth/bullet_cloth.h>
 #include <blot/coupling/coupled_surface.h>
-#include <blot/stain/mesh_primitives.h>
-#include <blot/stain/surface_topology.h>
+#include <blot/stain/geometry/mesh_primitives.h>
+#include <blot/stain/geometry/surface_topology.h>
 
 #include <gtest/gtest.h>
 

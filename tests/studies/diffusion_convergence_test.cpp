@@ -6,7 +6,7 @@
 // standard deviation 0.06 in [0,1]², constant tensor eigenvalues (1, 0.1) m²/s
 // with the weft at 30° to the grid, run to T = 9e-4 s; the exact solution is the
 // Gaussian of covariance Σ0 + 2DT.
-#include <blot/stain/diffusion.h>
+#include <blot/stain/stages/diffusion.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>

@@ -12,7 +12,7 @@
 // tests/stain/homogenization_test.cpp runs a small version in CI. Images go to
 // $BLOT_STUDY_OUTPUT_DIR/fig4_homogenization, or ./fig4_homogenization.
 #include <blot/engine/image.h>
-#include <blot/stain/weave_pattern.h>
+#include <blot/stain/fabric/weave_pattern.h>
 
 #include <gtest/gtest.h>
 

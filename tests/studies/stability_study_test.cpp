@@ -20,7 +20,7 @@
 // amplification > 1e3; mass_error = relative change of Σ Aσ. A run that
 // overflows is recorded with amplification 1e30 (the charts' ceiling).
 // Assertions: ours never blows up, never goes negative, conserves mass.
-#include <blot/stain/diffusion.h>
+#include <blot/stain/stages/diffusion.h>
 #include <gtest/gtest.h>
 
 #include <cmath>

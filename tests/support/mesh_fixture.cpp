@@ -8,8 +8,8 @@
 // on every platform.
 #include "mesh_fixture.h"
 
-#include <blot/stain/mesh_io.h>
-#include <blot/stain/mesh_primitives.h>
+#include <blot/stain/io/mesh_io.h>
+#include <blot/stain/geometry/mesh_primitives.h>
 #include <gtest/gtest.h>
 
 #include <cstdio>

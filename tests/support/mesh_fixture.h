@@ -14,7 +14,7 @@
 /// The suite owns the corpus (no hidden cache, no function-local statics).
 /// External meshes come from Debian's CGAL data, extracted by scripts/setup
 /// into BLOT_EXTERNAL_MESH_DIR; a missing one fails the test that asks for it.
-#include <blot/stain/triangle_mesh.h>
+#include <blot/stain/geometry/triangle_mesh.h>
 
 #include <cstdint>
 #include <string>

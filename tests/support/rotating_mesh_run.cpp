@@ -1,6 +1,6 @@
 #include "rotating_mesh_run.h"
 
-#include <blot/stain/mesh_io.h>
+#include <blot/stain/io/mesh_io.h>
 #include <blot/stain/stain_solver.h>
 
 #include <gtest/gtest.h>

@@ -12,8 +12,8 @@
 //    velocity in the inertial frame (relative velocity v0 − ω × x), diffusion
 //    and interaction off; the centroid must follow x0 + v0 t, and for v0 = 0
 //    the kinetic energy in the disc frame, Σ ½ A σ |u|², must stay constant.
-#include <blot/stain/density_advection.h>
-#include <blot/stain/mesh_primitives.h>
+#include <blot/stain/stages/density_advection.h>
+#include <blot/stain/geometry/mesh_primitives.h>
 #include <blot/stain/stain_solver.h>
 
 #include <cmath>

@@ -11,8 +11,8 @@
 //    sub-steps and no cap on what a vertex gives (goes negative for Courant > 1).
 //
 // Output directory: $BLOT_STUDY_OUT, or ./study_out when unset (created).
-#include <blot/stain/surface_topology.h>
-#include <blot/stain/triangle_mesh.h>
+#include <blot/stain/geometry/surface_topology.h>
+#include <blot/stain/geometry/triangle_mesh.h>
 #include <blot/stain/types.h>
 
 #include <algorithm>

@@ -1,11 +1,11 @@
 // Paper Fig. 4 experiment (see tiled_spot_diffusion.h).
 #include "tiled_spot_diffusion.h"
 
-#include <blot/stain/intrinsic_geometry.h>
-#include <blot/stain/mesh_primitives.h>
-#include <blot/stain/operators.h>
-#include <blot/stain/sparse_solver.h>
-#include <blot/stain/surface_topology.h>
+#include <blot/stain/geometry/intrinsic_geometry.h>
+#include <blot/stain/geometry/mesh_primitives.h>
+#include <blot/stain/geometry/operators.h>
+#include <blot/stain/numerics/sparse_solver.h>
+#include <blot/stain/geometry/surface_topology.h>
 
 #include <algorithm>
 #include <cmath>

@@ -5,9 +5,9 @@
 /// everywhere, (3) the plain cell average everywhere — with implicit Euler
 /// (M + hL) σ^{t+h} = M σ^t. Used by the unit test (small) and the Fig. 4
 /// study (large, with images).
-#include <blot/stain/homogenization.h>
+#include <blot/stain/fabric/homogenization.h>
 #include <blot/stain/types.h>
-#include <blot/stain/weave_pattern.h>
+#include <blot/stain/fabric/weave_pattern.h>
 
 namespace blot::test {
 

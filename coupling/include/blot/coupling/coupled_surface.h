@@ -8,8 +8,8 @@
 #include <blot/cloth/bullet_cloth.h>
 #include <blot/cloth/surface_motion.h>
 #include <blot/stain/stain_solver.h>
-#include <blot/stain/surface_topology.h>
-#include <blot/stain/triangle_mesh.h>
+#include <blot/stain/geometry/surface_topology.h>
+#include <blot/stain/geometry/triangle_mesh.h>
 #include <Eigen/Core>
 #include <memory>
 #include <vector>

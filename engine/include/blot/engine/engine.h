@@ -14,11 +14,11 @@
 #include <blot/cloth/surface_motion.h>
 #include <blot/coupling/coupled_surface.h>
 #include <blot/engine/stain_color.h>
-#include <blot/stain/fabric_layout.h>
-#include <blot/stain/sources.h>
+#include <blot/stain/fabric/fabric_layout.h>
+#include <blot/stain/stages/sources.h>
 #include <blot/stain/stain_solver.h>
-#include <blot/stain/surface_topology.h>
-#include <blot/stain/triangle_mesh.h>
+#include <blot/stain/geometry/surface_topology.h>
+#include <blot/stain/geometry/triangle_mesh.h>
 
 #include <array>
 #include <cstdint>

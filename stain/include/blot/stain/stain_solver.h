@@ -5,13 +5,13 @@
 /// The cloth leads and the stain follows one step behind: step(h, p(t+h))
 /// refreshes the geometry with the new positions (so accelerations and angular
 /// velocities at t are centred), then advances the stain from t to t + h.
-#include <blot/stain/density_advection.h>
-#include <blot/stain/diffusion.h>
-#include <blot/stain/sources.h>
+#include <blot/stain/stages/density_advection.h>
+#include <blot/stain/stages/diffusion.h>
+#include <blot/stain/stages/sources.h>
 #include <blot/stain/stain_state.h>
 #include <blot/stain/step_context.h>
-#include <blot/stain/surface_geometry.h>
-#include <blot/stain/velocity_advection.h>
+#include <blot/stain/geometry/surface_geometry.h>
+#include <blot/stain/stages/velocity_advection.h>
 
 #include <memory>
 #include <string>

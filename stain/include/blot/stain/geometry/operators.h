@@ -1,0 +1,63 @@
+#pragma once
+/// P1 finite-element operators on a triangle mesh (paper sec. 3.2).
+///
+/// Sign convention: stiffness matrices are positive semidefinite, so implicit
+/// diffusion reads (M + h L) σ^{t+h} = M σ^t. The paper's L_S is −L here.
+///
+/// Fabric tensors: per face, a symmetric 2x2 tensor S = [s_ww s_wp; s_wp s_pp]
+/// expressed in the fabric basis (weft e, warp e⊥ = n × e), stored as one row
+/// (s_ww, s_wp, s_pp) in m²/s; and a weft direction per face, a 3D vector
+/// (any length; its projection onto the face plane is used). The tensor in the
+/// face is S_T = (e, e⊥) S (e, e⊥)ᵀ.
+#include <blot/stain/geometry/surface_topology.h>
+#include <blot/stain/types.h>
+
+namespace blot::stain {
+
+/// The element kernel: 3x3 P1 stiffness K_kl = A ∇φ_k · S ∇φ_l of one triangle
+/// with 2D corners p0, p1, p2 (any orientation) and a 2x2 SPD tensor S given in
+/// the same 2D coordinates. Rows sum to zero; PSD for SPD S.
+Matrix3 triangleStiffness(const Vector2& p0, const Vector2& p1, const Vector2& p2,
+                          const Matrix2& tensor);
+
+/// #F by 3 rows (1, 0, 1): the identity tensor on every face.
+Eigen::MatrixX3d identityFaceTensors(int faceCount);
+
+/// Anisotropic P1 stiffness L_ij = Σ_T ∫_T ∇φ_i · S_T ∇φ_j (#V by #V, symmetric
+/// PSD for SPD tensors, rows sum to zero). faceTensors #F by 3, faceWeftDirections
+/// #F by 3. With identity tensors this is the cotan Laplacian. Isotropic faces
+/// (s_wp = 0, s_ww = s_pp) ignore their weft, which may then be zero; an
+/// anisotropic face whose weft has no component in the face plane throws
+/// std::invalid_argument naming the face (so does connectionLaplacian).
+SparseMatrix anisotropicStiffness(const SurfaceTopology& topology,
+                                  const RowVectors3& vertexPositions,
+                                  const Eigen::MatrixX3d& faceTensors,
+                                  const RowVectors3& faceWeftDirections);
+
+/// Cotan Laplacian (#V by #V, PSD): L_ij = −w_ij, L_ii = Σ_j w_ij, assembled
+/// from edge cotan weights (#E).
+SparseMatrix cotanLaplacian(const SurfaceTopology& topology, const Vector& edgeCotanWeights);
+
+/// Diagonal lumped mass matrix from vertex dual areas (#V).
+SparseMatrix lumpedMassMatrix(const Vector& vertexDualAreas);
+
+/// Anisotropic connection Laplacian (complex Hermitian #V by #V, PSD on any mesh).
+///
+/// Assembled per triangle as the Dirichlet energy, in the metric S_T, of the
+/// linear interpolation of the three vertex vectors after transporting each into
+/// the face frame (faceTransportAngles): with K^T the 3x3 P1 stiffness of the
+/// triangle and r_k = exp(iφ_k), the triangle adds K^T_kl conj(r_k) r_l to entry
+/// (v_k, v_l). Each triangle's block is unitarily similar to K^T, hence PSD,
+/// whatever the sign of its cotan weights. (The edge-wise form Σ w_ij |u_i −
+/// R_ij u_j|² is indefinite when weights are negative.)
+ComplexSparseMatrix connectionLaplacian(const SurfaceTopology& topology,
+                                        const RowVectors3& vertexPositions,
+                                        const Eigen::MatrixX3d& faceTransportAngles,
+                                        const Eigen::MatrixX3d& faceTensors,
+                                        const RowVectors3& faceWeftDirections);
+
+/// The real 2#V by 2#V form of a complex Hermitian matrix: entry a + ib becomes
+/// the block [a −b; b a] (vector (x, y) of vertex i at rows 2i, 2i+1).
+SparseMatrix realForm(const ComplexSparseMatrix& complexMatrix);
+
+}  // namespace blot::stain

@@ -1,0 +1,252 @@
+#pragma once
+/// The geometry cache the stain stages read, in two tiers (DESIGN.md, step 2).
+///
+///  - IntrinsicGeometry: everything that depends on edge lengths only (angles,
+///    areas, cotan weights, lumped mass, polar maps, transport angles) plus the
+///    operators built from them. The cloth is inelastic, so this is rebuilt only
+///    when the largest edge strain since the last rebuild passes a tolerance;
+///    rigid and isometric motion never rebuild it.
+///  - ExtrinsicGeometry: what the embedding changes every step (positions at
+///    t−h, t, t+h; normals; Kabsch rotations; frames; accelerations; angular
+///    velocities).
+///
+/// Values change only in SurfaceGeometry::refresh*(), called once per step by
+/// the step's "refresh geometry" stage; every other stage reads them const.
+#include <blot/stain/geometry/surface_topology.h>
+#include <blot/stain/geometry/transport.h>
+#include <blot/stain/types.h>
+
+#include <vector>
+
+namespace blot::stain {
+
+/// Per-face fabric: tensors in the fabric basis (s_ww, s_wp, s_pp) and weft
+/// directions (operators.h). One set for the densities (S_f), one for the
+/// velocity (S_v).
+struct FabricField {
+  Eigen::MatrixX3d densityTensors;   ///< #F by 3 (m²/s), S_f
+  Eigen::MatrixX3d velocityTensors;  ///< #F by 3 (m²/s), S_v
+  RowVectors3 weftDirections;        ///< #F by 3, in the rest shape
+};
+
+/// The same isotropic tensors on every face: densityDiffusivity·I for the
+/// densities, viscosity·I for the velocity (m²/s); weft directions zero
+/// (isotropic faces ignore the weft, see operators.h). faceCount >= 1.
+FabricField isotropicFabricField(int faceCount, double densityDiffusivity, double viscosity);
+
+struct IntrinsicGeometry {
+  Vector edgeLengths;                   ///< #E (m), at the last rebuild
+  Eigen::MatrixX3d faceCornerAngles;    ///< #F by 3 (rad)
+  Vector faceAreas;                     ///< #F (m²)
+  Vector edgeCotanWeights;              ///< #E, ½(cot α + cot β)
+  Vector vertexDualAreas;               ///< #V (m²), lumped mass
+  PolarMap polarMap;                    ///< α per ring entry, scale per vertex
+  Vector edgeTransportAngles;           ///< #E θ_ij (i < j), u_i ≈ e^{iθ_ij} u_j
+  Eigen::MatrixX3d faceTransportAngles; ///< #F by 3, vertex frame -> face frame
+  SparseMatrix densityStiffness;        ///< #V by #V, L_Sf (PSD)
+  ComplexSparseMatrix velocityStiffness;  ///< #V by #V, connection Laplacian with S_v (PSD)
+  int rebuildCount = 0;                 ///< how many times this tier was built
+};
+
+struct ExtrinsicGeometry {
+  RowVectors3 previousPositions;  ///< #V by 3 at t − h (m)
+  RowVectors3 positions;          ///< #V by 3 at t (m)
+  RowVectors3 nextPositions;      ///< #V by 3 at t + h (m)
+  RowVectors3 vertexNormals;      ///< #V by 3 at t, unit
+  /// Per vertex, 3x3 frames with columns (x, y, z): F̄_i at rest (x along the
+  /// reference edge), F_i^t = U_i^t F̄_i and F_i^{t+h} = U_i^{t+h} F̄_i.
+  std::vector<Matrix3> restFrames, frames, nextFrames;
+  std::vector<Matrix3> kabschRotations;  ///< U_i^{t+h}: best rotation rest one-ring -> current
+  RowVectors3 vertexAccelerations;       ///< #V by 3, p̈_i^t by centred differences (m/s², world)
+  /// #V by 3, ω_i in frame coordinates of F_i^t (rad/s): the rotation vector
+  /// (exact log map) of (F^t)ᵀ F^{t+h}, divided by h. The paper's antisymmetrised
+  /// ((F^t)ᵀ F^{t+h} − (F^{t+h})ᵀ F^t) / 2h is its first-order form (it returns
+  /// sin(|ω|h)/h instead of |ω|). Component z is the normal rate that rotates
+  /// tangent vectors (Coriolis).
+  RowVectors3 vertexAngularVelocities;
+  /// Whether positions and frames at t (rigid) and at t + h (nextRigid) are
+  /// R x̄ + c and R F̄_i for one rotation R (x̄, F̄ the rest shape): set by
+  /// refreshExtrinsicRigid, cleared by refreshExtrinsic and
+  /// setPreviousPositions. Stages may then use rest-shape quantities instead
+  /// of recomputing them from the positions (density advection does).
+  bool rigid = true, nextRigid = true;
+};
+
+/// Per edge, 4 numbers (row-major #E by 4): see SurfaceGeometry::restEdgeFrameNormals.
+using EdgeFrameNormals = Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>;
+
+/// Integrated unit normal of the barycentric dual edge of edge e (m), oriented
+/// from edgeVertices(e, 0) to edgeVertices(e, 1): Σ over the edge's faces of
+/// (c_T − m) × n_T, c_T the face centroid, m the edge midpoint, n_T the unit
+/// face normal. Evaluated in the same order whichever endpoint asks, so the
+/// two ring entries of an edge can use bitwise opposite values.
+inline Vector3 dualEdgeNormal(const SurfaceTopology& topology, const RowVectors3& positions, int e) {
+  Vector3 normal = Vector3::Zero();
+  const int lower = topology.edgeVertices()(e, 0);
+  const int first = topology.edgeHalfedges()[static_cast<size_t>(e)];
+  const int second = topology.halfedgeTwins()[static_cast<size_t>(first)];
+  for (const int h : {first, second}) {
+    if (h < 0) continue;
+    const int f = h / 3;
+    const Vector3 p0 = positions.row(topology.faces()(f, 0)).transpose();
+    const Vector3 p1 = positions.row(topology.faces()(f, 1)).transpose();
+    const Vector3 p2 = positions.row(topology.faces()(f, 2)).transpose();
+    const Vector3 faceNormal = (p1 - p0).cross(p2 - p0).normalized();
+    const Vector3 pa = positions.row(topology.halfedgeTail(h)).transpose();
+    const Vector3 pb = positions.row(topology.halfedgeHead(h)).transpose();
+    const Vector3 toCentroid = (p0 + p1 + p2) / 3.0 - 0.5 * (pa + pb);
+    // (c − m) × n points from the half-edge's tail to its head.
+    const Vector3 piece = toCentroid.cross(faceNormal);
+    normal += topology.halfedgeTail(h) == lower ? piece : Vector3(-piece);
+  }
+  return normal;
+}
+
+/// Why the intrinsic tier was (re)built on a given step.
+enum class IntrinsicRefreshReason { None, Initial, StrainTolerance };
+
+/// How refreshExtrinsic fits the per-vertex rotations U_i.
+enum class RotationFitMethod {
+  WarmStartedNewton,  ///< default: Newton on SO(3) from U_i extrapolated in time, SVD fallback
+  Svd                 ///< exact 3x3 SVD at every vertex (the reference; several times slower)
+};
+
+/// Counters of the last refreshExtrinsic's rotation fits (for profiles and tests).
+struct RotationFitStats {
+  int fittedVertices = 0;      ///< vertices whose U_i was fitted (0 when the mesh did not move)
+  long newtonIterations = 0;   ///< total Newton iterations over those vertices
+  int svdFallbacks = 0;        ///< vertices where Newton did not converge and SVD decided
+};
+
+class SurfaceGeometry {
+ public:
+  /// Builds both tiers for the rest shape (positions at t−h = t = t+h = rest).
+  /// strainTolerance: rebuild the intrinsic tier when max_e |ℓ_e/ℓ_e,built − 1|
+  /// exceeds it (default 1e-3: 0.1 % stretch).
+  SurfaceGeometry(const SurfaceTopology& topology, const RowVectors3& restPositions,
+                  const FabricField& fabric, double strainTolerance = 1e-3);
+
+  /// Sets the positions the next refreshExtrinsic will treat as t − h (first
+  /// step: p(0) − h v(0) from the motion's velocities, so the first acceleration
+  /// is not a spurious jump). Call before the first refreshExtrinsic: the slots
+  /// shift at each refresh, so this writes the slot that becomes t − h. If the
+  /// surface at t = 0 is not the rest shape, first call refreshExtrinsic(p(0), h)
+  /// (it becomes t + h), then this, then step as usual.
+  void setPreviousPositions(const RowVectors3& previous);
+
+  /// Shifts t+h -> t -> t−h, takes `nextPositions` (#V by 3, m) as the new t+h,
+  /// h (s, > 0) being the time from t to t + h, and recomputes the extrinsic
+  /// tier. Returns whether the intrinsic tier must be rebuilt (strain test);
+  /// does not rebuild it. Allocates nothing; uses OpenMP threads.
+  bool refreshExtrinsic(const RowVectors3& nextPositions, double h);
+  /// The same for a surface known to move rigidly, nextPositions = R x̄ + c
+  /// (x̄ the rest shape, R the rotation at t + h, any translation c): U_i = R
+  /// for every vertex, normals R n̄, no rotation fits and no strain test
+  /// (rigid motion keeps the metric); ~4x cheaper than refreshExtrinsic. The
+  /// caller guarantees rigidity (checked only in BLOT_VALIDATE builds); R must
+  /// be a rotation matrix (std::invalid_argument otherwise).
+  bool refreshExtrinsicRigid(const RowVectors3& nextPositions, const Matrix3& rotation, double h);
+  /// Rebuilds the intrinsic tier from the current positions (t + h).
+  void refreshIntrinsic();
+  /// max_e |ℓ_e(t+h)/ℓ_e,built − 1| from the last refreshExtrinsic.
+  double maxEdgeStrain() const { return maxEdgeStrain_; }
+
+  const SurfaceTopology& topology() const { return *topology_; }
+  const IntrinsicGeometry& intrinsic() const { return intrinsic_; }
+  const ExtrinsicGeometry& extrinsic() const { return extrinsic_; }
+  const FabricField& fabric() const { return fabric_; }
+
+  /// Chooses the rotation fit used by refreshExtrinsic (default WarmStartedNewton).
+  void setRotationFitMethod(RotationFitMethod method) { rotationFitMethod_ = method; }
+  const RotationFitStats& rotationFitStats() const { return rotationFitStats_; }
+  /// Per edge e (#E by 4, m): the rest shape's dualEdgeNormal N̄_e in the rest
+  /// frames of its vertices a = edgeVertices(e, 0), b = edgeVertices(e, 1):
+  /// ((F̄_aᵀ N̄_e)_x, (F̄_aᵀ N̄_e)_y, (F̄_bᵀ N̄_e)_x, (F̄_bᵀ N̄_e)_y). Under rigid
+  /// motion (frames R F̄, normals R N̄) the flux speed ½(F_a u_a + F_b u_b)·N_e
+  /// is ½(u_a·(first pair) + u_b·(second pair)): no 3D work per step.
+  const EdgeFrameNormals& restEdgeFrameNormals() const { return restEdgeFrameNormals_; }
+
+  /// Everything the refresh stages carry from one step to the next beyond the
+  /// constructor's inputs (both tiers, the rotation history that warm-starts
+  /// the fits, the last h): restoring it into a geometry built from the same
+  /// topology, rest shape, fabric and tolerance makes every later refresh
+  /// bit-identical. Used by StainSolver::snapshot/restore (engine save/load).
+  struct DynamicState {
+    IntrinsicGeometry intrinsic;
+    ExtrinsicGeometry extrinsic;
+    RowVectors3 nextNormals;
+    std::vector<Eigen::Quaterniond> previousRotations, rotations, nextRotations;
+    Vector inverseBuiltSquaredLengths;
+    double maxEdgeStrain = 0;
+    double lastH = 0;
+    int unchangedRefreshes = 2;
+  };
+  /// Copy of the dynamic state (allocates).
+  DynamicState dynamicState() const {
+    return {intrinsic_,      extrinsic_,      nextNormals_,   previousRotations_, rotations_,
+            nextRotations_,  inverseBuiltSquaredLengths_, maxEdgeStrain_, lastH_, unchangedRefreshes_};
+  }
+  /// Restores a dynamic state taken from a geometry on the same topology
+  /// (the caller checks sizes; StainSolver::restore does).
+  void restoreDynamicState(const DynamicState& s) {
+    intrinsic_ = s.intrinsic;
+    extrinsic_ = s.extrinsic;
+    nextNormals_ = s.nextNormals;
+    previousRotations_ = s.previousRotations;
+    rotations_ = s.rotations;
+    nextRotations_ = s.nextRotations;
+    inverseBuiltSquaredLengths_ = s.inverseBuiltSquaredLengths;
+    maxEdgeStrain_ = s.maxEdgeStrain;
+    lastH_ = s.lastH;
+    unchangedRefreshes_ = s.unchangedRefreshes;
+  }
+
+ private:
+  bool refreshExtrinsicWith(const RowVectors3& nextPositions, double h, const Matrix3* rigidRotation);
+
+  const SurfaceTopology* topology_;
+  RowVectors3 restPositions_;
+  FabricField fabric_;
+  double strainTolerance_;
+  double maxEdgeStrain_ = 0;
+  IntrinsicGeometry intrinsic_;
+  ExtrinsicGeometry extrinsic_;
+  // Preallocated per-step data (no allocation in refreshExtrinsic):
+  RowVectors3 nextNormals_;  // #V by 3, vertex normals at t + h (become vertexNormals)
+  std::vector<Vector3> restRingEdges_;  // per ring entry: v̄_j − v̄_i (rest shape)
+  EdgeFrameNormals restEdgeFrameNormals_;  // #E by 4, see restEdgeFrameNormals()
+  // U_i at t − h, t, t + h as unit quaternions (warm start and ω).
+  std::vector<Eigen::Quaterniond> previousRotations_, rotations_, nextRotations_;
+  Vector inverseBuiltSquaredLengths_;  // #E: 1 / ℓ_e² at the last intrinsic build
+  double lastH_ = 0;                   // h of the last refresh (0: none yet)
+  int unchangedRefreshes_ = 2;         // consecutive refreshes with p(t+h) == p(t)
+  RotationFitMethod rotationFitMethod_ = RotationFitMethod::WarmStartedNewton;
+  RotationFitStats rotationFitStats_;
+};
+
+/// Best rotation (Kabsch, via SVD of the 3x3 covariance) taking the rest
+/// one-ring edge vectors (v̄_j − v̄_i) onto the current ones (v_j − v_i), with
+/// the reflection case handled (det = +1). restEdges, currentEdges: k by 3.
+Matrix3 kabschRotation(const Eigen::Ref<const Eigen::MatrixX3d>& restEdges,
+                       const Eigen::Ref<const Eigen::MatrixX3d>& currentEdges);
+
+/// R = argmax over SO(3) of tr(Rᵀ C), C = Σ_j (v_j − v_i)(v̄_j − v̄_i)ᵀ the 3x3
+/// covariance of current times rest edge vectors, through the SVD of C
+/// (det-corrected). What kabschRotation computes, from the covariance.
+Matrix3 rotationFromCovariance(const Matrix3& covariance);
+
+/// Result of fitRotation.
+struct RotationFit {
+  Eigen::Quaterniond rotation;  ///< unit quaternion of R
+  int iterations = 0;           ///< Newton iterations taken
+  bool usedSvd = false;         ///< Newton did not converge (or its Hessian was not
+                                ///< positive definite); rotationFromCovariance decided
+};
+
+/// The same maximiser as rotationFromCovariance, by Newton's method on SO(3)
+/// started at `initialGuess` (unit quaternion): quadratic convergence, so a
+/// guess within ~0.1 rad converges in 1–3 iterations to rounding; falls back to
+/// the SVD when it does not converge. Allocates nothing.
+RotationFit fitRotation(const Matrix3& covariance, const Eigen::Quaterniond& initialGuess);
+
+}  // namespace blot::stain

@@ -1,0 +1,42 @@
+#pragma once
+/// Discrete parallel transport between vertex tangent frames (paper sec. 3.1).
+///
+/// Geodesic polar map: around vertex i the one-ring edges get angles α_ij,
+/// the cumulative corner angles counter-clockwise from the reference edge
+/// (first ring neighbour, α = 0), scaled by 2π/γ_i at interior vertices. At
+/// boundary vertices the true angles are kept (scale 1): rescaling a boundary
+/// fan to π would rotate vectors spuriously at every corner of a flat sheet.
+///
+/// Transport j -> i along edge ij is the rotation by θ_ij = α_ij − α_ji + π
+/// (eq. 6): u_i ≈ R(θ_ij) u_j, or in complex form u_i ≈ exp(iθ_ij) u_j, where a
+/// tangent vector (x, y) in a vertex frame is the complex number x + iy.
+#include <blot/stain/geometry/surface_topology.h>
+#include <blot/stain/types.h>
+
+namespace blot::stain {
+
+struct PolarMap {
+  /// Per ring entry (aligned with SurfaceTopology::ringNeighbors): α_ij in
+  /// [0, 2π) (interior) or [0, γ_i] (boundary).
+  Vector ringAngles;
+  /// #V: 2π / γ_i at interior vertices, 1 at boundary vertices.
+  Vector vertexAngleScales;
+};
+
+PolarMap geodesicPolarMap(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles);
+
+/// #E transport angles θ_ij for each edge (i, j) = edgeVertices row, i < j:
+/// the rotation carrying vectors in j's frame into i's frame. θ_ji = −θ_ij.
+Vector edgeTransportAngles(const SurfaceTopology& topology, const PolarMap& polarMap);
+
+/// #F by 3 rotation angles φ(f, k) carrying a vector from the frame of vertex
+/// faces(f, k) into face f's own frame (x along the half-edge faces(f,0) ->
+/// faces(f,1), y = n × x). Each is the average, over the two edges of f at that
+/// vertex, of (angle of the edge in the face) − (α of the edge in the polar
+/// map), so it is exact where the polar map is unscaled (flat or boundary).
+/// Used to assemble the connection Laplacian per triangle.
+Eigen::MatrixX3d faceTransportAngles(const SurfaceTopology& topology,
+                                     const Eigen::MatrixX3d& faceCornerAngles,
+                                     const PolarMap& polarMap);
+
+}  // namespace blot::stain

@@ -1,0 +1,44 @@
+#pragma once
+/// Stage "forces" (paper sec. 4): tangential gravity, linear inertia −Fᵀp̈ and
+/// Coriolis −2ω×u, applied to the velocity of wet vertices.
+#include <blot/stain/stain_state.h>
+#include <blot/stain/step_context.h>
+#include <blot/stain/geometry/surface_geometry.h>
+#include <blot/stain/stages/velocity_advection.h>
+
+namespace blot::stain {
+
+/// u_i += h · tangential part, in frame F_i^t, of (g − p̈_i) (each term as
+/// switched on), then the Coriolis term: with ω_n = ω_i·z (frame coordinates),
+/// ExactRotation and SplitRotation multiply u_i by exp(−2iω_n h) (|u|
+/// preserved), Explicit adds −2h ω_n (i u_i) (|u| grows by √(1 + 4ω_n²h²) each
+/// step; comparison only). This is the whole Coriolis term for a liquid that
+/// is not advected; after a velocity advection the solver uses
+/// applyHalfFrameRotation and applyFrameVelocityChange instead
+/// (CoriolisScheme::ExactRotation).
+/// `wet` (#V, nonzero = wet) restricts the work; pass an empty vector for all.
+void applyExternalForces(const StepContext& ctx, const ExtrinsicGeometry& geometry,
+                         const std::vector<char>& wet, StainState& state);
+
+/// The Coriolis term as a discrete frame change (docs/transport.md). The
+/// solver keeps u between steps in the frame of the last step's midpoint,
+/// F^{t−h/2} (where the relative velocity of a step, a chord, points along the
+/// surface's tangent motion), and turns the frame increment exp(−iω_n h) in two
+/// halves. applyHalfFrameRotation, first in the step: u_i ← exp(−iω_n h/2) u_i
+/// (into F^t, before the inertia). applyFrameVelocityChange, after the
+/// velocity advection: with v_k = (p_k^{t+h} − p_k^t)/h the frame velocity of
+/// the step (m/s, world) and v(y) = Σ_c w_c v_{k_c} its value at the foot point
+/// of i's backtrack (footVertices/footWeights, #V by 3, from advectVelocity),
+///   u_i ← exp(−iω_n h/2) (u_i + tangential part in F_i^t of (v(y) − v_i)).
+/// Together with the inertia −h p̈ the liquid's world velocity v + F u is
+/// advected unchanged, so liquid at rest in an inertial frame stays at rest at
+/// any ωh and no kinetic energy is created (tests/stain/coriolis_frame_test).
+/// Only wet vertices (`wet` as above) are touched.
+void applyHalfFrameRotation(const StepContext& ctx, const ExtrinsicGeometry& geometry, const std::vector<char>& wet,
+                            StainState& state);
+/// See applyHalfFrameRotation.
+void applyFrameVelocityChange(const StepContext& ctx, const ExtrinsicGeometry& geometry,
+                              const FootVertices& footVertices, const FootWeights& footWeights,
+                              const std::vector<char>& wet, StainState& state);
+
+}  // namespace blot::stain

@@ -1,0 +1,27 @@
+#pragma once
+/// Stage "interact" (paper sec. 5): absorption into the fibres, absorbed solute,
+/// Langmuir adsorption of solute, and evaporation with the boundary factor.
+#include <blot/stain/stain_state.h>
+#include <blot/stain/step_context.h>
+#include <blot/stain/geometry/surface_geometry.h>
+
+namespace blot::stain {
+
+/// Per-vertex closed-form-consistent updates (each as switched on):
+///  absorption  σ_p += min(K_p h/(1 + K_p h) (σ_sat − σ_p), σ_f), σ_f -= same;
+///              σ_s,p += (absorbed solvent) · σ_s/σ_f, σ_s -= same;
+///  adsorption  σ_s,a += min(K_d h/(1 + K_d h)(A_d − σ_s,a), σ_s) (desorption
+///              when σ_s,a > A_d returns solute to σ_s);
+///  evaporation σ_f -= min(a K_evap h, σ_f) with a = a_evap on boundary vertices
+///              and 1 inside (with EvaporationBoundary::WetFront also on
+///              vertices whose `wet` value is 2, "holds liquid", next to one
+///              that is not: the liquid's own edge); the remainder from σ_p
+///              when σ_f runs out;
+///              the evaporated mass (× dual area) is added to state.evaporatedSolvent;
+///  drying      solute left with no free solvent is deposited (moved to σ_s,a),
+///              and desorption needs free solvent to dissolve into.
+/// Solute is conserved exactly (moved between its three pools, never created).
+void interact(const StepContext& ctx, const SurfaceTopology& topology, const IntrinsicGeometry& geometry,
+              const std::vector<char>& wet, StainState& state);
+
+}  // namespace blot::stain

@@ -1,0 +1,45 @@
+#pragma once
+/// Initial conditions and sources: drops (with optional "splash" velocity
+/// fields) and regions held at fixed densities ("fluid constantly added").
+#include <blot/stain/stain_state.h>
+#include <blot/stain/step_context.h>
+#include <blot/stain/geometry/surface_geometry.h>
+
+#include <cstdint>
+#include <vector>
+
+namespace blot::stain {
+
+struct DropDef {
+  int centerVertex = -1;         ///< vertex at the drop's centre (or -1 and use centerPoint)
+  Vector3 centerPoint = Vector3::Zero();  ///< world point; the nearest vertex is used
+  double radius = 0.05;          ///< m, Euclidean distance in the newest positions (t + h), not across folds
+  double solventMass = 1e-3;     ///< kg spread over the drop
+  double soluteMass = 1e-4;      ///< kg spread over the drop
+  /// Initial velocity in the world frame (m/s), projected into each vertex frame.
+  Vector3 velocity = Vector3::Zero();
+  /// Splash: outgoing radial speed (m/s) with a random angular profile from seed.
+  double splashSpeed = 0;
+  std::uint64_t splashSeed = 0;
+};
+
+/// Adds a drop: a smooth bump (A_i-weighted, so Σ A_i Δσ_i equals the masses
+/// exactly) over vertices within `radius` of the centre; the added mass goes to
+/// state.addedSolvent / addedSolute. Velocity: mass-weighted blend of the old
+/// velocity and the drop's. Throws std::invalid_argument naming the field for
+/// bad values (negative mass, radius ≤ 0, vertex out of range, non-finite).
+void addDrop(const DropDef& drop, const SurfaceTopology& topology, const IntrinsicGeometry& intrinsic,
+             const ExtrinsicGeometry& extrinsic, StainState& state);
+
+/// A region held at fixed densities: each step its vertices are set to
+/// max(σ, held σ); the added mass is recorded.
+struct HeldRegion {
+  std::vector<int> vertices;
+  double solventDensity = 0;  ///< kg/m²
+  double soluteDensity = 0;   ///< kg/m²
+};
+
+void applySources(const StepContext& ctx, const std::vector<HeldRegion>& regions,
+                  const IntrinsicGeometry& geometry, StainState& state);
+
+}  // namespace blot::stain

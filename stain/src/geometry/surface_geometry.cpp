@@ -1,0 +1,539 @@
+// The two-tier geometry cache: intrinsic operators rebuilt on strain, extrinsic
+// frames refreshed every step (paper sec. 3.1 and 4; DESIGN.md step 2).
+//
+// Design note.
+//  - Rotations U_i (paper: U_i = argmin_R Σ_j |(v_j − v_i) − R(v̄_j − v̄_i)|²)
+//    maximise tr(Rᵀ C) with C = Σ_j (v_j − v_i)(v̄_j − v̄_i)ᵀ. The reference is
+//    Kabsch: SVD C = U Σ Vᵀ, R = U diag(1, 1, det(UVᵀ)) Vᵀ (~640 ns a vertex,
+//    tests/bench/geometry_refresh_bench).
+//    The step uses Newton's method on SO(3) instead: with R = R₀ exp([δ]×) and
+//    M = R₀ᵀC, f(δ) ≈ tr M + 2 δ·m − ½ δᵀ (tr M·I − sym M) δ, m = vee(skew M),
+//    so δ = 2 (tr M·I − sym M)⁻¹ m, and the update is quaternion q ← q ⊗ (1, δ/2)
+//    (normalised), accurate to O(|δ|³), which keeps the convergence quadratic.
+//    The start is U_i extrapolated at constant angular velocity,
+//    U^t (U^{t−h})ᵀ U^t. It stops when |g| = |2 m| < 1e-13 tr M (rigid motion:
+//    the extrapolation is exact, so one gradient evaluation and no solve) or
+//    after a step under 1e-7 rad (error left O(step²)); smooth cloth motion
+//    takes one or two solves. Non-convergence, a step over 1 rad, or a
+//    Hessian that is not positive definite (the start was near a saddle, or the
+//    ring is degenerate) fall back to the SVD, so the result is always the Kabsch
+//    rotation. Rejected: Müller et al. 2016's quaternion iteration (scaled
+//    gradient step ω = Σ r_k × c_k / |Σ r_k·c_k|): its error contracts by
+//    σ_k / tr Σ per iteration, i.e. only by ½ for a flat one-ring (σ₃ = 0,
+//    σ₁ ≈ σ₂): measured 24 iterations on average from a 0.02 rad start to
+//    1e-9 on hexagonal rings, flat or bumpy. Rejected: Higham's Newton polar iteration
+//    X ← (X + X⁻ᵀ)/2, which cannot be warm-started (it acts on singular values
+//    only) and divides by σ₃ = 0 on flat rings.
+//  - Angular velocity: ω_i = log((F^t)ᵀ F^{t+h}) / h, the exact log map, taken
+//    from the quaternions as rel = q^t* ⊗ q^{t+h}, θ = 2 atan2(|v|, w) (w ≥ 0),
+//    ω = F̄ᵀ (θ v/|v|) / h. This equals the matrix form axis = vee(skew A),
+//    θ = atan2(|vee(skew A)|, (tr A − 1)/2) for A = (F^t)ᵀF^{t+h}, so a constant
+//    rotation gives ω exactly. The paper's vee((A − Aᵀ)/2)/h is its first-order
+//    form: it gives sin(θ)/h, i.e. ω (1 − θ²/6 + …), a relative error
+//    (|ω|h)²/6 (7e-5 at 2 rad/s and h = 0.01 s).
+//  - Accelerations: p̈ = (p^{t+h} − 2p^t + p^{t−h}) / h² (paper); when the last
+//    two steps differ (h ≠ h_prev), the non-uniform centred second difference
+//    2/(h + h_prev) ((p^{t+h} − p^t)/h − (p^t − p^{t−h})/h_prev).
+//  - Normals at t + h come from the same one-ring edge vectors as the fit,
+//    Σ e_m × e_{m+1} over the ring's faces (area weighted, as vertexNormals()),
+//    so they cost no extra memory traffic; they become vertexNormals (at t)
+//    on the next refresh.
+//  - Strain test: r_e = ℓ_e² / ℓ_e,built², max and min over the ring edges
+//    inside the same loop (each edge twice, which max and min ignore),
+//    strain = max(√r_max − 1, 1 − √r_min): no branch, root or division per edge.
+//  - One OpenMP loop over vertices, static schedule; each vertex writes only its
+//    own outputs and the reductions are max/min/integer sums, so results are
+//    bit-identical for any thread count.
+//  - No motion: when p(t+h) equals p(t) bit for bit, no fit is done (U, frames
+//    and normals are copied, ω = 0); after two such refreshes nothing changes
+//    at all and the refresh is a comparison only.
+//  - Weft directions are given on the rest shape. At an intrinsic rebuild each
+//    face's weft is carried as a material line: w = a e₁ + b e₂ where
+//    w̄ = a ē₁ + b ē₂ in the rest face (ē₁, ē₂ its edges from corner 0). This
+//    is the face's deformation gradient applied to w̄; for an isometric face it
+//    is the rotation taking the rest face's (edge 0, normal) frame to the
+//    current one. Rejected: that rotation (keeping the angle to edge 0) for
+//    sheared faces: cloth shears easily, and under shear a thread not along
+//    edge 0 turns with the material, not with edge 0.
+#include <blot/stain/geometry/surface_geometry.h>
+
+#include <blot/stain/geometry/extrinsic_geometry.h>
+#include <blot/stain/geometry/intrinsic_geometry.h>
+#include <blot/stain/geometry/operators.h>
+
+#include <Eigen/SVD>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+
+namespace blot::stain {
+namespace {
+
+// Newton accepts the current rotation when the gradient g = 2 vee(skew RᵀC) is
+// below this fraction of tr(RᵀC): the step it would take is then below
+// ~1e-13 rad for any ring whose Hessian is not extremely anisotropic.
+constexpr double kGradientTolerance = 1e-13;
+// ... and stops after a step shorter than this (rad): the error left is
+// O(step²) ≈ 1e-14 (quadratic convergence), so no confirming iteration is needed.
+constexpr double kNewtonStepTolerance = 1e-7;
+constexpr int kMaxNewtonIterations = 8;
+// A Newton step longer than this (rad) means the start was far off: use the SVD.
+constexpr double kMaxNewtonStep = 1.0;
+// Relative size of a Hessian pivot below which the fit is treated as degenerate.
+constexpr double kPivotTolerance = 1e-10;
+// Below this many vertices a refresh takes a few microseconds and waking a
+// second thread costs more than it saves (and much more on a loaded machine).
+constexpr int kMinParallelVertices = 2048;
+
+// Solves the 3x3 symmetric system H x = b by unpivoted LDLᵀ; false if a pivot
+// is not clearly positive (H not positive definite at this scale).
+bool solveSymmetricPositive(const Matrix3& H, const Vector3& b, double scale, Vector3& x) {
+  const double tiny = kPivotTolerance * scale;
+  const double d0 = H(0, 0);
+  if (!(d0 > tiny)) return false;
+  const double r0 = 1.0 / d0;
+  const double l10 = H(1, 0) * r0, l20 = H(2, 0) * r0;
+  const double d1 = H(1, 1) - l10 * H(1, 0);
+  if (!(d1 > tiny)) return false;
+  const double r1 = 1.0 / d1;
+  const double l21 = (H(2, 1) - l20 * H(1, 0)) * r1;
+  const double d2 = H(2, 2) - l20 * H(2, 0) - l21 * l21 * d1;
+  if (!(d2 > tiny)) return false;
+  const double y0 = b(0), y1 = b(1) - l10 * y0, y2 = b(2) - l20 * y0 - l21 * y1;
+  x(2) = y2 / d2;
+  x(1) = y1 * r1 - l21 * x(2);
+  x(0) = y0 * r0 - l10 * x(1) - l20 * x(2);
+  return true;
+}
+
+// Rotation vector (axis × angle, angle in [0, π]) of a unit quaternion
+// q = (cos θ/2, sin θ/2 a): θ a = v · 2 atan(x)/(x w), x = |v|/w (w ≥ 0). For
+// x² < 1e-3 (θ < 0.063 rad, the usual per-step rotation) atan(x)/x is its
+// series to x¹⁰, truncation x¹²/13 < 1e-19: no square root, division or atan2.
+Vector3 rotationVector(const Eigen::Quaterniond& q) {
+  const double sign = q.w() < 0 ? -1.0 : 1.0;
+  const Vector3 v = sign * q.vec();
+  const double w = sign * q.w();
+  const double vv = v.squaredNorm();
+  if (vv < 1e-3 * w * w) {
+    const double y = vv / (w * w);
+    const double atanRatio =
+        1.0 - y * (1.0 / 3 - y * (1.0 / 5 - y * (1.0 / 7 - y * (1.0 / 9 - y * (1.0 / 11)))));
+    return v * (2.0 * atanRatio / w);
+  }
+  const double s = std::sqrt(vv);
+  if (s == 0.0) return Vector3::Zero();
+  return v * (2.0 * std::atan2(s, w) / s);
+}
+
+// The Newton iteration behind fitRotation (see the design note). Starts at the
+// unit quaternion q; on return q and R hold the rotation. Returns false when it
+// gave up (the caller then takes the SVD).
+bool newtonRotation(const Matrix3& covariance, Eigen::Quaterniond& q, Matrix3& R, int& iterations) {
+  for (int iteration = 1; iteration <= kMaxNewtonIterations; ++iteration) {
+    iterations = iteration;
+    R = q.toRotationMatrix();
+    const Matrix3 M = R.transpose() * covariance;
+    const double trace = M.trace();
+    if (!(trace > 0)) return false;
+    // g = 2 vee(skew M); the Newton step is δ = (tr M·I − sym M)⁻¹ g.
+    const Vector3 g(M(2, 1) - M(1, 2), M(0, 2) - M(2, 0), M(1, 0) - M(0, 1));
+    if (g.squaredNorm() <= kGradientTolerance * kGradientTolerance * trace * trace) return true;
+    Matrix3 H = -0.5 * (M + M.transpose());
+    H.diagonal().array() += trace;
+    Vector3 delta;
+    if (!solveSymmetricPositive(H, g, trace, delta)) return false;
+    const double stepSquared = delta.squaredNorm();
+    if (!(stepSquared <= kMaxNewtonStep * kMaxNewtonStep)) return false;
+    // q ⊗ (1, δ/2), normalised: |(1, δ/2)| = √(1 + |δ|²/4) and |q| = 1.
+    const double c = 1.0 / std::sqrt(1.0 + 0.25 * stepSquared);
+    const Vector3 half = (0.5 * c) * delta;
+    q = q * Eigen::Quaterniond(c, half.x(), half.y(), half.z());
+    if (stepSquared <= kNewtonStepTolerance * kNewtonStepTolerance) {
+      R = q.toRotationMatrix();
+      return true;
+    }
+  }
+  return false;
+}
+
+// U^{t+h} guessed from U^t and U^{t−h} at constant angular velocity.
+// The product of unit quaternions is unit to rounding; one Newton step for
+// 1/√|q|² (factor (3 − |q|²)/2) removes that rounding without a square root,
+// so the norm cannot drift over many steps of warm starts.
+Eigen::Quaterniond extrapolateRotation(const Eigen::Quaterniond& previous,
+                                       const Eigen::Quaterniond& current) {
+  const Eigen::Quaterniond guess = current * previous.conjugate() * current;
+  const double factor = 0.5 * (3.0 - guess.squaredNorm());
+  return Eigen::Quaterniond(factor * guess.coeffs());
+}
+
+void checkRows(Eigen::Index rows, Eigen::Index expected, const char* what) {
+  if (rows != expected) {
+    std::ostringstream s;
+    s << "SurfaceGeometry: " << what << " has " << rows << " rows, expected " << expected;
+    throw std::invalid_argument(s.str());
+  }
+}
+
+// Weft directions of the rest shape carried to `positions` as material lines
+// (see the design note). Zero wefts stay zero.
+RowVectors3 currentWeftDirections(const SurfaceTopology& topology, const RowVectors3& restPositions,
+                                  const RowVectors3& positions, const RowVectors3& restWefts) {
+  const Triangles& faces = topology.faces();
+  RowVectors3 wefts(topology.faceCount(), 3);
+  for (int f = 0; f < topology.faceCount(); ++f) {
+    const Vector3 r0 = restPositions.row(faces(f, 0)).transpose();
+    const Vector3 r1 = restPositions.row(faces(f, 1)).transpose() - r0;
+    const Vector3 r2 = restPositions.row(faces(f, 2)).transpose() - r0;
+    const Vector3 c0 = positions.row(faces(f, 0)).transpose();
+    const Vector3 c1 = positions.row(faces(f, 1)).transpose() - c0;
+    const Vector3 c2 = positions.row(faces(f, 2)).transpose() - c0;
+    const Vector3 w = restWefts.row(f).transpose();
+    // Least squares w̄ ≈ a r1 + b r2 (exact for an in-plane weft).
+    const double g11 = r1.dot(r1), g12 = r1.dot(r2), g22 = r2.dot(r2);
+    const double det = g11 * g22 - g12 * g12;
+    const double b1 = r1.dot(w), b2 = r2.dot(w);
+    const double a = (g22 * b1 - g12 * b2) / det, b = (g11 * b2 - g12 * b1) / det;
+    wefts.row(f) = (a * c1 + b * c2).transpose();
+  }
+  return wefts;
+}
+
+}  // namespace
+
+Matrix3 rotationFromCovariance(const Matrix3& covariance) {
+  const Eigen::JacobiSVD<Matrix3> svd(covariance, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Matrix3 U = svd.matrixU();
+  const Matrix3& V = svd.matrixV();
+  // Singular values are sorted decreasing: flipping the last column of U is the
+  // smallest change that turns a reflection into a rotation.
+  if (U.determinant() * V.determinant() < 0) U.col(2) = -U.col(2);
+  return U * V.transpose();
+}
+
+Matrix3 kabschRotation(const Eigen::Ref<const Eigen::MatrixX3d>& restEdges,
+                       const Eigen::Ref<const Eigen::MatrixX3d>& currentEdges) {
+  if (restEdges.rows() != currentEdges.rows())
+    throw std::invalid_argument("kabschRotation: rest and current edge counts differ");
+  Matrix3 covariance = Matrix3::Zero();
+  for (Eigen::Index k = 0; k < restEdges.rows(); ++k)
+    covariance.noalias() += currentEdges.row(k).transpose() * restEdges.row(k);
+  return rotationFromCovariance(covariance);
+}
+
+RotationFit fitRotation(const Matrix3& covariance, const Eigen::Quaterniond& initialGuess) {
+  RotationFit fit;
+  Eigen::Quaterniond q = initialGuess.normalized();
+  Matrix3 R;
+  if (newtonRotation(covariance, q, R, fit.iterations)) {
+    fit.rotation = q;
+  } else {
+    fit.rotation = Eigen::Quaterniond(rotationFromCovariance(covariance));
+    fit.usedSvd = true;
+  }
+  return fit;
+}
+
+SurfaceGeometry::SurfaceGeometry(const SurfaceTopology& topology, const RowVectors3& restPositions,
+                                 const FabricField& fabric, double strainTolerance)
+    : topology_(&topology), restPositions_(restPositions), fabric_(fabric),
+      strainTolerance_(strainTolerance) {
+  const int n = topology.vertexCount();
+  const int faceCount = topology.faceCount();
+  checkRows(restPositions.rows(), n, "restPositions");
+  checkRows(fabric.densityTensors.rows(), faceCount, "fabric.densityTensors");
+  checkRows(fabric.velocityTensors.rows(), faceCount, "fabric.velocityTensors");
+  checkRows(fabric.weftDirections.rows(), faceCount, "fabric.weftDirections");
+  if (!restPositions.allFinite()) throw std::invalid_argument("SurfaceGeometry: non-finite rest position");
+  if (!(strainTolerance > 0) || !std::isfinite(strainTolerance))
+    throw std::invalid_argument("SurfaceGeometry: strainTolerance must be finite and positive");
+
+  ExtrinsicGeometry& ex = extrinsic_;
+  ex.previousPositions = restPositions;
+  ex.positions = restPositions;
+  ex.nextPositions = restPositions;
+  ex.vertexNormals = vertexNormals(topology, restPositions);
+  nextNormals_ = ex.vertexNormals;
+  const VertexFrames restFrames = vertexTangentFrames(topology, restPositions, ex.vertexNormals);
+  ex.restFrames.resize(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) ex.restFrames[static_cast<size_t>(i)] = restFrames.frame(i);
+  ex.frames = ex.restFrames;
+  ex.nextFrames = ex.restFrames;
+  ex.kabschRotations.assign(static_cast<size_t>(n), Matrix3::Identity());
+  ex.vertexAccelerations = RowVectors3::Zero(n, 3);
+  ex.vertexAngularVelocities = RowVectors3::Zero(n, 3);
+
+  const std::vector<int>& offsets = topology.ringOffsets();
+  const std::vector<int>& neighbors = topology.ringNeighbors();
+  restRingEdges_.resize(neighbors.size());
+  for (int i = 0; i < n; ++i) {
+    for (int m = offsets[static_cast<size_t>(i)]; m < offsets[static_cast<size_t>(i) + 1]; ++m) {
+      const int j = neighbors[static_cast<size_t>(m)];
+      restRingEdges_[static_cast<size_t>(m)] = (restPositions.row(j) - restPositions.row(i)).transpose();
+    }
+  }
+  const int edgeCount = topology.edgeCount();
+  restEdgeFrameNormals_.resize(edgeCount, 4);
+  for (int e = 0; e < edgeCount; ++e) {
+    const Vector3 normal = dualEdgeNormal(topology, restPositions, e);
+    const Matrix3& a = ex.restFrames[static_cast<size_t>(topology.edgeVertices()(e, 0))];
+    const Matrix3& b = ex.restFrames[static_cast<size_t>(topology.edgeVertices()(e, 1))];
+    restEdgeFrameNormals_.row(e) << a.col(0).dot(normal), a.col(1).dot(normal), b.col(0).dot(normal),
+        b.col(1).dot(normal);
+  }
+  previousRotations_.assign(static_cast<size_t>(n), Eigen::Quaterniond::Identity());
+  rotations_ = previousRotations_;
+  nextRotations_ = previousRotations_;
+
+  refreshIntrinsic();
+}
+
+void SurfaceGeometry::setPreviousPositions(const RowVectors3& previous) {
+  checkRows(previous.rows(), topology_->vertexCount(), "previous positions");
+  // The next refresh shifts `positions` into `previousPositions`.
+  extrinsic_.previousPositions = previous;
+  extrinsic_.positions = previous;
+  extrinsic_.rigid = false;
+  unchangedRefreshes_ = 0;
+  lastH_ = 0;
+}
+
+void SurfaceGeometry::refreshIntrinsic() {
+  const SurfaceTopology& topology = *topology_;
+  const RowVectors3& positions = extrinsic_.nextPositions;
+  IntrinsicGeometry& in = intrinsic_;
+  in.edgeLengths = edgeLengths(topology, positions);
+  in.faceCornerAngles = faceCornerAngles(topology, in.edgeLengths);
+  in.faceAreas = faceAreas(topology, in.edgeLengths);
+  in.edgeCotanWeights = edgeCotanWeights(topology, in.faceCornerAngles);
+  in.vertexDualAreas = vertexDualAreas(topology, in.faceAreas);
+  in.polarMap = geodesicPolarMap(topology, in.faceCornerAngles);
+  in.edgeTransportAngles = edgeTransportAngles(topology, in.polarMap);
+  in.faceTransportAngles = faceTransportAngles(topology, in.faceCornerAngles, in.polarMap);
+  // The first build is on the rest shape, where the given wefts apply as they are.
+  const RowVectors3 wefts =
+      in.rebuildCount == 0
+          ? fabric_.weftDirections
+          : currentWeftDirections(topology, restPositions_, positions, fabric_.weftDirections);
+  in.densityStiffness = anisotropicStiffness(topology, positions, fabric_.densityTensors, wefts);
+  in.velocityStiffness = connectionLaplacian(topology, positions, in.faceTransportAngles,
+                                             fabric_.velocityTensors, wefts);
+  inverseBuiltSquaredLengths_ = in.edgeLengths.array().square().inverse().matrix();
+  ++in.rebuildCount;
+  maxEdgeStrain_ = 0;
+}
+
+bool SurfaceGeometry::refreshExtrinsic(const RowVectors3& nextPositions, double h) {
+  return refreshExtrinsicWith(nextPositions, h, nullptr);
+}
+
+bool SurfaceGeometry::refreshExtrinsicRigid(const RowVectors3& nextPositions, const Matrix3& rotation,
+                                            double h) {
+  if (!rotation.allFinite() || (rotation.transpose() * rotation - Matrix3::Identity()).cwiseAbs().maxCoeff() > 1e-9 ||
+      !(rotation.determinant() > 0))
+    throw std::invalid_argument("SurfaceGeometry::refreshExtrinsicRigid: not a rotation matrix");
+#ifdef BLOT_VALIDATE
+  // The caller promises p = R x̄ + c: check it against vertex 0.
+  checkRows(nextPositions.rows(), topology_->vertexCount(), "nextPositions");
+  const Vector3 offset = (nextPositions.row(0) - restPositions_.row(0) * rotation.transpose()).transpose();
+  const double scale = 1.0 + restPositions_.cwiseAbs().maxCoeff() + offset.norm();
+  for (Eigen::Index i = 0; i < nextPositions.rows(); ++i) {
+    const Vector3 expected = rotation * restPositions_.row(i).transpose() + offset;
+    if ((nextPositions.row(i).transpose() - expected).norm() > 1e-9 * scale)
+      throw std::logic_error("SurfaceGeometry::refreshExtrinsicRigid: vertex " + std::to_string(i) +
+                             " does not follow the rigid motion");
+  }
+#endif
+  return refreshExtrinsicWith(nextPositions, h, &rotation);
+}
+
+bool SurfaceGeometry::refreshExtrinsicWith(const RowVectors3& nextPositions, double h,
+                                           const Matrix3* rigidRotation) {
+  const SurfaceTopology& topology = *topology_;
+  const int n = topology.vertexCount();
+  checkRows(nextPositions.rows(), n, "nextPositions");
+  if (!(h > 0) || !std::isfinite(h)) throw std::invalid_argument("SurfaceGeometry: h must be finite and positive");
+  ExtrinsicGeometry& ex = extrinsic_;
+
+  const bool unchanged = nextPositions == ex.nextPositions;
+  if (unchanged && unchangedRefreshes_ >= 2) {
+    // t − h, t and t + h all hold these positions already; ω = p̈ = 0.
+    lastH_ = h;
+    rotationFitStats_ = RotationFitStats();
+    return maxEdgeStrain_ > strainTolerance_;
+  }
+  const double previousH = lastH_ > 0 ? lastH_ : h;
+  lastH_ = h;
+
+  // Shift t + h -> t -> t − h by swapping buffers (no allocation, no copy).
+  ex.previousPositions.swap(ex.positions);
+  ex.positions.swap(ex.nextPositions);
+  ex.nextPositions = nextPositions;  // same size: copies into the existing buffer
+  ex.frames.swap(ex.nextFrames);
+  ex.rigid = ex.nextRigid;
+  ex.vertexNormals.swap(nextNormals_);
+  previousRotations_.swap(rotations_);
+  rotations_.swap(nextRotations_);
+
+  const bool uniform = previousH == h;
+  const double invH = 1.0 / h, invHSquared = 1.0 / (h * h), invPreviousH = 1.0 / previousH;
+  const double secondDifferenceScale = 2.0 / (h + previousH);
+  const RowVectors3& p0 = ex.previousPositions;
+  const RowVectors3& p1 = ex.positions;
+  const RowVectors3& p2 = ex.nextPositions;
+  RowVectors3& accelerations = ex.vertexAccelerations;
+  RowVectors3& angularVelocities = ex.vertexAngularVelocities;
+  // p̈_i^t, identical in both branches below.
+  auto acceleration = [&](int i) {
+    for (int c = 0; c < 3; ++c) {
+      accelerations(i, c) =
+          uniform ? (p2(i, c) - 2.0 * p1(i, c) + p0(i, c)) * invHSquared
+                  : secondDifferenceScale *
+                        ((p2(i, c) - p1(i, c)) * invH - (p1(i, c) - p0(i, c)) * invPreviousH);
+    }
+  };
+
+  // ω_i: (F^t)ᵀ F^{t+h} = F̄ᵀ (U^tᵀ U^{t+h}) F̄, whose rotation vector is F̄ᵀ
+  // times that of U^tᵀ U^{t+h}.
+  auto angularVelocity = [&](int i) {
+    const size_t k = static_cast<size_t>(i);
+    const Vector3 restAxis = rotationVector(rotations_[k].conjugate() * nextRotations_[k]);
+    angularVelocities.row(i) = (ex.restFrames[k].transpose() * restAxis * invH).transpose();
+  };
+
+  if (unchanged) {
+    // The surface did not move over [t, t + h]: U, frames and normals at t + h
+    // are those at t; only p̈ may still be non-zero (the surface just stopped).
+#pragma omp parallel for schedule(static) if (n >= kMinParallelVertices)
+    for (int i = 0; i < n; ++i) {
+      const size_t k = static_cast<size_t>(i);
+      nextRotations_[k] = rotations_[k];
+      ex.nextFrames[k] = ex.frames[k];
+      nextNormals_.row(i) = ex.vertexNormals.row(i);
+      angularVelocities.row(i).setZero();
+      acceleration(i);
+    }
+    ex.nextRigid = ex.rigid;
+    ++unchangedRefreshes_;
+    rotationFitStats_ = RotationFitStats();
+    return maxEdgeStrain_ > strainTolerance_;
+  }
+  unchangedRefreshes_ = 0;
+  rotationFitStats_ = RotationFitStats();
+
+  if (rigidRotation != nullptr) {
+    // Known rigid motion: U_i = R for every vertex (the Kabsch fit of a rigid
+    // motion), normals R n̄ (n̄ = F̄ z), no fits, and no strain to measure.
+    // When U^t was one rotation for every vertex too (the previous refresh was
+    // rigid), the rotation vector of U^tᵀ U^{t+h} is one vector: computed once
+    // (an atan2 and a quaternion product per vertex were a third of this loop).
+    ex.nextRigid = true;
+    const Matrix3& R = *rigidRotation;
+    const Eigen::Quaterniond q(R);
+    const Eigen::Quaterniond shared = rotations_.empty() ? q : rotations_[0];
+    const Vector3 sharedAxis = rotationVector(shared.conjugate() * q);
+#pragma omp parallel for schedule(static) if (n >= kMinParallelVertices)
+    for (int i = 0; i < n; ++i) {
+      const size_t k = static_cast<size_t>(i);
+      const Eigen::Quaterniond& previous = rotations_[k];
+      const Matrix3& restFrame = ex.restFrames[k];
+      if (previous.coeffs() == shared.coeffs()) {
+        angularVelocities.row(i) = (restFrame.transpose() * sharedAxis * invH).transpose();  // as angularVelocity(i)
+      } else {
+        angularVelocity(i);
+      }
+      nextRotations_[k] = q;
+      ex.kabschRotations[k] = R;
+      ex.nextFrames[k].noalias() = R * restFrame;
+      nextNormals_.row(i) = ex.nextFrames[k].col(2).transpose();
+      acceleration(i);
+    }
+    return maxEdgeStrain_ > strainTolerance_;
+  }
+
+  ex.nextRigid = false;
+  const std::vector<int>& offsets = topology.ringOffsets();
+  const std::vector<int>& neighbors = topology.ringNeighbors();
+  const std::vector<int>& ringEdges = topology.ringEdges();
+  const std::vector<char>& isBoundary = topology.vertexIsBoundary();
+  const bool useSvd = rotationFitMethod_ == RotationFitMethod::Svd;
+  const double* x = p2.data();
+  const double* y = x + n;
+  const double* z = y + n;
+  double maxRatio = 1.0, minRatio = 1.0;
+  long iterations = 0;
+  int fallbacks = 0;
+
+#pragma omp parallel for schedule(static) if (n >= kMinParallelVertices) \
+    reduction(max : maxRatio) reduction(min : minRatio) reduction(+ : iterations, fallbacks)
+  for (int i = 0; i < n; ++i) {
+    const size_t k = static_cast<size_t>(i);
+    const int begin = offsets[k], end = offsets[k + 1];
+    const double xi = x[i], yi = y[i], zi = z[i];
+    Matrix3 covariance = Matrix3::Zero();
+    Vector3 normalSum = Vector3::Zero();
+    Vector3 first = Vector3::Zero(), previous = Vector3::Zero();
+    for (int m = begin; m < end; ++m) {
+      const size_t mk = static_cast<size_t>(m);
+      const int j = neighbors[mk];
+      const Vector3 e(x[j] - xi, y[j] - yi, z[j] - zi);
+      covariance.noalias() += e * restRingEdges_[mk].transpose();
+      if (m == begin) {
+        first = e;
+      } else {
+        normalSum += previous.cross(e);
+      }
+      previous = e;
+      // Every edge is seen from both ends; max and min do not mind.
+      const double ratio = e.squaredNorm() * inverseBuiltSquaredLengths_(ringEdges[mk]);
+      maxRatio = std::max(maxRatio, ratio);
+      minRatio = std::min(minRatio, ratio);
+    }
+    if (!isBoundary[k]) normalSum += previous.cross(first);  // the ring's closing face
+    const double normalSquared = normalSum.squaredNorm();
+    // A fully folded fan has no normal: keep the one at t rather than a NaN.
+    if (normalSquared > 0.0) {
+      nextNormals_.row(i) = (normalSum * (1.0 / std::sqrt(normalSquared))).transpose();
+    } else {
+      nextNormals_.row(i) = ex.vertexNormals.row(i);
+    }
+
+    Matrix3 U;
+    Eigen::Quaterniond q = extrapolateRotation(previousRotations_[k], rotations_[k]);
+    int vertexIterations = 0;
+    const bool converged = !useSvd && newtonRotation(covariance, q, U, vertexIterations);
+    if (!converged) {
+      U = rotationFromCovariance(covariance);
+      q = Eigen::Quaterniond(U);
+      if (!useSvd) ++fallbacks;
+    }
+    iterations += vertexIterations;
+    nextRotations_[k] = q;
+    ex.kabschRotations[k] = U;
+    ex.nextFrames[k].noalias() = U * ex.restFrames[k];
+    angularVelocity(i);
+    acceleration(i);
+  }
+
+  maxEdgeStrain_ = std::max(std::sqrt(maxRatio) - 1.0, 1.0 - std::sqrt(minRatio));
+  rotationFitStats_.fittedVertices = n;
+  rotationFitStats_.newtonIterations = useSvd ? 0 : iterations;
+  rotationFitStats_.svdFallbacks = fallbacks;
+  return maxEdgeStrain_ > strainTolerance_;
+}
+
+FabricField isotropicFabricField(int faceCount, double densityDiffusivity, double viscosity) {
+  if (faceCount < 1 || !(densityDiffusivity >= 0) || !(viscosity >= 0))
+    throw std::invalid_argument("isotropicFabricField: need faceCount >= 1 and finite, non-negative coefficients");
+  FabricField fabric;
+  fabric.densityTensors = densityDiffusivity * identityFaceTensors(faceCount);
+  fabric.velocityTensors = viscosity * identityFaceTensors(faceCount);
+  fabric.weftDirections = RowVectors3::Zero(faceCount, 3);
+  return fabric;
+}
+
+}  // namespace blot::stain

@@ -1,0 +1,537 @@
+// Sparse Cholesky on CHOLMOD, split into analysis / numeric factorization / solve.
+//
+// Design note.
+//  - Input: Eigen column-major matrices storing both triangles of a symmetric
+//    (Hermitian) A. CHOLMOD reads them through a header-only cholmod_sparse view
+//    with stype = -1 (only entries on or below the diagonal are read), so no
+//    values are copied on our side. CHOLMOD itself builds one permuted copy
+//    triu(PAPᵀ) per numeric factorization (cholmod_factorize's stype < 0 path,
+//    the cheapest one it has for a permuted simplicial factor); that allocation
+//    is inside CHOLMOD and not avoidable from the outside.
+//    Rejected: copying tril(A) into our own cholmod_sparse once and refreshing
+//    its values — same CHOLMOD-internal copy, plus a second one of ours.
+//  - Analysis runs once per pattern on a stored copy of the lower-triangle
+//    pattern (column starts + row indices, O(nnz) ints). factorize compares the
+//    incoming lower pattern with it entry by entry (O(nnz), much cheaper than the
+//    factorization) and refuses a different pattern instead of factoring with a
+//    stale symbolic analysis.
+//  - The symbolic factor (pattern-only) is kept separate from the numeric one:
+//    every numeric factorization frees the previous numeric factor first and
+//    starts from a cholmod_copy_factor of the symbolic one, so one solver never
+//    holds two numeric factors (checked: the solves are bit-identical to the
+//    former in-place refactorization's, 22,500-unknown anisotropic system).
+//    Cost: the O(n) copy plus fresh pages for the values, a few per cent of
+//    the factorization (140K vertices). releaseFactor() lets the caller drop
+//    the numeric factor before an intrinsic rebuild assembles new operators,
+//    which is where a coupled step's memory peaks (docs/performance.md).
+//    CHOLMOD's workspace in Common (O(n), grown by analysis/factorization) is
+//    freed after each of them too: it is not used by our solve. Keeping a pattern-only
+//    symbolic factor is what makes shareAnalysisFrom cheap and type-agnostic:
+//    the complex connection system copies the real scalar system's symbolic
+//    factor (O(n) for simplicial) whatever the numeric state of that solver.
+//    If the factor kinds disagree (simplicial vs supernodal) the symbolic
+//    analysis is re-run with the other solver's permutation given
+//    (cholmod_analyze_p, CHOLMOD_GIVEN, no postorder), so the ordering is still
+//    shared exactly and no ordering heuristic runs twice.
+//  - Ordering: AMD below kNestedDissectionMinRows unknowns; from there on both
+//    AMD and CHOLMOD's nested dissection (NESDIS, on METIS bisection) are tried
+//    and CHOLMOD keeps the one with fewer nonzeros in L. CHOLMOD's default
+//    strategy would be the same as AMD alone here: it only tries METIS when
+//    AMD gives more than 500 flops per nonzero of L, which surface meshes do
+//    not reach (the 140K grid: 218). Measured (docs/performance.md): NESDIS cuts
+//    nnz(L) by 20% (35K grid), 13% (35K bunny) and 29% (140K grid), flops by
+//    33-45%, for 10x the analysis time (0.15-0.7 s from 35K to 140K vertices,
+//    once per connectivity); below ~20K unknowns it gains little or loses
+//    (camel 10K: +1% fill). Both
+//    orderings are deterministic: METIS is seeded with a fixed seed (same
+//    permutation in repeated processes, checked).
+//  - Simplicial factor: LLᵀ (final_ll). LLᵀ and LDLᵀ factor and solve equally
+//    fast here (within ±10% run-to-run noise, docs/performance.md), and LLᵀ
+//    stops at the first pivot <= 0 (Common->status = CHOLMOD_NOT_POSDEF,
+//    L->minor), like the supernodal factor. CHOLMOD's LDLᵀ only stops on an
+//    exactly zero pivot and would accept an indefinite matrix (checked: the
+//    NegativeFirstPivot test passes through it), so it would need a scan of D.
+//  - Errors are statuses, never exceptions (STYLE.md rec. 10). A failed
+//    factorize (pattern, non-finite, not positive definite) always leaves the
+//    solver "not factorized", so a solve cannot silently use the factor of an
+//    older matrix.
+//  - Solve: for the simplicial LLᵀ factor, our own permute / forward / back
+//    substitution over L's arrays into a work vector sized at factorize
+//    (simplicialSolve). CHOLMOD's real simplicial cholmod_solve2 allocates on
+//    every call (its complex one does not); ours allocates nothing, writes x
+//    directly (no copy out of a cholmod_dense) and is as fast or faster (issue
+//    4, docs/performance.md "Stain step"). Rounding differs from CHOLMOD's
+//    (it walks chains of columns together), not the algorithm. The supernodal
+//    factor still goes through cholmod_solve2.
+//  - solve is const but writes the solver's work vector (and CHOLMOD's
+//    reusable solve workspace X, Y, E for the supernodal path): one solver
+//    must not be used by two threads at once.
+#include <blot/stain/numerics/sparse_solver.h>
+
+#include <cholmod.h>
+
+#include <cmath>
+#include <cstring>
+#include <vector>
+
+namespace blot::stain {
+
+namespace cholmod_detail {
+
+// From this many unknowns on, nested dissection is tried beside AMD.
+constexpr int kNestedDissectionMinRows = 20000;
+
+template <typename Scalar>
+struct ScalarTraits;
+
+template <>
+struct ScalarTraits<double> {
+  static constexpr int xtype = CHOLMOD_REAL;
+  static bool isFinite(double value) { return std::isfinite(value); }
+};
+
+template <>
+struct ScalarTraits<Complex> {
+  // std::complex<double> is laid out as {re, im}: CHOLMOD_COMPLEX, interleaved.
+  static constexpr int xtype = CHOLMOD_COMPLEX;
+  static bool isFinite(const Complex& value) {
+    return std::isfinite(value.real()) && std::isfinite(value.imag());
+  }
+};
+
+// Everything that does not depend on the scalar type.
+struct SolverCore {
+  explicit SolverCore(FactorKind factorKind) : kind(factorKind) {
+    cholmod_start(&common);
+    common.print = 0;  // silent: every failure is returned as a SolverStatus.
+    // Orderings tried by analyzeStoredPattern: method[0] = AMD (or the given
+    // permutation), method[1] = NESDIS with CHOLMOD's default parameters.
+    common.method[1].ordering = CHOLMOD_NESDIS;
+    common.final_ll = 1;  // simplicial LLᵀ: detects non-positive pivots itself.
+    common.quick_return_if_not_posdef = 1;
+    switch (kind) {
+      case FactorKind::Simplicial: common.supernodal = CHOLMOD_SIMPLICIAL; break;
+      case FactorKind::Supernodal: common.supernodal = CHOLMOD_SUPERNODAL; break;
+      case FactorKind::Auto: common.supernodal = CHOLMOD_AUTO; break;
+    }
+  }
+  ~SolverCore() {
+    freeNumeric();
+    cholmod_free_factor(&symbolic, &common);
+    cholmod_free_dense(&solution, &common);
+    cholmod_free_dense(&workspaceY, &common);
+    cholmod_free_dense(&workspaceE, &common);
+    cholmod_finish(&common);
+  }
+  SolverCore(const SolverCore&) = delete;
+  SolverCore& operator=(const SolverCore&) = delete;
+
+  void freeNumeric() {
+    cholmod_free_factor(&factor, &common);
+    factorized = false;
+  }
+  void resetAnalysis() {
+    freeNumeric();
+    cholmod_free_factor(&symbolic, &common);
+    n = 0;
+    lowerColumnStarts.clear();
+    lowerRowIndices.clear();
+  }
+
+  // Pattern-only, lower-triangle view of the stored analysed pattern.
+  cholmod_sparse lowerPatternView() {
+    cholmod_sparse view{};
+    view.nrow = static_cast<size_t>(n);
+    view.ncol = static_cast<size_t>(n);
+    view.nzmax = lowerRowIndices.size();
+    view.p = lowerColumnStarts.data();
+    view.i = lowerRowIndices.data();
+    view.stype = -1;
+    view.itype = CHOLMOD_INT;
+    view.xtype = CHOLMOD_PATTERN;
+    view.dtype = CHOLMOD_DOUBLE;
+    view.sorted = 1;
+    view.packed = 1;
+    return view;
+  }
+
+  // Symbolic analysis of the stored pattern; givenPermutation = nullptr lets AMD
+  // (and NESDIS, for large n) order it, otherwise that ordering is used as is.
+  SolverStatus analyzeStoredPattern(int* givenPermutation) {
+    cholmod_sparse pattern = lowerPatternView();
+    if (givenPermutation != nullptr) {
+      common.nmethods = 1;
+      common.method[0].ordering = CHOLMOD_GIVEN;
+      common.postorder = 0;  // keep the given permutation exactly.
+    } else {
+      common.nmethods = n >= kNestedDissectionMinRows ? 2 : 1;
+      common.method[0].ordering = CHOLMOD_AMD;
+      common.postorder = 1;
+    }
+    symbolic = cholmod_analyze_p(&pattern, givenPermutation, nullptr, 0, &common);
+    cholmod_free_work(&common);
+    if (symbolic == nullptr || common.status < CHOLMOD_OK) {
+      resetAnalysis();
+      return SolverStatus::CholmodError;
+    }
+    ++analysisCount;
+    return SolverStatus::Ok;
+  }
+
+  bool acceptsSymbolicKind(const cholmod_factor& other) const {
+    switch (kind) {
+      case FactorKind::Simplicial: return other.is_super == 0;
+      case FactorKind::Supernodal: return other.is_super != 0;
+      case FactorKind::Auto: return true;
+    }
+    return false;
+  }
+
+  SolverStatus shareFrom(const SolverCore& other) {
+    if (&other == this) return symbolic != nullptr ? SolverStatus::Ok : SolverStatus::NotAnalyzed;
+    resetAnalysis();
+    if (other.symbolic == nullptr) return SolverStatus::NotAnalyzed;
+    n = other.n;
+    lowerColumnStarts = other.lowerColumnStarts;
+    lowerRowIndices = other.lowerRowIndices;
+    if (acceptsSymbolicKind(*other.symbolic)) {
+      symbolic = cholmod_copy_factor(other.symbolic, &common);
+      if (symbolic == nullptr) {
+        resetAnalysis();
+        return SolverStatus::CholmodError;
+      }
+      return SolverStatus::Ok;
+    }
+    return analyzeStoredPattern(static_cast<int*>(other.symbolic->Perm));
+  }
+
+  cholmod_common common{};
+  FactorKind kind;
+  cholmod_factor* symbolic = nullptr;  // pattern-only, from the analysis.
+  cholmod_factor* factor = nullptr;    // numeric, refactored in place.
+  cholmod_dense* solution = nullptr;   // solve workspace, reused.
+  cholmod_dense* workspaceY = nullptr;
+  cholmod_dense* workspaceE = nullptr;
+  int n = 0;
+  std::vector<int> lowerColumnStarts;  // n + 1
+  std::vector<int> lowerRowIndices;    // nnz(tril(A))
+  bool factorized = false;
+  int analysisCount = 0;
+  int factorizationCount = 0;
+};
+
+// Stored range [begin, end) of column j of an Eigen matrix, compressed or not.
+template <typename Matrix>
+inline int columnEnd(const Matrix& A, int j) {
+  const int* outer = A.outerIndexPtr();
+  return A.isCompressed() ? outer[j + 1] : outer[j] + A.innerNonZeroPtr()[j];
+}
+
+template <typename Matrix>
+void storeLowerPattern(const Matrix& A, std::vector<int>& columnStarts,
+                       std::vector<int>& rowIndices) {
+  const int n = static_cast<int>(A.cols());
+  const int* outer = A.outerIndexPtr();
+  const int* inner = A.innerIndexPtr();
+  columnStarts.assign(static_cast<size_t>(n) + 1, 0);
+  rowIndices.clear();
+  rowIndices.reserve(static_cast<size_t>(A.nonZeros() / 2 + n));
+  for (int j = 0; j < n; ++j) {
+    for (int p = outer[j], end = columnEnd(A, j); p < end; ++p) {
+      if (inner[p] >= j) rowIndices.push_back(inner[p]);
+    }
+    columnStarts[static_cast<size_t>(j) + 1] = static_cast<int>(rowIndices.size());
+  }
+}
+
+template <typename Matrix>
+bool lowerPatternMatches(const Matrix& A, const std::vector<int>& columnStarts,
+                         const std::vector<int>& rowIndices) {
+  const int n = static_cast<int>(columnStarts.size()) - 1;
+  if (A.rows() != n || A.cols() != n) return false;
+  const int* outer = A.outerIndexPtr();
+  const int* inner = A.innerIndexPtr();
+  for (int j = 0; j < n; ++j) {
+    int q = columnStarts[j];
+    const int qEnd = columnStarts[j + 1];
+    for (int p = outer[j], end = columnEnd(A, j); p < end; ++p) {
+      if (inner[p] < j) continue;
+      if (q == qEnd || rowIndices[q] != inner[p]) return false;
+      ++q;
+    }
+    if (q != qEnd) return false;
+  }
+  return true;
+}
+
+template <typename Scalar, typename Matrix>
+bool allValuesFinite(const Matrix& A) {
+  const int n = static_cast<int>(A.cols());
+  const Scalar* values = A.valuePtr();
+  for (int j = 0; j < n; ++j) {
+    for (int p = A.outerIndexPtr()[j], end = columnEnd(A, j); p < end; ++p) {
+      if (!ScalarTraits<Scalar>::isFinite(values[p])) return false;
+    }
+  }
+  return true;
+}
+
+// Header-only cholmod_sparse over Eigen's storage (no copy). CHOLMOD does not
+// write through it.
+template <typename Scalar, typename Matrix>
+cholmod_sparse lowerView(const Matrix& A) {
+  cholmod_sparse view{};
+  view.nrow = static_cast<size_t>(A.rows());
+  view.ncol = static_cast<size_t>(A.cols());
+  view.nzmax = static_cast<size_t>(A.nonZeros());
+  view.p = const_cast<int*>(A.outerIndexPtr());
+  view.i = const_cast<int*>(A.innerIndexPtr());
+  view.nz = A.isCompressed() ? nullptr : const_cast<int*>(A.innerNonZeroPtr());
+  view.x = const_cast<Scalar*>(A.valuePtr());
+  view.stype = -1;
+  view.itype = CHOLMOD_INT;
+  view.xtype = ScalarTraits<Scalar>::xtype;
+  view.dtype = CHOLMOD_DOUBLE;
+  view.sorted = 1;
+  view.packed = A.isCompressed() ? 1 : 0;
+  return view;
+}
+
+}  // namespace cholmod_detail
+
+namespace cholmod_detail {
+
+// The substitution's arithmetic, written out for complex values so that no
+// libgcc call (__divdc3, __muldc3's NaN path) sits in the inner loops; the
+// diagonal of an LLᴴ factor is real.
+inline double minusProduct(double accumulator, double l, double z) { return accumulator - l * z; }
+inline Complex minusProduct(const Complex& accumulator, const Complex& l, const Complex& z) {
+  return {accumulator.real() - (l.real() * z.real() - l.imag() * z.imag()),
+          accumulator.imag() - (l.real() * z.imag() + l.imag() * z.real())};
+}
+inline double minusConjugateProduct(double accumulator, double l, double z) { return accumulator - l * z; }
+inline Complex minusConjugateProduct(const Complex& accumulator, const Complex& l, const Complex& z) {
+  return {accumulator.real() - (l.real() * z.real() + l.imag() * z.imag()),
+          accumulator.imag() - (l.real() * z.imag() - l.imag() * z.real())};
+}
+inline double divideByDiagonal(double value, double diagonal) { return value / diagonal; }
+inline Complex divideByDiagonal(const Complex& value, const Complex& diagonal) {
+  return {value.real() / diagonal.real(), value.imag() / diagonal.real()};
+}
+
+// x = A⁻¹ b = Pᵀ L⁻ᴴ L⁻¹ P b over a simplicial LLᴴ factor (CHOLMOD's layout:
+// column j in i/x[p[j], p[j] + nz[j]), diagonal entry first, real for LLᴴ),
+// through `work` (n entries). Column-oriented forward substitution (a scatter
+// per column) and row-oriented back substitution (a gather), each one pass
+// over L in a fixed order: deterministic and allocation-free.
+template <typename Scalar>
+void simplicialSolve(const cholmod_factor& L, const Scalar* b, Scalar* x, Scalar* work) {
+  const int n = static_cast<int>(L.n);
+  const int* perm = static_cast<const int*>(L.Perm);
+  const int* columnStarts = static_cast<const int*>(L.p);
+  const int* columnCounts = static_cast<const int*>(L.nz);
+  const int* rows = static_cast<const int*>(L.i);
+  const Scalar* values = static_cast<const Scalar*>(L.x);
+  for (int k = 0; k < n; ++k) work[k] = b[perm[k]];
+  for (int j = 0; j < n; ++j) {
+    const int begin = columnStarts[j], end = begin + columnCounts[j];
+    const Scalar z = divideByDiagonal(work[j], values[begin]);
+    work[j] = z;
+    for (int q = begin + 1; q < end; ++q) work[rows[q]] = minusProduct(work[rows[q]], values[q], z);
+  }
+  for (int j = n - 1; j >= 0; --j) {
+    const int begin = columnStarts[j], end = begin + columnCounts[j];
+    Scalar sum = work[j];
+    for (int q = begin + 1; q < end; ++q) sum = minusConjugateProduct(sum, values[q], work[rows[q]]);
+    work[j] = divideByDiagonal(sum, values[begin]);
+  }
+  for (int k = 0; k < n; ++k) x[perm[k]] = work[k];
+}
+
+}  // namespace cholmod_detail
+
+template <typename Scalar>
+struct CholeskySolver<Scalar>::Impl : cholmod_detail::SolverCore {
+  using SolverCore::SolverCore;
+  std::vector<Scalar> solveWork;  // n, for simplicialSolve (sized at factorize)
+};
+
+template <typename Scalar>
+CholeskySolver<Scalar>::CholeskySolver(FactorKind kind) : impl_(std::make_unique<Impl>(kind)) {}
+
+template <typename Scalar>
+CholeskySolver<Scalar>::~CholeskySolver() = default;
+
+template <typename Scalar>
+CholeskySolver<Scalar>::CholeskySolver(CholeskySolver&&) noexcept = default;
+
+template <typename Scalar>
+CholeskySolver<Scalar>& CholeskySolver<Scalar>::operator=(CholeskySolver&&) noexcept = default;
+
+template <typename Scalar>
+SolverStatus CholeskySolver<Scalar>::analyzePattern(const Matrix& A) {
+  if (!impl_) impl_ = std::make_unique<Impl>(FactorKind::Simplicial);  // moved-from
+  Impl& s = *impl_;
+  s.resetAnalysis();
+  if (A.rows() != A.cols() || A.rows() == 0) return SolverStatus::SizeMismatch;
+  s.n = static_cast<int>(A.rows());
+  cholmod_detail::storeLowerPattern(A, s.lowerColumnStarts, s.lowerRowIndices);
+  return s.analyzeStoredPattern(nullptr);
+}
+
+template <typename Scalar>
+template <typename OtherScalar>
+SolverStatus CholeskySolver<Scalar>::shareAnalysisFrom(const CholeskySolver<OtherScalar>& other) {
+  if (!impl_) impl_ = std::make_unique<Impl>(FactorKind::Simplicial);
+  if (!other.impl_) {
+    impl_->resetAnalysis();
+    return SolverStatus::NotAnalyzed;
+  }
+  return impl_->shareFrom(*other.impl_);
+}
+
+template <typename Scalar>
+SolverStatus CholeskySolver<Scalar>::factorize(const Matrix& A) {
+  if (!impl_ || impl_->symbolic == nullptr) return SolverStatus::NotAnalyzed;
+  Impl& s = *impl_;
+  s.factorized = false;
+  if (!cholmod_detail::lowerPatternMatches(A, s.lowerColumnStarts, s.lowerRowIndices)) {
+    return SolverStatus::PatternMismatch;
+  }
+  if (!cholmod_detail::allValuesFinite<Scalar>(A)) return SolverStatus::NonFinite;
+
+  s.freeNumeric();  // never two numeric factors at once (design note)
+  s.factor = cholmod_copy_factor(s.symbolic, &s.common);
+  if (s.factor == nullptr) return SolverStatus::CholmodError;
+  cholmod_sparse view = cholmod_detail::lowerView<Scalar>(A);
+  const int ok = cholmod_factorize(&view, s.factor, &s.common);
+  cholmod_free_work(&s.common);
+  ++s.factorizationCount;
+  if (!ok || s.common.status < CHOLMOD_OK) {
+    s.freeNumeric();
+    return SolverStatus::CholmodError;
+  }
+  if (s.common.status == CHOLMOD_NOT_POSDEF || s.factor->minor < s.factor->n) {
+    // Drop the partial factor: the next factorize starts from the symbolic one.
+    s.freeNumeric();
+    return SolverStatus::NotPositiveDefinite;
+  }
+  if (s.solveWork.size() != static_cast<size_t>(s.n)) s.solveWork.resize(static_cast<size_t>(s.n));
+  s.factorized = true;
+  return SolverStatus::Ok;
+}
+
+template <typename Scalar>
+void CholeskySolver<Scalar>::releaseFactor() {
+  if (!impl_) return;
+  impl_->freeNumeric();
+  cholmod_free_work(&impl_->common);
+}
+
+template <typename Scalar>
+SolverStatus CholeskySolver<Scalar>::compute(const Matrix& A) {
+  const SolverStatus status = analyzePattern(A);
+  return status == SolverStatus::Ok ? factorize(A) : status;
+}
+
+template <typename Scalar>
+SolverStatus CholeskySolver<Scalar>::solve(const VectorType& rhs, VectorType& x) const {
+  if (!impl_ || impl_->symbolic == nullptr) return SolverStatus::NotAnalyzed;
+  Impl& s = *impl_;
+  if (!s.factorized) return SolverStatus::NotFactorized;
+  if (rhs.size() != s.n) return SolverStatus::SizeMismatch;
+  for (Eigen::Index i = 0; i < rhs.size(); ++i) {
+    if (!cholmod_detail::ScalarTraits<Scalar>::isFinite(rhs[i])) return SolverStatus::NonFinite;
+  }
+  const cholmod_factor& L = *s.factor;
+  if (!L.is_super && L.is_ll && L.itype == CHOLMOD_INT && L.xtype == cholmod_detail::ScalarTraits<Scalar>::xtype &&
+      L.Perm != nullptr && L.nz != nullptr) {
+    // Our own substitution: CHOLMOD's real simplicial solve allocates on every
+    // call; this does not, and it writes x directly (work holds P b first, so
+    // rhs and x may be the same vector).
+    x.resize(s.n);
+    cholmod_detail::simplicialSolve<Scalar>(L, rhs.data(), x.data(), s.solveWork.data());
+    return SolverStatus::Ok;
+  }
+  cholmod_dense b{};
+  b.nrow = static_cast<size_t>(s.n);
+  b.ncol = 1;
+  b.nzmax = static_cast<size_t>(s.n);
+  b.d = static_cast<size_t>(s.n);
+  b.x = const_cast<Scalar*>(rhs.data());  // read only
+  b.xtype = cholmod_detail::ScalarTraits<Scalar>::xtype;
+  b.dtype = CHOLMOD_DOUBLE;
+  const int ok = cholmod_solve2(CHOLMOD_A, s.factor, &b, nullptr, &s.solution, nullptr,
+                                &s.workspaceY, &s.workspaceE, &s.common);
+  if (!ok || s.solution == nullptr) return SolverStatus::CholmodError;
+  // Copy out (O(n), small beside the O(nnz(L)) solve); reading rhs finished
+  // above, so rhs and x may be the same vector.
+  x.resize(s.n);
+  std::memcpy(static_cast<void*>(x.data()), s.solution->x, sizeof(Scalar) * static_cast<size_t>(s.n));
+  return SolverStatus::Ok;
+}
+
+template <typename Scalar>
+bool CholeskySolver<Scalar>::isAnalyzed() const {
+  return impl_ && impl_->symbolic != nullptr;
+}
+
+template <typename Scalar>
+bool CholeskySolver<Scalar>::isFactorized() const {
+  return impl_ && impl_->factorized;
+}
+
+template <typename Scalar>
+int CholeskySolver<Scalar>::rows() const {
+  return impl_ ? impl_->n : 0;
+}
+
+template <typename Scalar>
+int CholeskySolver<Scalar>::analysisCount() const {
+  return impl_ ? impl_->analysisCount : 0;
+}
+
+template <typename Scalar>
+int CholeskySolver<Scalar>::factorizationCount() const {
+  return impl_ ? impl_->factorizationCount : 0;
+}
+
+template <typename Scalar>
+long CholeskySolver<Scalar>::factorNonZeros() const {
+  if (!impl_ || impl_->symbolic == nullptr) return 0;
+  // Exact nnz(L) of the simplicial factor (diagonal included) from the
+  // symbolic column counts; the same for simplicial and supernodal, which also
+  // stores the zeros of relaxed amalgamation.
+  const cholmod_factor& L = *impl_->symbolic;
+  const int* columnCounts = static_cast<const int*>(L.ColCount);
+  long total = 0;
+  for (size_t j = 0; j < L.n; ++j) total += columnCounts[j];
+  return total;
+}
+
+const char* toString(SolverStatus status) {
+  switch (status) {
+    case SolverStatus::Ok: return "Ok";
+    case SolverStatus::NotAnalyzed: return "NotAnalyzed";
+    case SolverStatus::PatternMismatch: return "PatternMismatch";
+    case SolverStatus::NotPositiveDefinite: return "NotPositiveDefinite";
+    case SolverStatus::NotFactorized: return "NotFactorized";
+    case SolverStatus::SizeMismatch: return "SizeMismatch";
+    case SolverStatus::NonFinite: return "NonFinite";
+    case SolverStatus::CholmodError: return "CholmodError";
+  }
+  return "Unknown";
+}
+
+template class CholeskySolver<double>;
+template class CholeskySolver<Complex>;
+template SolverStatus CholeskySolver<double>::shareAnalysisFrom<double>(
+    const CholeskySolver<double>&);
+template SolverStatus CholeskySolver<double>::shareAnalysisFrom<Complex>(
+    const CholeskySolver<Complex>&);
+template SolverStatus CholeskySolver<Complex>::shareAnalysisFrom<double>(
+    const CholeskySolver<double>&);
+template SolverStatus CholeskySolver<Complex>::shareAnalysisFrom<Complex>(
+    const CholeskySolver<Complex>&);
+
+}  // namespace blot::stain

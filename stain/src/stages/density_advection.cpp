@@ -1,0 +1,350 @@
+// Stage "advect density": finite-volume upwind advection of free solvent and
+// solute (paper sec. 3.1).
+//
+// Design note.
+//  - Equation: ∂σ/∂t + ∇·(σu) = 0 for σ_f and σ_s. Cell i is vertex i's dual
+//    region (area A_i, the lumped mass); the flux through the dual edge
+//    between cells i and j is F_ij = σ↑ (u_ij · N_ij), with
+//    u_ij = ½(F_i u_i + F_j u_j) in 3D (frames at t), σ↑ the upwind density and
+//    N_ij the integrated unit normal of the dual edge between the cells.
+//    The cells are the barycentric ones (A_i = one third of the one-ring area,
+//    the lumped mass every other stage uses), so the dual edge runs from the
+//    edge midpoint to the centroid of each adjacent face and N_ij = Σ_T
+//    (c_T − m_ij) × n_T, oriented from i to j. The paper writes the flux as
+//    (u_ij · e_ij) w_ij with cotan weights, which is the same N_ij for the
+//    circumcentric (Voronoi) cells. With barycentric areas that mix moves a
+//    uniform flow at the wrong speed wherever the two cells differ (measured:
+//    the rotating-disc blob of paper Fig. 5 ran 3 % ahead, an error that does
+//    not shrink with refinement); with N_ij the cell boundary closes
+//    (Σ_j N_ij = 0 at interior vertices), a uniform flow is exact, and no
+//    weight can be negative, so obtuse triangles need no clamp.
+//  - Work in masses m_i = A_i σ_i: each edge's flux is one number that leaves
+//    one cell and enters the other, so Σ m is conserved to rounding.
+//  - Boundary: fluxes cross only dual edges, and every dual edge lies inside
+//    the surface, so nothing crosses the mesh boundary (no transfer) without
+//    any special case. A boundary edge's dual edge (midpoint to circumcentre of
+//    its one face) separates two boundary cells inside the surface; it carries
+//    flux along the boundary. Zeroing boundary edges, as first planned, would
+//    stop liquid from sliding along the boundary (against free slip) and is
+//    not needed for conservation.
+//  - Positivity and sub-steps: over a sub-step τ vertex i loses the fraction
+//    f_i = τ outflow_i / A_i of its mass (outflow_i = Σ of the speeds of its
+//    outgoing edges). n = ceil(max over wet vertices of h outflow_i / A_i)
+//    sub-steps make f_i ≤ 1. A vertex whose f_i would still exceed 1 (the cap
+//    ctx.maxAdvectionSubsteps was hit, or a dry vertex that received mass in
+//    an earlier sub-step) gives exactly what it holds: f_i = 1, split over its
+//    outgoing edges in proportion to their speeds. The update is written as
+//    m_i ← (1 − f_i) m_i + Σ_j s_ji m_j with every term ≥ 0, so no density can
+//    go negative even by rounding. Velocities are fixed during the stage, so
+//    the shares (1 − f_i, s_ji) are computed once per step and a sub-step is
+//    one fixed-weight gather over the one-rings (both species in one sweep:
+//    the second costs little once the shares are in cache).
+//    Rejected: a global CFL-limited time step (the engine's h is fixed), and
+//    clamping negative densities (not mass-conserving, hides the error).
+//  - Work restricted to the wet region: liquid moves at most one ring per
+//    sub-step, so with n sub-steps only the wet vertices and their n-ring halo
+//    can change. That set is built ring by ring (a serial breadth-first sweep
+//    in index order, deterministic) and every pass runs over it; edges from
+//    its outermost ring outwards are closed (both sides see speed 0), which
+//    changes nothing the liquid could reach. When the wet set covers half the
+//    mesh, all vertices are active and the sweep is skipped.
+//  - Speeds per ring entry, not per edge: vertex i computes
+//    ½(U_i + U_j)·(p_j − p_i) w_ij for its own ring, and j computes the same
+//    expression with i and j swapped, which is bit for bit its negative
+//    (a + b = b + a and x − y = −(y − x) in IEEE arithmetic). So every pass is a
+//    per-vertex gather over contiguous ring entries: no scatter, no atomics,
+//    OpenMP-deterministic. The Courant maximum is a max-reduction (exact).
+//  - Rigid motion (ExtrinsicGeometry::rigid): frames R F̄ and dual normals
+//    R N̄, so ½(F_i u_i + F_j u_j)·N_ij = ½(u_i·F̄_iᵀN̄_ij + u_j·F̄_jᵀN̄_ij), with
+//    the two 2D projections per edge computed once from the rest shape
+//    (SurfaceGeometry::restEdgeFrameNormals): a ring entry costs 8 products
+//    instead of two face normals and the 3D velocities (the per-entry normals
+//    were ~2/3 of this stage). Equal to the general path up to rounding.
+#include <blot/stain/stages/density_advection.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace blot::stain {
+namespace {
+
+// Below this many active vertices the passes run on one thread: the fork/join
+// costs more than the few flops per vertex (tuned in tests/bench).
+constexpr int kMinParallelVertices = 4096;
+
+// max(x, 0) without a branch (std::max compiles to compare-and-jump under
+// strict IEEE semantics, and the sign of a speed is a coin flip the branch
+// predictor cannot learn). Exact: x + |x| = 2x or 0, and halving is exact.
+inline double positivePart(double x) { return 0.5 * (x + std::abs(x)); }
+
+// Appends to `active` every unmarked neighbour of active[from, to), marking it.
+void addNextRing(const SurfaceTopology& topology, int from, int to, std::vector<int>& active,
+                 std::vector<char>& marks) {
+  const std::vector<int>& offsets = topology.ringOffsets();
+  const std::vector<int>& neighbors = topology.ringNeighbors();
+  for (int k = from; k < to; ++k) {
+    const int i = active[static_cast<size_t>(k)];
+    for (int m = offsets[static_cast<size_t>(i)]; m < offsets[static_cast<size_t>(i) + 1]; ++m) {
+      const int j = neighbors[static_cast<size_t>(m)];
+      if (!marks[static_cast<size_t>(j)]) {
+        marks[static_cast<size_t>(j)] = 1;
+        active.push_back(j);
+      }
+    }
+  }
+}
+
+}  // namespace
+
+void DensityAdvectionScratch::resize(int vertexCount, int edgeCount) {
+  activeVertices.clear();
+  activeVertices.reserve(static_cast<size_t>(vertexCount));
+  activeMarks.assign(static_cast<size_t>(vertexCount), 0);
+  vertexVelocities.resize(vertexCount, 3);
+  vertexPositions.resize(vertexCount, 3);
+  ringSpeeds.resize(2 * static_cast<Eigen::Index>(edgeCount));
+  outflowRates.resize(vertexCount);
+  keptFractions.resize(vertexCount);
+  givingRatios.resize(vertexCount);
+  ringInflowShares.resize(2 * static_cast<Eigen::Index>(edgeCount));
+  // Zero, not just sized: a vertex outside the active set is read as a ring
+  // neighbour (its giving ratio and mass enter the shares of the active
+  // vertices next to it), so those entries must hold 0, never stale or
+  // uninitialised values. advectDensities restores the zeros after each call.
+  vertexVelocities.setZero();
+  vertexPositions.setZero();
+  ringSpeeds.setZero();
+  outflowRates.setZero();
+  keptFractions.setZero();
+  givingRatios.setZero();
+  ringInflowShares.setZero();
+  massSolvent.setZero(vertexCount);
+  massSolute.setZero(vertexCount);
+  nextMassSolvent.setZero(vertexCount);
+  nextMassSolute.setZero(vertexCount);
+}
+
+DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopology& topology,
+                                       const IntrinsicGeometry& intrinsic, const ExtrinsicGeometry& extrinsic,
+                                       const std::vector<char>& wet, DensityAdvectionScratch& scratch,
+                                       StainState& state, const EdgeFrameNormals* restEdgeFrameNormals) {
+  const int n = topology.vertexCount();
+  const int edgeCount = topology.edgeCount();
+  if (static_cast<int>(scratch.activeMarks.size()) != n || scratch.massSolvent.size() != n ||
+      scratch.ringSpeeds.size() != 2 * static_cast<Eigen::Index>(edgeCount)) {
+    scratch.resize(n, edgeCount);  // first call only
+  }
+  const std::vector<int>& offsets = topology.ringOffsets();
+  const std::vector<int>& neighbors = topology.ringNeighbors();
+  const std::vector<int>& ringEdges = topology.ringEdges();
+  const Vector& areas = intrinsic.vertexDualAreas;
+  const double h = ctx.h;
+  std::vector<int>& active = scratch.activeVertices;
+  std::vector<char>& marks = scratch.activeMarks;
+  DensityAdvectionReport report;
+
+  // Layer 0: the wet vertices (or everything).
+  int wetCount = 0;
+  if (!wet.empty()) {
+    for (int i = 0; i < n; ++i) wetCount += wet[static_cast<size_t>(i)] ? 1 : 0;
+  }
+  const bool everything = wet.empty() || 2 * wetCount >= n;
+  active.clear();
+  if (everything) {
+    for (int i = 0; i < n; ++i) active.push_back(i);
+    std::fill(marks.begin(), marks.end(), 1);
+  } else {
+    for (int i = 0; i < n; ++i) {
+      if (wet[static_cast<size_t>(i)]) {
+        active.push_back(i);
+        marks[static_cast<size_t>(i)] = 1;
+      }
+    }
+  }
+  const int wetEnd = static_cast<int>(active.size());
+  if (!everything) addNextRing(topology, 0, wetEnd, active, marks);
+  const int firstRingEnd = static_cast<int>(active.size());
+
+  // U_i = F_i u_i (world) and p_i, row-major, on active[from, to).
+  auto worldVelocities = [&](int from, int to) {
+#pragma omp parallel for schedule(static) if (to - from >= kMinParallelVertices)
+    for (int k = from; k < to; ++k) {
+      const int i = active[static_cast<size_t>(k)];
+      const Matrix3& frame = extrinsic.frames[static_cast<size_t>(i)];
+      const Complex u = state.velocities(i);
+      scratch.vertexVelocities.row(i) = (frame.col(0) * u.real() + frame.col(1) * u.imag()).transpose();
+      scratch.vertexPositions.row(i) = extrinsic.positions.row(i);
+    }
+  };
+  // Ring speeds and outflow rates on active[from, to); edges to inactive
+  // vertices are closed. Returns the largest Courant number over the wet ones.
+  // Raw pointers and no data-dependent branches (see positivePart).
+  const int* ringOffsets = offsets.data();
+  const int* ringNeighbors = neighbors.data();
+  const int* ringEdgeIds = ringEdges.data();
+  const char* marked = marks.data();
+  const double* velocities3 = scratch.vertexVelocities.data();
+  double* speeds = scratch.ringSpeeds.data();
+  // Rigid motion: the same speed from the rest frames (see the header), u
+  // read as it is stored; the expression for an edge is evaluated identically
+  // from both ends (a = edgeVertices(e, 0) first), so the two entries are
+  // again bitwise opposite.
+  const bool rigid = restEdgeFrameNormals != nullptr && extrinsic.rigid &&
+                     restEdgeFrameNormals->rows() == edgeCount;
+  const double* frameNormals = rigid ? restEdgeFrameNormals->data() : nullptr;
+  const int* edgeFirst = topology.edgeVertices().data();
+  const int* edgeSecond = edgeFirst + edgeCount;
+  const Complex* u = state.velocities.data();
+  auto ringSpeedsAndOutflowRigid = [&](int from, int to) {
+    double maxCourant = 0.0;
+#pragma omp parallel for schedule(static) reduction(max : maxCourant) if (to - from >= kMinParallelVertices)
+    for (int k = from; k < to; ++k) {
+      const int i = active[static_cast<size_t>(k)];
+      double outflow = 0.0;
+      for (int m = ringOffsets[i]; m < ringOffsets[i + 1]; ++m) {
+        const int j = ringNeighbors[m];
+        const int e = ringEdgeIds[m];
+        const double* c = frameNormals + 4 * static_cast<size_t>(e);
+        const Complex ua = u[edgeFirst[e]], ub = u[edgeSecond[e]];
+        const double along = (ua.real() * c[0] + ua.imag() * c[1]) + (ub.real() * c[2] + ub.imag() * c[3]);
+        const double sign = i == edgeFirst[e] ? 1.0 : -1.0;
+        const double speed = marked[j] ? 0.5 * (sign * along) : 0.0;
+        speeds[m] = speed;
+        outflow += positivePart(speed);
+      }
+      scratch.outflowRates(i) = outflow;
+      if (wet.empty() || wet[static_cast<size_t>(i)])
+        maxCourant = std::max(maxCourant, h * outflow / areas(i));
+    }
+    return maxCourant;
+  };
+  auto ringSpeedsAndOutflow = [&](int from, int to) {
+    if (rigid) return ringSpeedsAndOutflowRigid(from, to);
+    double maxCourant = 0.0;
+#pragma omp parallel for schedule(static) reduction(max : maxCourant) if (to - from >= kMinParallelVertices)
+    for (int k = from; k < to; ++k) {
+      const int i = active[static_cast<size_t>(k)];
+      const double* ui = velocities3 + 3 * static_cast<size_t>(i);
+      double outflow = 0.0;
+      for (int m = ringOffsets[i]; m < ringOffsets[i + 1]; ++m) {
+        const int j = ringNeighbors[m];
+        const double* uj = velocities3 + 3 * static_cast<size_t>(j);
+        // ½(U_i + U_j)·N_ij, written so that j's ring gets the exact negative
+        // (sums commute; N_ji is N_ij negated, and negation is exact in IEEE).
+        const Vector3 dual = dualEdgeNormal(topology, extrinsic.positions, ringEdgeIds[m]);
+        const double sign = i < j ? 1.0 : -1.0;
+        const double along = sign * ((ui[0] + uj[0]) * dual[0] + (ui[1] + uj[1]) * dual[1] +
+                                     (ui[2] + uj[2]) * dual[2]);
+        const double speed = marked[j] ? 0.5 * along : 0.0;
+        speeds[m] = speed;
+        outflow += positivePart(speed);
+      }
+      scratch.outflowRates(i) = outflow;
+      if (wet.empty() || wet[static_cast<size_t>(i)])
+        maxCourant = std::max(maxCourant, h * outflow / areas(i));
+    }
+    return maxCourant;
+  };
+
+  if (!rigid) worldVelocities(0, firstRingEnd);
+  const double maxCourant = ringSpeedsAndOutflow(0, wetEnd);
+  report.maxCourant = maxCourant;
+  if (!(maxCourant > 0.0)) {  // nothing moves (or non-finite input: leave the state as is)
+    for (const int i : active) marks[static_cast<size_t>(i)] = 0;
+    active.clear();
+    return report;
+  }
+  const int substeps =
+      static_cast<int>(std::min<double>(std::ceil(maxCourant), std::max(1, ctx.maxAdvectionSubsteps)));
+  const double tau = h / substeps;
+  report.substeps = substeps;
+
+  // Rings 2..n of the halo, then speeds on everything but the wet set (done).
+  if (!everything) {
+    int ringBegin = wetEnd, ringEnd = firstRingEnd;
+    for (int ring = 2; ring <= substeps && ringEnd > ringBegin; ++ring) {
+      addNextRing(topology, ringBegin, ringEnd, active, marks);
+      ringBegin = ringEnd;
+      ringEnd = static_cast<int>(active.size());
+    }
+    if (!rigid) worldVelocities(firstRingEnd, ringEnd);
+    ringSpeedsAndOutflow(wetEnd, ringEnd);
+  }
+  const int count = static_cast<int>(active.size());
+  report.activeVertices = count;
+
+  Vector* solventBuffers[2] = {&scratch.massSolvent, &scratch.nextMassSolvent};
+  Vector* soluteBuffers[2] = {&scratch.massSolute, &scratch.nextMassSolute};
+  int limited = 0;
+#pragma omp parallel if (count >= kMinParallelVertices)
+  {
+    // Per-step shares: kept fraction 1 − f_i and giving ratio f_i / outflow_i.
+#pragma omp for schedule(static) reduction(+ : limited)
+    for (int k = 0; k < count; ++k) {
+      const int i = active[static_cast<size_t>(k)];
+      const double outflow = scratch.outflowRates(i);
+      const double courant = tau * outflow / areas(i);
+      if (courant > 1.0) ++limited;
+      const double fraction = std::min(courant, 1.0);
+      scratch.keptFractions(i) = 1.0 - fraction;
+      scratch.givingRatios(i) = outflow > 0.0 ? fraction / outflow : 0.0;
+      scratch.massSolvent(i) = areas(i) * state.solvent(i);
+      scratch.massSolute(i) = areas(i) * state.solute(i);
+    }
+    // Share of neighbour j's mass flowing into i: g_j · speed(j -> i), where
+    // speed(j -> i) = −ringSpeeds(m) bit for bit.
+    const double* giving = scratch.givingRatios.data();
+    double* shares = scratch.ringInflowShares.data();
+#pragma omp for schedule(static)
+    for (int k = 0; k < count; ++k) {
+      const int i = active[static_cast<size_t>(k)];
+      for (int m = ringOffsets[i]; m < ringOffsets[i + 1]; ++m) {
+        shares[m] = giving[ringNeighbors[m]] * positivePart(-speeds[m]);
+      }
+    }
+    // Sub-steps alternate between the two mass buffers; the implicit barrier
+    // after each loop orders them. Zero shares are multiplied, not skipped
+    // (half of them are zero, in no pattern a branch predictor could learn).
+    const double* kept = scratch.keptFractions.data();
+    for (int step = 0; step < substeps; ++step) {
+      const double* solvent = solventBuffers[step % 2]->data();
+      const double* solute = soluteBuffers[step % 2]->data();
+      double* nextSolvent = solventBuffers[(step + 1) % 2]->data();
+      double* nextSolute = soluteBuffers[(step + 1) % 2]->data();
+#pragma omp for schedule(static)
+      for (int k = 0; k < count; ++k) {
+        const int i = active[static_cast<size_t>(k)];
+        double newSolvent = kept[i] * solvent[i];
+        double newSolute = kept[i] * solute[i];
+        for (int m = ringOffsets[i]; m < ringOffsets[i + 1]; ++m) {
+          const int j = ringNeighbors[m];
+          newSolvent += shares[m] * solvent[j];
+          newSolute += shares[m] * solute[j];
+        }
+        nextSolvent[i] = newSolvent;
+        nextSolute[i] = newSolute;
+      }
+    }
+    const Vector& solvent = *solventBuffers[substeps % 2];
+    const Vector& solute = *soluteBuffers[substeps % 2];
+#pragma omp for schedule(static)
+    for (int k = 0; k < count; ++k) {
+      const int i = active[static_cast<size_t>(k)];
+      state.solvent(i) = solvent(i) / areas(i);
+      state.solute(i) = solute(i) / areas(i);
+      marks[static_cast<size_t>(i)] = 0;
+    }
+    // Leave every entry a later call may read as an inactive neighbour at 0.
+#pragma omp for schedule(static)
+    for (int k = 0; k < count; ++k) {
+      const int i = active[static_cast<size_t>(k)];
+      scratch.givingRatios(i) = 0.0;
+      scratch.massSolvent(i) = scratch.massSolute(i) = 0.0;
+      scratch.nextMassSolvent(i) = scratch.nextMassSolute(i) = 0.0;
+    }
+  }
+  report.limitedVertices = limited;
+  return report;
+}
+
+}  // namespace blot::stain

@@ -1,0 +1,354 @@
+// Stage "advect velocity": semi-Lagrangian advection of the tangent velocity
+// in the flattened one-ring, with the triangle-strip walk (paper sec. 3.1).
+//
+// Design note.
+//  - Equation: ∂u/∂t + ∇_u u = 0 (covariant), solved semi-Lagrangian:
+//    u_i(t+h) = u(t) at the foot point x_i − h u_i, transported back to i.
+//  - Plane of vertex i: its geodesic polar map. Neighbour j sits at
+//    P_j = ℓ_ij exp(iα_ij); u_i in frame F_i is already in these coordinates
+//    (x_i is the reference edge, α = 0), so the backtrack is the straight ray
+//    t ↦ t D, D = −h u_i, t ∈ [0, 1]. The sector α_m ≤ arg D < α_{m+1} gives
+//    the ring triangle (i, j_m, j_{m+1}); if the foot lies in it, the paper's
+//    formula applies, with eq. 6's transports:
+//    u_i ← λ_i u_i + λ_m e^{iθ_{i,j_m}} u_{j_m} + λ_{m+1} e^{iθ_{i,j_{m+1}}} u_{j_{m+1}}.
+//  - Strip walk: otherwise the ray leaves through the far edge (j_m, j_{m+1}).
+//    The face on the other side (twin half-edge) is unfolded into the same
+//    plane: its apex is placed from the two known corners by the face's own
+//    shape, c = a + (b − a)(ℓ_ca/ℓ_ab)e^{iγ_a} (a similarity, so it fits the
+//    ring's edge even where the polar map rescaled the ring's angles). The
+//    ray continues straight; in each face it leaves through the edge whose
+//    endpoints lie on opposite sides of the ray (only the apex side must be
+//    tested: the entry edge's endpoints are known to be left/right), until
+//    the remaining length is used (foot inside), the boundary is met, or 1000
+//    triangles were crossed. Every branch interpolates inside a real triangle,
+//    so the foot never leaves the mesh.
+//  - Transport of a strip vertex v (corner k of the final face g) into frame
+//    i, composed as vertex frame -> face frame (faceTransportAngles φ(g,k))
+//    -> plane (the unfolded face's x-axis, corner 0 -> 1, has direction
+//    e^{iψ_g} in the plane: the unfolding is the hinge map, i.e. the discrete
+//    Levi-Civita transport across each crossed edge) -> frame i (one constant
+//    rotation per walk, e^{iκ}). κ anchors the strip to the ring: it is chosen
+//    so the two vertices of the crossed ring edge get (the mean of) their
+//    ring transports e^{iθ}. So T_v = e^{iκ} e^{iψ_g} e^{iφ(g,k)}: one complex
+//    product per vertex, no path bookkeeping, and it is the same map for every
+//    vertex of a face, so interpolation inside a face is consistent. On a flat
+//    mesh (polar maps unscaled) every piece is exact and κ = 0: a parallel
+//    (uniform) field stays uniform to rounding, and a linear field is
+//    reproduced exactly at any Courant number (tested). Rejected: composing
+//    θ along a chain of edges from i to each far vertex: needs a path per
+//    vertex, and two vertices of one face could get transports through
+//    different paths (different holonomy), so the interpolant of a parallel
+//    field would not be parallel.
+//  - Boundary (free slip): the backtrack stops where the ray meets a boundary
+//    edge and takes the value interpolated there (a boundary vertex whose ray
+//    points out of its fan keeps u_i). Nothing is reflected or zeroed here, so
+//    a uniform field stays uniform at the boundary too. Rejected: sliding the
+//    rest of the ray along the boundary, which needs a second walk along
+//    boundary loops for an effect limited to the one-ring of the boundary.
+//  - Bounds: the barycentric weights are clamped to ≥ 0 (only rounding makes
+//    them negative) and renormalised, and transports are unit complex numbers,
+//    so |u_i(t+h)| ≤ max |u(t)|: no new extrema at any Courant number.
+//  - Foot stencil: each walk also records the foot point as (at most) three
+//    vertices and the convex weights it interpolated with (before the
+//    transports), kept in the scratch for the Coriolis stage, which
+//    interpolates the surface's own velocity there (external_forces.h).
+//  - Cost: unit-complex tables (ring points, ring transports, apex ratios,
+//    face rotations) are built from the intrinsic tier once per rebuild, so a
+//    step needs no trigonometry: the sector is found with cross products (a
+//    few per wet vertex), then a few complex products per crossed triangle.
+//    Vertices are independent (each writes its own entry of
+//    scratch.advected): OpenMP over vertices, deterministic; counters are
+//    integer reductions (exact, order-free).
+#include <blot/stain/stages/velocity_advection.h>
+
+#include <cmath>
+#include <limits>
+
+namespace blot::stain {
+namespace {
+
+constexpr int kMaxStripTriangles = 1000;
+// Below this many vertices the loops run on one thread (fork/join would cost
+// more than the work; tuned in tests/bench).
+constexpr int kMinParallelVertices = 2048;
+
+// z-component of the 2D cross product a × b.
+inline double cross(const Complex& a, const Complex& b) { return a.real() * b.imag() - a.imag() * b.real(); }
+
+inline Complex unitFromAngle(double angle) { return {std::cos(angle), std::sin(angle)}; }
+
+inline int cornerOf(const Triangles& faces, int f, int v) {
+  return faces(f, 0) == v ? 0 : (faces(f, 1) == v ? 1 : 2);
+}
+
+struct Tables {
+  const Triangles& faces;
+  const std::vector<int>& offsets;
+  const std::vector<int>& neighbors;
+  const std::vector<int>& ringFaces;
+  const std::vector<int>& twins;
+  const std::vector<char>& isBoundary;
+  const ComplexVector& ringPoints;
+  const ComplexVector& ringTransports;
+  const ComplexVector& apexRatios;
+  const ComplexVector& faceRotations;
+};
+
+struct Walk {
+  Complex value;
+  // The foot point as a convex combination of (at most) three vertices, the
+  // weights that produced `value` (before the transports): the frame-velocity
+  // stencil of the Coriolis stage (VelocityAdvectionScratch::foot*).
+  int footVertices[3] = {0, 0, 0};
+  double footWeights[3] = {1.0, 0.0, 0.0};
+  int stripSteps = 0;
+  bool boundaryStop = false;
+  bool capped = false;
+};
+
+// Sets walk's foot stencil to Σ w_k vertex_k (weights already normalised).
+inline void setFoot(Walk& walk, int a, double wa, int b, double wb, int c, double wc) {
+  walk.footVertices[0] = a;
+  walk.footVertices[1] = b;
+  walk.footVertices[2] = c;
+  walk.footWeights[0] = wa;
+  walk.footWeights[1] = wb;
+  walk.footWeights[2] = wc;
+}
+
+// Interpolates the velocity at point x of strip face g (corner positions z in
+// frame i's plane), each corner's velocity carried into frame i through the
+// face frame (see design note), into walk.value with its foot stencil; false
+// (walk untouched) if the face is degenerate.
+bool interpolateInFace(const Tables& t, const ComplexVector& u, int g, const Complex (&z)[3], const Complex& x,
+                       const Complex& anchor, Walk& walk) {
+  const Complex axis = z[1] - z[0];
+  const double axisLength = std::sqrt(std::norm(axis));
+  double l0 = cross(z[1] - x, z[2] - x), l1 = cross(z[2] - x, z[0] - x), l2 = cross(z[0] - x, z[1] - x);
+  l0 = l0 > 0.0 ? l0 : 0.0;
+  l1 = l1 > 0.0 ? l1 : 0.0;
+  l2 = l2 > 0.0 ? l2 : 0.0;
+  const double sum = l0 + l1 + l2;
+  if (!(axisLength > 0.0) || !(sum > 0.0)) return false;
+  const Complex toPlane = anchor * (axis / axisLength);
+  const int h0 = 3 * g;
+  const Complex blend = l0 * (t.faceRotations(h0) * u(t.faces(g, 0))) +
+                        l1 * (t.faceRotations(h0 + 1) * u(t.faces(g, 1))) +
+                        l2 * (t.faceRotations(h0 + 2) * u(t.faces(g, 2)));
+  walk.value = toPlane * blend / sum;
+  setFoot(walk, t.faces(g, 0), l0 / sum, t.faces(g, 1), l1 / sum, t.faces(g, 2), l2 / sum);
+  return true;
+}
+
+// Backtracks vertex i by the plane displacement d and returns the interpolated,
+// transported velocity at the foot point.
+Walk backtrack(const Tables& t, const ComplexVector& u, int i, const Complex& d) {
+  Walk walk;
+  walk.value = u(i);
+  walk.footVertices[0] = i;  // foot = i until a branch below moves it
+  if (d == Complex(0.0, 0.0)) return walk;
+  const int begin = t.offsets[static_cast<size_t>(i)], end = t.offsets[static_cast<size_t>(i) + 1];
+  const bool boundary = t.isBoundary[static_cast<size_t>(i)] != 0;
+
+  // Ring sector containing d: P_m at or clockwise of d, P_m2 counter-clockwise
+  // of it (exact for sectors below π, i.e. every sector of a sane polar map;
+  // cross(a, b) = −cross(b, a) bit for bit, so a ray along a ring edge falls
+  // in exactly one sector). A boundary fan's last sector also takes its
+  // closing edge; a ray outside a boundary fan leaves the mesh at once.
+  const int sectorEnd = boundary ? end - 1 : end;
+  int m = -1;
+  for (int k = begin; k < sectorEnd; ++k) {
+    const int k2 = k + 1 < end ? k + 1 : begin;
+    const double after = cross(d, t.ringPoints(k2));
+    if (cross(t.ringPoints(k), d) >= 0.0 && (after > 0.0 || (boundary && k2 == end - 1 && after == 0.0))) {
+      m = k;
+      break;
+    }
+  }
+  if (m < 0) {
+    walk.boundaryStop = boundary;  // interior: a fan with a sector of π or more; keep u_i
+    return walk;
+  }
+  const int m2 = m + 1 < end ? m + 1 : begin;
+
+  // Ring triangle (i, j_m, j_m2): d = λ1 P1 + λ2 P2.
+  const Complex p1 = t.ringPoints(m), p2 = t.ringPoints(m2);
+  const double det = cross(p1, p2);
+  if (!(det > 0.0)) return walk;  // sector of π or more (polar map breaks down): keep u_i
+  double l1 = cross(d, p2) / det, l2 = cross(p1, d) / det;
+  l1 = l1 > 0.0 ? l1 : 0.0;
+  l2 = l2 > 0.0 ? l2 : 0.0;
+  const double s = l1 + l2;
+  const Complex u1 = t.ringTransports(m) * u(t.neighbors[static_cast<size_t>(m)]);
+  const Complex u2 = t.ringTransports(m2) * u(t.neighbors[static_cast<size_t>(m2)]);
+  const int j1 = t.neighbors[static_cast<size_t>(m)], j2 = t.neighbors[static_cast<size_t>(m2)];
+  if (s <= 1.0) {
+    walk.value = (1.0 - s) * u(i) + l1 * u1 + l2 * u2;
+    setFoot(walk, i, 1.0 - s, j1, l1, j2, l2);
+    return walk;
+  }
+  // The ray leaves the ring through the far edge j_m -> j_m2 (half-edge of
+  // ring face f after i's corner) at t = 1/s.
+  const int f = t.ringFaces[static_cast<size_t>(m)];
+  const int farHalfedge = 3 * f + (cornerOf(t.faces, f, i) + 1) % 3;
+  int h = t.twins[static_cast<size_t>(farHalfedge)];
+  // Where the ray crosses the far edge: the fallback of a degenerate strip face.
+  const Complex edgeValue = (l1 * u1 + l2 * u2) / s;
+  if (h < 0) {
+    walk.boundaryStop = true;
+    walk.value = edgeValue;
+    setFoot(walk, j1, l1 / s, j2, l2 / s, j1, 0.0);
+    return walk;
+  }
+
+  // Strip walk. Invariant: the ray entered face g through half-edge h = a -> b,
+  // with a on its left and b on its right.
+  Complex za = p2, zb = p1;
+  int g = h / 3, k = h % 3;
+  Complex zc = za + (zb - za) * t.apexRatios(h);
+  Complex z[3];
+  z[k] = za;
+  z[(k + 1) % 3] = zb;
+  z[(k + 2) % 3] = zc;
+  // Anchor κ: the crossed ring edge's vertices get their ring transports
+  // (mean of the two estimates; they agree exactly on flat meshes).
+  Complex anchor(1.0, 0.0);
+  {
+    const Complex axis = z[1] - z[0];
+    const Complex toPlane = axis / std::sqrt(std::norm(axis));
+    const Complex fromA = t.ringTransports(m2) * std::conj(toPlane * t.faceRotations(3 * g + k));
+    const Complex fromB = t.ringTransports(m) * std::conj(toPlane * t.faceRotations(3 * g + (k + 1) % 3));
+    const Complex mean = fromA + fromB;
+    const double length = std::sqrt(std::norm(mean));
+    anchor = length > 1e-12 ? mean / length : fromA;
+  }
+  walk.stripSteps = 1;
+  const auto interpolateOrEdge = [&](const Complex& x) {
+    if (!interpolateInFace(t, u, g, z, x, anchor, walk)) {
+      walk.value = edgeValue;
+      setFoot(walk, j1, l1 / s, j2, l2 / s, j1, 0.0);
+    }
+  };
+  while (true) {
+    // Exit through b -> c if the apex is left of the ray, else through c -> a.
+    int exitHalfedge;
+    Complex p, q;  // exit edge p -> q, p right of the ray, q left
+    if (cross(d, zc) > 0.0) {
+      exitHalfedge = SurfaceTopology::next(h);
+      p = zb;
+      q = zc;
+    } else {
+      exitHalfedge = SurfaceTopology::prev(h);
+      p = zc;
+      q = za;
+    }
+    const Complex edge = q - p;
+    const double denominator = cross(d, edge);
+    const double tExit =
+        denominator > 0.0 ? cross(p, edge) / denominator : std::numeric_limits<double>::infinity();
+    if (tExit >= 1.0) {
+      interpolateOrEdge(d);
+      return walk;
+    }
+    const Complex exitPoint = tExit * d;
+    const int twin = t.twins[static_cast<size_t>(exitHalfedge)];
+    if (twin < 0 || walk.stripSteps >= kMaxStripTriangles) {
+      (twin < 0 ? walk.boundaryStop : walk.capped) = true;
+      interpolateOrEdge(exitPoint);
+      return walk;
+    }
+    h = twin;
+    g = h / 3;
+    k = h % 3;
+    za = q;
+    zb = p;
+    zc = za + (zb - za) * t.apexRatios(h);
+    z[k] = za;
+    z[(k + 1) % 3] = zb;
+    z[(k + 2) % 3] = zc;
+    ++walk.stripSteps;
+  }
+}
+
+}  // namespace
+
+void VelocityAdvectionScratch::prepare(const SurfaceTopology& topology, const IntrinsicGeometry& geometry) {
+  const std::vector<int>& offsets = topology.ringOffsets();
+  const std::vector<int>& neighbors = topology.ringNeighbors();
+  const std::vector<int>& ringEdges = topology.ringEdges();
+  const auto entries = static_cast<Eigen::Index>(neighbors.size());
+  resize(topology.vertexCount());
+  ringPoints.resize(entries);
+  ringTransports.resize(entries);
+  for (int v = 0; v < topology.vertexCount(); ++v) {
+    for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m) {
+      const int e = ringEdges[static_cast<size_t>(m)];
+      const int j = neighbors[static_cast<size_t>(m)];
+      ringPoints(m) = geometry.edgeLengths(e) * unitFromAngle(geometry.polarMap.ringAngles(m));
+      // edgeTransportAngles stores θ_ij for i < j; θ_ji = −θ_ij.
+      const double theta = v < j ? geometry.edgeTransportAngles(e) : -geometry.edgeTransportAngles(e);
+      ringTransports(m) = unitFromAngle(theta);
+    }
+  }
+  halfedgeApexRatios.resize(topology.halfedgeCount());
+  faceFrameRotations.resize(topology.halfedgeCount());
+  const Eigen::MatrixX3i& faceEdges = topology.faceEdges();
+  for (int f = 0; f < topology.faceCount(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const double lengthAB = geometry.edgeLengths(faceEdges(f, k));
+      const double lengthCA = geometry.edgeLengths(faceEdges(f, (k + 2) % 3));
+      halfedgeApexRatios(3 * f + k) = (lengthCA / lengthAB) * unitFromAngle(geometry.faceCornerAngles(f, k));
+      faceFrameRotations(3 * f + k) = unitFromAngle(geometry.faceTransportAngles(f, k));
+    }
+  }
+  preparedRebuildCount = geometry.rebuildCount;
+}
+
+VelocityAdvectionReport advectVelocity(const StepContext& ctx, const SurfaceTopology& topology,
+                                       const IntrinsicGeometry& geometry, const std::vector<char>& wet,
+                                       VelocityAdvectionScratch& scratch, StainState& state) {
+  const int n = topology.vertexCount();
+  if (scratch.preparedRebuildCount != geometry.rebuildCount || scratch.advected.size() != n ||
+      scratch.footVertices.rows() != n ||
+      scratch.ringPoints.size() != static_cast<Eigen::Index>(topology.ringNeighbors().size()) ||
+      scratch.halfedgeApexRatios.size() != topology.halfedgeCount()) {
+    scratch.prepare(topology, geometry);
+  }
+  const Tables tables{topology.faces(),          topology.ringOffsets(),   topology.ringNeighbors(),
+                      topology.ringFaces(),      topology.halfedgeTwins(), topology.vertexIsBoundary(),
+                      scratch.ringPoints,        scratch.ringTransports,   scratch.halfedgeApexRatios,
+                      scratch.faceFrameRotations};
+  const ComplexVector& u = state.velocities;
+  ComplexVector& advected = scratch.advected;
+  const bool allWet = wet.empty();
+  const double h = ctx.h;
+  int stripSteps = 0, boundaryStops = 0, cappedWalks = 0;
+
+#pragma omp parallel for schedule(dynamic, 256) reduction(+ : stripSteps, boundaryStops, cappedWalks) \
+    if (n >= kMinParallelVertices)
+  for (int i = 0; i < n; ++i) {
+    if (!allWet && !wet[static_cast<size_t>(i)]) continue;
+    const Walk walk = backtrack(tables, u, i, -h * u(i));
+    advected(i) = walk.value;
+    for (int c = 0; c < 3; ++c) {
+      scratch.footVertices(i, c) = walk.footVertices[c];
+      scratch.footWeights(i, c) = walk.footWeights[c];
+    }
+    stripSteps += walk.stripSteps;
+    boundaryStops += walk.boundaryStop ? 1 : 0;
+    cappedWalks += walk.capped ? 1 : 0;
+  }
+
+#pragma omp parallel for schedule(static) if (n >= kMinParallelVertices)
+  for (int i = 0; i < n; ++i) {
+    if (allWet || wet[static_cast<size_t>(i)]) state.velocities(i) = advected(i);
+  }
+
+  VelocityAdvectionReport report;
+  report.stripSteps = stripSteps;
+  report.boundaryStops = boundaryStops;
+  report.cappedWalks = cappedWalks;
+  return report;
+}
+
+}  // namespace blot::stain
