@@ -100,7 +100,7 @@ int main(int argc, char** argv) {
     const blot::stain::StepReport report = engine->step(frameDt);
     stepMs.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
     if (report.status != blot::stain::StepStatus::Ok) {
-      std::fprintf(stderr, "game_loop: frame %d: stage '%s': %s\n", frame, report.stage.c_str(), report.message.c_str());
+      std::fprintf(stderr, "game_loop: frame %d: stage '%s': %s\n", frame, report.stageName(), report.message.c_str());
       return 3;
     }
   }

@@ -30,5 +30,14 @@ fi
 if hits=$(grep -rEn '#include *[<"]blot/engine/' "$root/coupling" 2>/dev/null); then
   echo "coupling/ includes engine/:"; echo "$hits"; fail=1
 fi
-[ "$fail" = 0 ] && echo "layering OK: engine -> coupling -> {stain, cloth}; stain and cloth independent; Bullet only in cloth/"
+# SurfaceMotion carries what the coupling and the engine need: nothing above
+# cloth/ asks which concrete motion it has.
+if hits=$(grep -rEn 'dynamic_cast *<' "$root/coupling" "$root/engine" "$root/demos" 2>/dev/null); then
+  echo "dynamic_cast outside cloth/ (SurfaceMotion should carry what is needed):"; echo "$hits"; fail=1
+fi
+# Stages are named by stain::Stage, never compared as strings.
+if hits=$(grep -rEn 'strcmp|stage *== *"|"(forces|diffuse|coriolis|interact|sources|coupling|cloth)" *== *' "$root/stain/src" "$root/coupling/src" "$root/engine/src" 2>/dev/null); then
+  echo "a stage compared as a string (use stain::Stage):"; echo "$hits"; fail=1
+fi
+[ "$fail" = 0 ] && echo "layering OK: engine -> coupling -> {stain, cloth}; stain and cloth independent; Bullet only in cloth/; no downcasts or stage strings above cloth/"
 exit $fail

@@ -758,6 +758,18 @@ void BulletCloth::copyOut() {
     if (!released_[p]) velocities_.row(def_.pins[p].vertex) = def_.pins[p].motion.velocityAt(time_).transpose();
 }
 
+void BulletCloth::saveDynamicState(MotionStateVisitor& visitor) const {
+  BulletClothState state;
+  captureState(state);
+  state.visit(visitor);
+}
+
+void BulletCloth::loadDynamicState(MotionStateVisitor& visitor) {
+  BulletClothState state;
+  state.visit(visitor);
+  restoreState(state);
+}
+
 BulletClothState BulletCloth::captureState() const {
   BulletClothState state;
   captureState(state);

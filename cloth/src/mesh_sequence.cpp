@@ -200,10 +200,6 @@ void MeshSequence::checkPlayback() const {
     throw std::invalid_argument("MeshSequence: frameRate must be finite and positive");
 }
 
-MotionKind MeshSequence::kind() const {
-  return frames_.size() == 1 ? MotionKind::Static : MotionKind::Deforming;
-}
-
 void MeshSequence::advance(double h) {
   if (!(h > 0) || !std::isfinite(h))
     throw std::invalid_argument("MeshSequence::advance: time step must be finite and positive");

@@ -9,6 +9,10 @@
 
 namespace blot::cloth {
 
+void SurfaceMotion::setLiquidLoads(const Eigen::VectorXd&, const Eigen::MatrixX3d&) {
+  throw std::logic_error("this surface motion is prescribed and takes no liquid loads (two-way coupling needs a simulated cloth)");
+}
+
 StaticSurface::StaticSurface(const Eigen::MatrixX3d& restPositions)
     : positions_(restPositions), velocities_(Eigen::MatrixX3d::Zero(restPositions.rows(), 3)) {}
 

@@ -1,38 +1,8 @@
-// One moving surface with its stain: cloth → stain → coupling (docs/coupling.md).
-//
-// Design note.
-//  - Step order (DESIGN.md): the motion advances to t + h (Bullet applies the
-//    liquid loads computed by the previous step first), the stain follows on
-//    the new positions, then the coupling computes the loads for the next
-//    cloth step.
-//  - Liquid at vertex i: mᵢ = Aᵢ(σ_f + σ_s + σ_p + σ_s,p + σ_s,a) rides with
-//    the node (added to its Bullet mass, so gravity acts on it through Bullet),
-//    and its free part mᶠᵢ = Aᵢ(σ_f + σ_s) also moves relative to the cloth
-//    with Rᵢ = Fᵢuᵢ (uᵢ tangential, in the vertex frame the state belongs to,
-//    extrinsic().nextFrames), without its outward part at mesh-boundary
-//    vertices: the stain lets no liquid leave the mesh but keeps u there, and
-//    counting that u as momentum made a hanging two-way flag rise 17 mm above
-//    the one-way one (the momentum the cloth paid while the liquid ran down
-//    was never returned) and a waving flag blow up; the hem is a wall.
-//    Momentum of cloth + liquid:
-//      P = Σ (Mᵢ + mᵢ) vᵢ + Σ mᶠᵢ Rᵢ + Σ Jᵢ (J: impulses owed to the nodes).
-//  - Exchange: the stain step changes m and mᶠR at fixed cloth velocities v;
-//    the node impulse Jᵢ = −[(mᵢ' − mᵢ) vᵢ + mᶠᵢ'Rᵢ' − mᶠᵢRᵢ] − eᵢvᵢ returns
-//    that change to the node, so P is unchanged by the stain step except for
-//    the vapour eᵢvᵢ, which leaves the system with its node's velocity. The
-//    Bullet step conserves Σ(M + m)v + ΣJ (links act in pairs), so P is
-//    conserved across whole steps up to Bullet's float rounding.
-//    Per-vertex evaporation is not reported by the stain (only the total E),
-//    so eᵢ = E wᵢ/Σw with wᵢ = Aᵢ a_evap,ᵢ on vertices holding solvent before
-//    or after the step — the stain's law E = a K_evap h Aᵢ wherever solvent
-//    is, except where a vertex dries out within the step.
-//  - Rejected: forces instead of impulses (the exchange happens at the stain
-//    step's discrete mass moves, and an impulse is exact for it; a force
-//    would be J/h spread over the substeps with no gain), and the liquid's
-//    weight as an explicit force (Bullet already weighs the node's total mass;
-//    the stain's tangential gravity on u is returned by J, so the weight is
-//    counted once).
+// One moving surface with its stain: cloth → stain → coupling. The momentum
+// bookkeeping, the exchange impulses and the rejected alternatives are in
+// docs/coupling.md; the exchange itself is coupling::exchangeMomentum.
 #include <blot/coupling/coupled_surface.h>
+#include <blot/coupling/liquid_exchange.h>
 
 #include <blot/stain/geometry/intrinsic_geometry.h>
 
@@ -107,9 +77,7 @@ CoupledSurface::CoupledSurface(std::unique_ptr<cloth::SurfaceMotion> motion, con
   if (motion_->vertexCount() != topology.vertexCount())
     throw std::invalid_argument("CoupledSurface: motion has " + std::to_string(motion_->vertexCount()) +
                                 " vertices, topology " + std::to_string(topology.vertexCount()));
-  bullet_ = dynamic_cast<cloth::BulletCloth*>(motion_.get());
-  rigid_ = dynamic_cast<const cloth::RigidMotion*>(motion_.get());
-  if (mode_ == CouplingMode::TwoWay && bullet_ == nullptr)
+  if (mode_ == CouplingMode::TwoWay && !motion_->acceptsLiquidLoads())
     throw std::invalid_argument("coupling mode two-way needs a Bullet cloth source");
   topology_ = std::make_unique<stain::SurfaceTopology>(topology);
   stain_ = std::make_unique<stain::StainSolver>(*topology_, motion_->positions(), fabric, stainDef);
@@ -120,9 +88,10 @@ CoupledSurface::CoupledSurface(std::unique_ptr<cloth::SurfaceMotion> motion, con
   startMasses_ = Eigen::VectorXd::Zero(n);
   startRelative_ = Eigen::MatrixX3d::Zero(n, 3);
   endRelative_ = Eigen::MatrixX3d::Zero(n, 3);
-  evaporationWeights_ = Eigen::VectorXd::Zero(n);
   impulses_ = Eigen::MatrixX3d::Zero(n, 3);
   previousImpulses_ = Eigen::MatrixX3d::Zero(n, 3);
+  evaporationWeights_ = Eigen::VectorXd::Zero(n);
+  vapour_ = Eigen::VectorXd::Zero(n);
   wallPrevious_.assign(static_cast<size_t>(n), -1);
   wallNext_.assign(static_cast<size_t>(n), -1);
   for (const std::vector<int>& loop : topology_->boundaryLoops()) {
@@ -163,8 +132,8 @@ void CoupledSurface::gatherLiquid(Eigen::VectorXd& masses, Eigen::MatrixX3d* rel
   const stain::Vector& areas = stain_->geometry().intrinsic().vertexDualAreas;
   const int n = s.vertexCount();
   for (int i = 0; i < n; ++i) {
-    const double free = s.solvent[i] + s.solute[i];
-    masses[i] = areas[i] * (free + s.absorbedSolvent[i] + s.absorbedSolute[i] + s.adsorbedSolute[i]);
+    const double free = s.freeDensity(i);
+    masses[i] = areas[i] * s.liquidDensity(i);
     if (relativeMomenta == nullptr) continue;
     if (free > 0 && relative_ == RelativeMomentum::Free) {
       relativeMomenta->row(i) = ((areas[i] * free) * relativeVelocity(i)).transpose();
@@ -176,65 +145,72 @@ void CoupledSurface::gatherLiquid(Eigen::VectorXd& masses, Eigen::MatrixX3d* rel
 
 stain::StepReport CoupledSurface::step(double h) {
   const Clock::time_point start = Clock::now();
-  const bool twoWay = mode_ == CouplingMode::TwoWay;
-  const int n = motion_->vertexCount();
+  Clock::time_point mark = start;
+  if (mode_ == CouplingMode::TwoWay) takeLiquidAtStart();
+  const double exchange = millisecondsSince(mark);
+
+  mark = Clock::now();
+  stain::StepReport report = advanceCloth(h);  // Stage::Cloth
+  times_.cloth = millisecondsSince(mark);
+  if (!report.ok()) return abandonStep(report);
+
+  mark = Clock::now();
+  Eigen::Matrix3d rotation;
+  const bool rigid = motion_->knownRotation(rotation);
+  report = stain_->refreshGeometry(h, motion_->positions(), rigid ? &rotation : nullptr);  // Stage::Geometry
+  if (report.ok()) report = stain_->advanceStages();  // Stage::BodyForces … Stage::Sources, Stage::Validate
+  times_.stain = millisecondsSince(mark);
+  if (!report.ok()) return abandonStep(report);
+
+  mark = Clock::now();
+  report = exchangeWithCloth();  // Stage::Coupling
+  times_.coupling = exchange + millisecondsSince(mark);
+  if (!report.ok()) return abandonStep(report);
+  times_.total = millisecondsSince(start);
+  return report;
+}
+
+void CoupledSurface::takeLiquidAtStart() {
+  gatherLiquid(startMasses_, &startRelative_);
   const stain::StainState& s = stain_->state();
   const double wet = stain_->definition().liquid.wetThreshold;
-
-  // Before the cloth moves: the liquid as the stain holds it now (a drop added
-  // since the last step changes it; the cloth must carry that mass too).
-  Clock::time_point mark = Clock::now();
-  double exchange = 0;
-  if (twoWay) {
-    gatherLiquid(startMasses_, &startRelative_);
-    for (int i = 0; i < n; ++i)
-      evaporationWeights_[i] = s.solvent[i] + s.absorbedSolvent[i] > wet ? 1.0 : 0.0;
-    if (startMasses_ != liquidMasses_) {
-      liquidMasses_ = startMasses_;
-      bullet_->setLiquidLoads(liquidMasses_, impulses_);
-    }
-    exchange += millisecondsSince(mark);
+  for (int i = 0; i < s.vertexCount(); ++i)
+    evaporationWeights_[i] = s.solvent[i] + s.absorbedSolvent[i] > wet ? 1.0 : 0.0;
+  evaporatedBefore_ = s.evaporatedSolvent;
+  if (startMasses_ != liquidMasses_) {
+    liquidMasses_ = startMasses_;
+    motion_->setLiquidLoads(liquidMasses_, impulses_);
   }
+}
 
-  // Cloth. Its state now is the last good one: kept, so that a failure in any
-  // stage below puts cloth and stain back at t together.
-  mark = Clock::now();
+stain::StepReport CoupledSurface::advanceCloth(double h) {
+  // The cloth's state now is the last good one: kept, so that a failure in
+  // any later stage puts cloth and stain back at t together.
   motion_->keepRollbackPoint();
-  const int stepNumber = stain_->stepCount() + 1;
-  if (fault_.stage == "cloth" && fault_.step == stepNumber) {
+  if (fault_.armed && fault_.stage == stain::Stage::Cloth && fault_.step == stain_->stepCount() + 1) {
     Eigen::MatrixX3d kick = impulses_;
     kick.row(fault_.vertex).setConstant(1e30);
-    bullet_->setLiquidLoads(liquidMasses_, kick);
-    fault_.stage.clear();  // fires once
+    motion_->setLiquidLoads(liquidMasses_, kick);
+    fault_.armed = false;  // fires once
   }
   motion_->advance(h);
-  times_.cloth = millisecondsSince(mark);
-  stain::StepReport report = checkMotion();
-  if (report.status != stain::StepStatus::Ok) {
-    motion_->rollBack();
-    return report;
-  }
+  return checkMotion();
+}
 
-  mark = Clock::now();
-  const double evaporatedBefore = s.evaporatedSolvent;
-  report = rigid_ != nullptr ? stain_->stepRigid(h, motion_->positions(), rigid_->rotationAt(rigid_->time()))
-                             : stain_->step(h, motion_->positions());
-  times_.stain = millisecondsSince(mark);
-  if (report.status != stain::StepStatus::Ok) {
-    // The stain kept its densities; cloth and stain geometry go back to t.
-    motion_->rollBack();
-    stain_->restartMotion(motion_->positions(), motion_->velocities());
-    return report;
-  }
-
-  mark = Clock::now();
-  if (!twoWay) {
+stain::StepReport CoupledSurface::exchangeWithCloth() {
+  stain::StepReport report;
+  report.stage = stain::Stage::Coupling;
+  if (mode_ != CouplingMode::TwoWay) {
     gatherLiquid(liquidMasses_, nullptr);
-  } else {
-    impulses_.swap(previousImpulses_);  // kept until the impulses below are known to be finite
-    gatherLiquid(liquidMasses_, &endRelative_);
-    const Eigen::MatrixX3d& v = motion_->velocities();
-    const double evaporated = s.evaporatedSolvent - evaporatedBefore;
+    return report;
+  }
+  impulses_.swap(previousImpulses_);  // kept until the impulses below are known to be finite
+  gatherLiquid(liquidMasses_, &endRelative_);
+  {
+    const stain::StainState& s = stain_->state();
+    const int n = s.vertexCount();
+    const double wet = stain_->definition().liquid.wetThreshold;
+    const double evaporated = s.evaporatedSolvent - evaporatedBefore_;
     double weightSum = 0;
     if (evaporated > 0) {
       const stain::LiquidParameters& liquid = stain_->definition().liquid;
@@ -248,41 +224,34 @@ stain::StepReport CoupledSurface::step(double h) {
       }
     }
     const double vapourPerWeight = weightSum > 0 ? evaporated / weightSum : 0.0;
-    Eigen::Vector3d vapourMomentum = evaporatedMomentum_;  // summed in the same order as before
-    int bad = -1;
-    for (int i = 0; i < n; ++i) {
-      const double vapour = vapourPerWeight * evaporationWeights_[i];
-      const Eigen::Vector3d vi = v.row(i).transpose();
-      const Eigen::Vector3d change =
-          (liquidMasses_[i] - startMasses_[i]) * vi + (endRelative_.row(i) - startRelative_.row(i)).transpose();
-      impulses_.row(i) = (-change - vapour * vi).transpose();
-      vapourMomentum += vapour * vi;
-      if (bad < 0 && !(impulses_.row(i).allFinite() && std::isfinite(liquidMasses_[i]))) bad = i;
-    }
-    if (fault_.stage == "coupling" && fault_.step == stepNumber) {
-      impulses_(fault_.vertex, 0) = std::numeric_limits<double>::quiet_NaN();
-      if (bad < 0 || fault_.vertex < bad) bad = fault_.vertex;
-      fault_.stage.clear();  // fires once
-    }
-    if (bad >= 0) {
-      // Stage "coupling" failed: undo the stain step and the cloth step.
-      impulses_.swap(previousImpulses_);
-      liquidMasses_ = startMasses_;
-      stain_->undoLastStep();
-      motion_->rollBack();
-      stain_->restartMotion(motion_->positions(), motion_->velocities());
-      report.status = stain::StepStatus::NonFinite;
-      report.stage = "coupling";
-      report.vertex = bad;
-      report.message = "non-finite liquid mass or momentum exchange at vertex " + std::to_string(bad) +
-                       "; cloth and stain restored to the state before the step";
-      return report;
-    }
-    evaporatedMomentum_ = vapourMomentum;
-    bullet_->setLiquidLoads(liquidMasses_, impulses_);
+    for (int i = 0; i < n; ++i) vapour_[i] = vapourPerWeight * evaporationWeights_[i];
   }
-  times_.coupling = exchange + millisecondsSince(mark);
-  times_.total = millisecondsSince(start);
+  Eigen::Vector3d vapourMomentum = evaporatedMomentum_;
+  int bad = exchangeMomentum(startMasses_, liquidMasses_, startRelative_, endRelative_, motion_->velocities(),
+                             vapour_, impulses_, vapourMomentum);
+  if (fault_.armed && fault_.stage == stain::Stage::Coupling && fault_.step == stain_->stepCount()) {
+    impulses_(fault_.vertex, 0) = std::numeric_limits<double>::quiet_NaN();
+    if (bad < 0 || fault_.vertex < bad) bad = fault_.vertex;
+    fault_.armed = false;  // fires once
+  }
+  if (bad >= 0) {
+    impulses_.swap(previousImpulses_);
+    liquidMasses_ = startMasses_;
+    report.status = stain::StepStatus::NonFinite;
+    report.vertex = bad;
+    report.message = "non-finite liquid mass or momentum exchange at vertex " + std::to_string(bad);
+    return report;
+  }
+  evaporatedMomentum_ = vapourMomentum;
+  motion_->setLiquidLoads(liquidMasses_, impulses_);
+  return report;
+}
+
+stain::StepReport CoupledSurface::abandonStep(stain::StepReport report) {
+  motion_->rollBack();
+  stain_->abandonStep(motion_->positions(), motion_->velocities());
+  if (report.stage == stain::Stage::Cloth || report.stage == stain::Stage::Coupling)
+    report.message += "; cloth and stain restored to the state before the step";
   return report;
 }
 
@@ -293,9 +262,9 @@ stain::StepReport CoupledSurface::checkMotion() const {
   // One pass that is finite only if every value is; the search runs on failure.
   double sum = 0;
   for (Eigen::Index k = 0; k < x.size(); ++k) sum += 0 * x.data()[k] + 0 * v.data()[k];
-  if (std::isfinite(sum) && (bullet_ == nullptr || bullet_->isHealthy())) return report;
+  report.stage = stain::Stage::Cloth;
+  if (std::isfinite(sum) && motion_->isHealthy()) return report;
   report.status = stain::StepStatus::NonFinite;
-  report.stage = "cloth";
   for (Eigen::Index i = 0; i < x.rows() && report.vertex < 0; ++i)
     if (!x.row(i).allFinite() || !v.row(i).allFinite()) report.vertex = static_cast<int>(i);
   if (report.vertex >= 0) {
@@ -309,23 +278,23 @@ stain::StepReport CoupledSurface::checkMotion() const {
                      "10x, or Bullet disabled the body); fastest node " + std::to_string(report.vertex) + " at " +
                      std::to_string(v.row(fastest).norm()) + " m/s";
   }
-  report.message += "; cloth and stain restored to the state before the step";
   return report;
 }
 
 void CoupledSurface::injectFaultForTesting(const stain::InjectedFault& fault) {
-  if (fault.stage != "cloth" && fault.stage != "coupling") {
+  if (fault.stage != stain::Stage::Cloth && fault.stage != stain::Stage::Coupling) {
     stain_->injectFaultForTesting(fault);
     return;
   }
   if (fault.vertex < 0 || fault.vertex >= motion_->vertexCount())
     throw std::invalid_argument("injected fault: vertex " + std::to_string(fault.vertex) + " out of range [0, " +
                                 std::to_string(motion_->vertexCount()) + ")");
-  if (fault.stage == "cloth" && bullet_ == nullptr)
+  if (fault.stage == stain::Stage::Cloth && !motion_->acceptsLiquidLoads())
     throw std::invalid_argument("injected fault: stage 'cloth' needs a Bullet cloth source");
-  if (fault.stage == "coupling" && mode_ != CouplingMode::TwoWay)
+  if (fault.stage == stain::Stage::Coupling && mode_ != CouplingMode::TwoWay)
     throw std::invalid_argument("injected fault: stage 'coupling' needs two-way coupling");
   fault_ = fault;
+  fault_.armed = true;
 }
 
 Eigen::Vector3d CoupledSurface::totalMomentum() const {
@@ -333,10 +302,11 @@ Eigen::Vector3d CoupledSurface::totalMomentum() const {
   const stain::Vector& areas = stain_->geometry().intrinsic().vertexDualAreas;
   const Eigen::MatrixX3d& v = motion_->velocities();
   Eigen::Vector3d p = Eigen::Vector3d::Zero();
+  const Eigen::VectorXd* cloth = motion_->clothNodeMasses();
   for (int i = 0; i < s.vertexCount(); ++i) {
-    const double free = s.solvent[i] + s.solute[i];
-    const double liquid = areas[i] * (free + s.absorbedSolvent[i] + s.absorbedSolute[i] + s.adsorbedSolute[i]);
-    const double mass = liquid + (bullet_ != nullptr ? bullet_->lumpedMasses()[i] : 0.0);
+    const double free = s.freeDensity(i);
+    const double liquid = areas[i] * s.liquidDensity(i);
+    const double mass = liquid + (cloth != nullptr ? (*cloth)[i] : 0.0);
     p += mass * v.row(i).transpose();
     if (free > 0 && relative_ == RelativeMomentum::Free) p += (areas[i] * free) * relativeVelocity(i);
     if (mode_ == CouplingMode::TwoWay) p += impulses_.row(i).transpose();
@@ -347,10 +317,11 @@ Eigen::Vector3d CoupledSurface::totalMomentum() const {
 double CoupledSurface::totalMass() const {
   const stain::StainState& s = stain_->state();
   const stain::Vector& areas = stain_->geometry().intrinsic().vertexDualAreas;
+  const Eigen::VectorXd* cloth = motion_->clothNodeMasses();
   double total = 0;
   for (int i = 0; i < s.vertexCount(); ++i) {
-    total += areas[i] * (s.solvent[i] + s.solute[i] + s.absorbedSolvent[i] + s.absorbedSolute[i] + s.adsorbedSolute[i]);
-    if (bullet_ != nullptr) total += bullet_->lumpedMasses()[i];
+    total += areas[i] * s.liquidDensity(i);
+    if (cloth != nullptr) total += (*cloth)[i];
   }
   return total;
 }

@@ -1,9 +1,21 @@
 #pragma once
 /// Subcommands of the `blot` command line. Each registers itself on the app and
 /// sets `exitCode` when it runs; errors go to stderr with a non-zero exit code.
+#include <blot/stain/step_profile.h>
+
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <array>
+#include <string>
 
 namespace blot::cli {
+
+/// Mean stain-stage times per step (ms), one key per stage from Geometry to
+/// Sources named by stain::stageName with '_' for '-' after `prefix`
+/// ("geometry", "forces", "film_pressure", "advect_velocity", "coriolis", ...).
+nlohmann::json stageTimesJson(const std::array<double, stain::kStageCount>& milliseconds, double steps,
+                              const std::string& prefix);
 
 void registerMeshInfoCommand(CLI::App& app, int& exitCode);
 void registerDemoCommand(CLI::App& app, int& exitCode);

@@ -191,10 +191,9 @@ struct ProfileSums {
   }
   nlohmann::json meansJson() const {
     const double n = steps > 0 ? steps : 1;
-    return {{"geometry", sum.geometry / n},         {"forces", sum.forces / n},
-            {"advect_velocity", sum.advectVelocity / n}, {"advect_density", sum.advectDensity / n},
-            {"diffuse", sum.diffuse / n},               {"interact", sum.interact / n},
-            {"sources", sum.sources / n},               {"total", sum.total / n}};
+    nlohmann::json means = stageTimesJson(sum.milliseconds, n, "");
+    means["total"] = sum.total / n;
+    return means;
   }
 };
 
@@ -271,7 +270,7 @@ int runRotatingCloth(const DemoOptions& options) {
           solver.stepRigid(options.timeStep, motion.positions(), motion.rotationAt(motion.time()));
       if (report.status != stain::StepStatus::Ok)
         throw std::runtime_error("step " + std::to_string(solver.stepCount() + 1) + " failed in stage '" +
-                                 report.stage + "': " + report.message);
+                                 report.stageName() + "': " + report.message);
       sums.add(solver.profile());
     }
     const stain::StainState& s = solver.state();

@@ -130,7 +130,7 @@ int runFig5(const FigureOptions& o) {
     for (int k = 1; k <= frames; ++k) {
       const stain::StepReport report = e.advanceSteps(base.outputs.stepsPerFrame);
       if (report.status != stain::StepStatus::Ok) {
-        std::cerr << "blot figure fig5: numerical failure (" << v.label << "), stage '" << report.stage
+        std::cerr << "blot figure fig5: numerical failure (" << v.label << "), stage '" << report.stageName()
                   << "': " << report.message << "\n";
         return 3;
       }

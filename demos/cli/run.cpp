@@ -25,6 +25,7 @@
 #include <omp.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <csignal>
 #include <cstdint>
@@ -60,7 +61,8 @@ stain::InjectedFault parseInjectedFault(const std::string& text) {
   if (a == std::string::npos || b == std::string::npos)
     throw std::invalid_argument("--testing-inject-fault: expected STAGE:STEP:VERTEX, got '" + text + "'");
   stain::InjectedFault fault;
-  fault.stage = text.substr(0, a);
+  if (!stain::parseStage(text.substr(0, a), fault.stage))
+    throw std::invalid_argument("injected fault: unknown stain stage '" + text.substr(0, a) + "'");
   try {
     size_t used = 0;
     fault.step = std::stoi(text.substr(a + 1, b - a - 1), &used);
@@ -221,13 +223,28 @@ nlohmann::json termStepsJson(const engine::EngineStatistics& s) {
 nlohmann::json meanTimesJson(const engine::EngineStatistics& s) {
   const double n = s.steps > 0 ? static_cast<double>(s.steps) : 1.0;
   const engine::PhaseTotals& t = s.totals;
-  return {{"cloth", t.cloth / n},           {"stain", t.stain / n},
-          {"coupling", t.coupling / n},     {"total", t.total / n},
-          {"stain_geometry", t.geometry / n}, {"stain_forces", t.forces / n},
-          {"stain_advect_velocity", t.advectVelocity / n}, {"stain_advect_density", t.advectDensity / n},
-          {"stain_diffuse", t.diffuse / n}, {"stain_interact", t.interact / n},
-          {"stain_sources", t.sources / n}};
+  nlohmann::json times = stageTimesJson(t.stageMilliseconds, n, "stain_");
+  times["cloth"] = t.cloth / n;
+  times["stain"] = t.stain / n;
+  times["coupling"] = t.coupling / n;
+  times["total"] = t.total / n;
+  return times;
 }
+
+}  // namespace
+
+nlohmann::json stageTimesJson(const std::array<double, stain::kStageCount>& milliseconds, double steps,
+                              const std::string& prefix) {
+  nlohmann::json times = nlohmann::json::object();
+  for (int k = static_cast<int>(stain::Stage::Geometry); k <= static_cast<int>(stain::Stage::Sources); ++k) {
+    std::string key = prefix + stain::stageName(static_cast<stain::Stage>(k));
+    std::replace(key.begin(), key.end(), '-', '_');
+    times[key] = milliseconds[static_cast<size_t>(k)] / steps;
+  }
+  return times;
+}
+
+namespace {
 
 int runScene(const RunOptions& options) {
   engine::SceneDef scene;
@@ -304,7 +321,7 @@ int runScene(const RunOptions& options) {
     const stain::StepReport report = engine->advanceSteps(scene.outputs.stepsPerFrame);
     std::string failure;
     if (report.status != stain::StepStatus::Ok) {
-      failure = "stage '" + report.stage + "'" +
+      failure = std::string("stage '") + report.stageName() + "'" +
                 (report.vertex >= 0 ? ", vertex " + std::to_string(report.vertex) : std::string()) + ": " +
                 report.message;
     }

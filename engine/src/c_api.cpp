@@ -121,7 +121,7 @@ blotStatus blotEngine_Step(blotEngine* engine, double frameDt) {
     if (report.status == blot::stain::StepStatus::Ok) return BLOT_OK;
     const blotStatus status = report.status == blot::stain::StepStatus::InvalidArgument ? BLOT_ERROR_INVALID_ARGUMENT
                                                                                          : BLOT_ERROR_NUMERICAL;
-    return fail(status, "blotEngine_Step: stage '" + report.stage + "'" +
+    return fail(status, "blotEngine_Step: stage '" + std::string(report.stageName()) + "'" +
                             (report.vertex >= 0 ? ", vertex " + std::to_string(report.vertex) : std::string()) + ": " +
                             report.message);
   });

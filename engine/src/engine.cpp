@@ -20,6 +20,8 @@
 //    preallocated arrays: normals and world-frame liquid velocities from the
 //    stain's newest frames, display colours by Beer–Lambert.
 #include <blot/engine/engine.h>
+
+#include <blot/stain/content_hash.h>
 #include <blot/engine/scene.h>
 
 #include <blot/stain/io/mesh_io.h>
@@ -27,6 +29,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <type_traits>
 #include <cstring>
 #include <limits>
 #include <sstream>
@@ -93,18 +96,19 @@ void validateDrop(const stain::DropDef& d, int vertexCount) {
     throw std::invalid_argument("drop: splashSpeed must be finite and >= 0");
 }
 
-void hashBytes(std::uint64_t& h, const void* data, std::size_t bytes) {
-  const auto* p = static_cast<const unsigned char*>(data);
-  for (std::size_t i = 0; i < bytes; ++i) {
-    h ^= p[i];
-    h *= 1099511628211ull;
+/// Folds every field of a state struct into a content hash, in its field
+/// list's order (the state hash is built on the same list as save/load).
+struct HashVisitor {
+  std::uint64_t& hash;
+  template <typename T>
+  void field(const char* /*name*/, const T& value) {
+    if constexpr (std::is_arithmetic_v<T>) {
+      stain::hashBytes(hash, &value, sizeof value);
+    } else {
+      stain::hashArray(hash, value);
+    }
   }
-}
-template <typename Derived>
-void hashArray(std::uint64_t& h, const Eigen::DenseBase<Derived>& a) {
-  const auto& m = a.derived();
-  hashBytes(h, m.data(), sizeof(typename Derived::Scalar) * static_cast<std::size_t>(m.size()));
-}
+};
 
 }  // namespace
 
@@ -161,9 +165,9 @@ Engine::Engine(const EngineDef& def) : def_(def) {
   std::stable_sort(schedule_.begin(), schedule_.end(),
                    [](const TimedDrop& a, const TimedDrop& b) { return a.time < b.time; });
 
-  meshFingerprint_ = 14695981039346656037ull;
-  hashArray(meshFingerprint_, def_.mesh.vertexPositions);
-  hashArray(meshFingerprint_, def_.mesh.faces);
+  meshFingerprint_ = stain::kContentHashBasis;
+  stain::hashArray(meshFingerprint_, def_.mesh.vertexPositions);
+  stain::hashArray(meshFingerprint_, def_.mesh.faces);
 
   surface_ = buildSurface();
   pending_.reserve(static_cast<std::size_t>(def_.dropQueueCapacity));
@@ -224,7 +228,7 @@ stain::StepReport Engine::step(double frameDt) {
   if (!(frameDt >= 0) || !std::isfinite(frameDt)) {
     stain::StepReport report;
     report.status = stain::StepStatus::InvalidArgument;
-    report.stage = "guard";
+    report.stage = stain::Stage::Guard;
     report.message = "Engine::step: frameDt must be finite and >= 0";
     return report;
   }
@@ -262,7 +266,7 @@ stain::StepReport Engine::runInternalStep() {
   } catch (const std::exception& e) {
     stain::StepReport report;
     report.status = stain::StepStatus::InvalidArgument;
-    report.stage = "drops";
+    report.stage = stain::Stage::Drops;
     report.message = e.what();
     return report;
   }
@@ -278,13 +282,8 @@ stain::StepReport Engine::runInternalStep() {
   ++steps_;
   const stain::StepProfile& p = surface_->stain().profile();
   const coupling::CoupledStepTimes& t = surface_->lastTimes();
-  totals_.geometry += p.geometry;
-  totals_.forces += p.forces;
-  totals_.advectVelocity += p.advectVelocity;
-  totals_.advectDensity += p.advectDensity;
-  totals_.diffuse += p.diffuse;
-  totals_.interact += p.interact;
-  totals_.sources += p.sources;
+  for (int k = 0; k < stain::kStageCount; ++k)
+    totals_.stageMilliseconds[static_cast<size_t>(k)] += p.milliseconds[static_cast<size_t>(k)];
   for (int k = 0; k < stain::kStepTermCount; ++k) totals_.termSteps[static_cast<size_t>(k)] += (p.terms >> k) & 1u;
   totals_.stainTotal += p.total;
   totals_.cloth += t.cloth;
@@ -394,19 +393,14 @@ EngineStatistics Engine::statistics() const {
 }
 
 std::uint64_t Engine::stateHash() const {
-  std::uint64_t h = 14695981039346656037ull;
-  const stain::StainState& s = surface_->stain().state();
-  hashArray(h, surface_->motion().positions());
-  hashArray(h, surface_->motion().velocities());
-  hashArray(h, s.solvent);
-  hashArray(h, s.solute);
-  hashArray(h, s.absorbedSolvent);
-  hashArray(h, s.absorbedSolute);
-  hashArray(h, s.adsorbedSolute);
-  hashArray(h, s.velocities);
-  const double scalars[] = {s.evaporatedSolvent, s.addedSolvent, s.addedSolute, surface_->stain().time(), accumulator_};
-  hashBytes(h, scalars, sizeof scalars);
-  hashBytes(h, &steps_, sizeof steps_);
+  std::uint64_t h = stain::kContentHashBasis;
+  HashVisitor hash{h};
+  hash.field("motion.positions", surface_->motion().positions());
+  hash.field("motion.velocities", surface_->motion().velocities());
+  surface_->stain().state().visit(hash);
+  hash.field("time", surface_->stain().time());
+  hash.field("accumulator", accumulator_);
+  hash.field("steps", steps_);
   return h;
 }
 

@@ -8,7 +8,10 @@
 //   motion: f64 time (+ the Bullet cloth's state) | coupling: liquid masses,
 //   impulses owed, vapour momentum | stain: StainSolverSnapshot.
 // Arrays are written as (rows, cols, raw column-major doubles), sparse
-// matrices in compressed form. Everything step() reads is in the file — the
+// matrices in compressed form. The fields and their order come from each
+// state struct's field list (visit): StainSolverSnapshot, its StainState and
+// geometry tiers, and the motion's dynamic state (SurfaceMotion::
+// visitDynamicState). Everything step() reads is in the file — the
 // stain's geometry tiers, its rotation history (it warm-starts the next fit,
 // so leaving it out changes the last bits) — which is what makes a loaded run
 // bit-identical to the original. Prescribed motions (static, rigid, sequence)
@@ -28,7 +31,14 @@ namespace blot::engine {
 namespace {
 
 constexpr char kMagic[8] = {'B', 'L', 'O', 'T', 'S', 'T', 'A', 'T'};
-constexpr std::uint32_t kVersion = 1;
+constexpr std::uint32_t kVersion = 2;  // 2: fields in the order of the state structs' field lists
+
+/// True for a type with a field list (a visit member).
+template <typename T, typename = void>
+constexpr bool kVisitable = false;
+struct AnyVisitor;
+template <typename T>
+constexpr bool kVisitable<T, std::void_t<decltype(&T::template fields<T, AnyVisitor>)>> = true;
 
 class Writer {
  public:
@@ -68,7 +78,29 @@ class Writer {
   }
   const std::vector<char>& bytes() const { return bytes_; }
 
+  /// A state struct's field (its visit member calls this for each field).
+  template <typename T>
+  void field(const char* /*name*/, const T& value) {
+    write(value);
+  }
+
  private:
+  void write(double v) { pod(v); }
+  void write(int v) { pod<std::int32_t>(v); }
+  void write(bool v) { pod<std::uint8_t>(v ? 1 : 0); }
+  template <typename Derived>
+  void write(const Eigen::PlainObjectBase<Derived>& m) { dense(m); }
+  template <typename Scalar>
+  void write(const Eigen::SparseMatrix<Scalar>& m) { sparse(m); }
+  template <typename T>
+  void write(const std::vector<T>& v) {
+    if constexpr (kVisitable<T>) {
+      pod<std::uint64_t>(v.size());
+      for (const T& element : v) element.visit(*this);
+    } else {
+      vector(v);
+    }
+  }
   std::vector<char> bytes_;
 };
 
@@ -116,7 +148,31 @@ class Reader {
   }
   bool atEnd() const { return offset_ == bytes_.size(); }
 
+  /// A state struct's field, read in place (errors name it).
+  template <typename T>
+  void field(const char* name, T& value) {
+    read(value, name);
+  }
+
  private:
+  void read(double& v, const char* name) { v = pod<double>(name); }
+  void read(int& v, const char* name) { v = pod<std::int32_t>(name); }
+  void read(bool& v, const char* name) { v = pod<std::uint8_t>(name) != 0; }
+  template <typename Derived>
+  void read(Eigen::PlainObjectBase<Derived>& m, const char* name) { dense(m, name); }
+  template <typename Scalar>
+  void read(Eigen::SparseMatrix<Scalar>& m, const char* name) { sparse(m, name); }
+  template <typename T>
+  void read(std::vector<T>& v, const char* name) {
+    if constexpr (kVisitable<T>) {
+      const auto n = pod<std::uint64_t>(name);
+      if (n > bytes_.size() - offset_) fail(std::string("corrupt length of ") + name);
+      v.resize(n);
+      for (T& element : v) element.visit(*this);
+    } else {
+      vector(v, name);
+    }
+  }
   void check(std::size_t count, const char* what) const {
     if (count > bytes_.size() - offset_)
       fail("truncated at byte " + std::to_string(offset_) + " while reading " + what);
@@ -155,181 +211,49 @@ stain::DropDef readDrop(Reader& r) {
   return d;
 }
 
-// A field added to these structs must be added to the file too (or loaded runs
-// stop being bit-identical, as EngineTest.*SaveThenLoad* would show): these
-// sizes break the build here first. Update writeSnapshot/readSnapshot, bump
-// kVersion, then the sizes.
-static_assert(sizeof(stain::ExtrinsicGeometry) == 6 * sizeof(stain::RowVectors3) + 4 * sizeof(std::vector<stain::Matrix3>) + 8,
-              "ExtrinsicGeometry changed: update the state file");
-static_assert(sizeof(stain::IntrinsicGeometry) ==
-                  7 * sizeof(stain::Vector) + 2 * sizeof(Eigen::MatrixX3d) + sizeof(stain::SparseMatrix) +
-                      sizeof(stain::ComplexSparseMatrix) + 8,
-              "IntrinsicGeometry changed: update the state file");
-static_assert(sizeof(stain::StainState) == 5 * sizeof(stain::Vector) + sizeof(stain::ComplexVector) + 3 * sizeof(double),
-              "StainState changed: update the state file");
+/// The motion's dynamic state through the Writer and Reader.
+class MotionWriter final : public cloth::MotionStateVisitor {
+ public:
+  explicit MotionWriter(Writer& w) : w_(w) {}
+  void field(const char* name, double& v) override { w_.field(name, v); }
+  void field(const char* name, bool& v) override { w_.field(name, v); }
+  void field(const char* name, Eigen::MatrixX3d& v) override { w_.field(name, v); }
+  void field(const char* name, Eigen::VectorXd& v) override { w_.field(name, v); }
+  void field(const char* name, std::vector<char>& v) override { w_.field(name, v); }
 
-void writeSnapshot(Writer& w, const stain::StainSolverSnapshot& s) {
-  const stain::StainState& st = s.state;
-  w.dense(st.velocities);
-  w.dense(st.solvent);
-  w.dense(st.solute);
-  w.dense(st.absorbedSolvent);
-  w.dense(st.absorbedSolute);
-  w.dense(st.adsorbedSolute);
-  w.pod(st.evaporatedSolvent);
-  w.pod(st.addedSolvent);
-  w.pod(st.addedSolute);
-  const stain::IntrinsicGeometry& in = s.geometry.intrinsic;
-  w.dense(in.edgeLengths);
-  w.dense(in.faceCornerAngles);
-  w.dense(in.faceAreas);
-  w.dense(in.edgeCotanWeights);
-  w.dense(in.vertexDualAreas);
-  w.dense(in.polarMap.ringAngles);
-  w.dense(in.polarMap.vertexAngleScales);
-  w.dense(in.edgeTransportAngles);
-  w.dense(in.faceTransportAngles);
-  w.sparse(in.densityStiffness);
-  w.sparse(in.velocityStiffness);
-  w.pod<std::int32_t>(in.rebuildCount);
-  const stain::ExtrinsicGeometry& ex = s.geometry.extrinsic;
-  w.dense(ex.previousPositions);
-  w.dense(ex.positions);
-  w.dense(ex.nextPositions);
-  w.dense(ex.vertexNormals);
-  w.vector(ex.restFrames);
-  w.vector(ex.frames);
-  w.vector(ex.nextFrames);
-  w.vector(ex.kabschRotations);
-  w.dense(ex.vertexAccelerations);
-  w.dense(ex.vertexAngularVelocities);
-  w.pod<std::uint8_t>(ex.rigid ? 1 : 0);
-  w.pod<std::uint8_t>(ex.nextRigid ? 1 : 0);
-  w.dense(s.geometry.nextNormals);
-  w.vector(s.geometry.previousRotations);
-  w.vector(s.geometry.rotations);
-  w.vector(s.geometry.nextRotations);
-  w.dense(s.geometry.inverseBuiltSquaredLengths);
-  w.pod(s.geometry.maxEdgeStrain);
-  w.pod(s.geometry.lastH);
-  w.pod<std::int32_t>(s.geometry.unchangedRefreshes);
-  w.pod<std::uint64_t>(s.heldRegions.size());
-  for (const stain::HeldRegion& region : s.heldRegions) {
-    w.vector(region.vertices);
-    w.pod(region.solventDensity);
-    w.pod(region.soluteDensity);
-  }
-  w.dense(s.initialVelocities);
-  w.pod(s.factorizedStep);
-  w.pod(s.time);
-  w.pod<std::int32_t>(s.steps);
-  w.pod<std::uint8_t>(s.started ? 1 : 0);
+ private:
+  Writer& w_;
+};
+
+class MotionReader final : public cloth::MotionStateVisitor {
+ public:
+  explicit MotionReader(Reader& r) : r_(r) {}
+  void field(const char* name, double& v) override { r_.field(name, v); }
+  void field(const char* name, bool& v) override { r_.field(name, v); }
+  void field(const char* name, Eigen::MatrixX3d& v) override { r_.field(name, v); }
+  void field(const char* name, Eigen::VectorXd& v) override { r_.field(name, v); }
+  void field(const char* name, std::vector<char>& v) override { r_.field(name, v); }
+
+ private:
+  Reader& r_;
+};
+
+/// The motion's dynamic state (a simulated cloth's nodes, pins, pending
+/// loads) after a marker, or the 0 marker alone.
+void writeMotionState(Writer& w, const cloth::SurfaceMotion& motion) {
+  w.pod<std::uint8_t>(motion.hasDynamicState() ? 1 : 0);
+  if (!motion.hasDynamicState()) return;
+  MotionWriter visitor(w);
+  motion.saveDynamicState(visitor);
 }
 
-void readSnapshot(Reader& r, stain::StainSolverSnapshot& s) {
-  stain::StainState& st = s.state;
-  r.dense(st.velocities, "state.velocities");
-  r.dense(st.solvent, "state.solvent");
-  r.dense(st.solute, "state.solute");
-  r.dense(st.absorbedSolvent, "state.absorbedSolvent");
-  r.dense(st.absorbedSolute, "state.absorbedSolute");
-  r.dense(st.adsorbedSolute, "state.adsorbedSolute");
-  st.evaporatedSolvent = r.pod<double>("state");
-  st.addedSolvent = r.pod<double>("state");
-  st.addedSolute = r.pod<double>("state");
-  stain::IntrinsicGeometry& in = s.geometry.intrinsic;
-  r.dense(in.edgeLengths, "intrinsic");
-  r.dense(in.faceCornerAngles, "intrinsic");
-  r.dense(in.faceAreas, "intrinsic");
-  r.dense(in.edgeCotanWeights, "intrinsic");
-  r.dense(in.vertexDualAreas, "intrinsic");
-  r.dense(in.polarMap.ringAngles, "intrinsic");
-  r.dense(in.polarMap.vertexAngleScales, "intrinsic");
-  r.dense(in.edgeTransportAngles, "intrinsic");
-  r.dense(in.faceTransportAngles, "intrinsic");
-  r.sparse(in.densityStiffness, "intrinsic.densityStiffness");
-  r.sparse(in.velocityStiffness, "intrinsic.velocityStiffness");
-  in.rebuildCount = r.pod<std::int32_t>("intrinsic");
-  stain::ExtrinsicGeometry& ex = s.geometry.extrinsic;
-  r.dense(ex.previousPositions, "extrinsic");
-  r.dense(ex.positions, "extrinsic");
-  r.dense(ex.nextPositions, "extrinsic");
-  r.dense(ex.vertexNormals, "extrinsic");
-  r.vector(ex.restFrames, "extrinsic");
-  r.vector(ex.frames, "extrinsic");
-  r.vector(ex.nextFrames, "extrinsic");
-  r.vector(ex.kabschRotations, "extrinsic");
-  r.dense(ex.vertexAccelerations, "extrinsic");
-  r.dense(ex.vertexAngularVelocities, "extrinsic");
-  ex.rigid = r.pod<std::uint8_t>("extrinsic") != 0;
-  ex.nextRigid = r.pod<std::uint8_t>("extrinsic") != 0;
-  r.dense(s.geometry.nextNormals, "geometry");
-  r.vector(s.geometry.previousRotations, "geometry");
-  r.vector(s.geometry.rotations, "geometry");
-  r.vector(s.geometry.nextRotations, "geometry");
-  r.dense(s.geometry.inverseBuiltSquaredLengths, "geometry");
-  s.geometry.maxEdgeStrain = r.pod<double>("geometry");
-  s.geometry.lastH = r.pod<double>("geometry");
-  s.geometry.unchangedRefreshes = r.pod<std::int32_t>("geometry");
-  const auto regions = r.pod<std::uint64_t>("held regions");
-  if (regions > 1000000) r.fail("corrupt held-region count");
-  s.heldRegions.resize(regions);
-  for (stain::HeldRegion& region : s.heldRegions) {
-    r.vector(region.vertices, "held region");
-    region.solventDensity = r.pod<double>("held region");
-    region.soluteDensity = r.pod<double>("held region");
-  }
-  r.dense(s.initialVelocities, "initial velocities");
-  s.factorizedStep = r.pod<double>("solver");
-  s.time = r.pod<double>("solver");
-  s.steps = r.pod<std::int32_t>("solver");
-  s.started = r.pod<std::uint8_t>("solver") != 0;
-}
-
-/// The Bullet cloth's state (nodes, pins, pending liquid loads), or a 0 marker.
-void writeClothState(Writer& w, const cloth::BulletCloth* cloth) {
-  w.pod<std::uint8_t>(cloth != nullptr ? 1 : 0);
-  if (cloth == nullptr) return;
-  const cloth::BulletClothState s = cloth->captureState();
-  w.pod(s.time);
-  w.dense(s.positions);
-  w.dense(s.previousPositions);
-  w.dense(s.velocities);
-  w.dense(s.previousVelocities);
-  w.dense(s.forces);
-  w.dense(s.nodeNormals);
-  w.dense(s.nodeAreas);
-  w.dense(s.faceNormals);
-  w.dense(s.inverseMasses);
-  w.dense(s.nodeMasses);
-  w.dense(s.pendingExtraMasses);
-  w.dense(s.pendingImpulses);
-  w.pod<std::uint8_t>(s.loadsPending ? 1 : 0);
-  w.vector(s.releasedPins);
-}
-
-void readClothState(Reader& r, coupling::CoupledSurface& surface) {
-  const bool hasCloth = r.pod<std::uint8_t>("cloth marker") != 0;
-  if (hasCloth != (surface.bulletCloth() != nullptr)) r.fail("cloth state marker does not match the motion source");
-  if (!hasCloth) return;
-  cloth::BulletClothState s;
-  s.time = r.pod<double>("cloth");
-  r.dense(s.positions, "cloth.positions");
-  r.dense(s.previousPositions, "cloth.previousPositions");
-  r.dense(s.velocities, "cloth.velocities");
-  r.dense(s.previousVelocities, "cloth.previousVelocities");
-  r.dense(s.forces, "cloth.forces");
-  r.dense(s.nodeNormals, "cloth.nodeNormals");
-  r.dense(s.nodeAreas, "cloth.nodeAreas");
-  r.dense(s.faceNormals, "cloth.faceNormals");
-  r.dense(s.inverseMasses, "cloth.inverseMasses");
-  r.dense(s.nodeMasses, "cloth.nodeMasses");
-  r.dense(s.pendingExtraMasses, "cloth.pendingExtraMasses");
-  r.dense(s.pendingImpulses, "cloth.pendingImpulses");
-  s.loadsPending = r.pod<std::uint8_t>("cloth") != 0;
-  r.vector(s.releasedPins, "cloth.releasedPins");
+void readMotionState(Reader& r, cloth::SurfaceMotion& motion) {
+  const bool has = r.pod<std::uint8_t>("cloth marker") != 0;
+  if (has != motion.hasDynamicState()) r.fail("cloth state marker does not match the motion source");
+  if (!has) return;
+  MotionReader visitor(r);
   try {
-    dynamic_cast<cloth::BulletCloth&>(surface.motion()).restoreState(s);
+    motion.loadDynamicState(visitor);
   } catch (const std::invalid_argument& e) {
     r.fail(e.what());
   }
@@ -352,11 +276,11 @@ void Engine::save(const std::string& path) const {
   w.pod<std::uint64_t>(pending_.size());
   for (const stain::DropDef& d : pending_) writeDrop(w, d);
   w.pod(surface_->motion().time());
-  writeClothState(w, surface_->bulletCloth());
+  writeMotionState(w, surface_->motion());
   w.dense(surface_->liquidNodeMasses());
   w.dense(surface_->pendingImpulses());
   w.raw(surface_->evaporatedMomentum().data(), 3);
-  writeSnapshot(w, surface_->stain().snapshot());
+  surface_->stain().snapshot().visit(w);
 
   // Write-then-rename: a reader never sees a half-written state.
   const std::string temporary = path + ".tmp";
@@ -408,7 +332,7 @@ void Engine::load(const std::string& path) {
   // Everything into a fresh surface; the engine changes only when all succeeded.
   std::unique_ptr<coupling::CoupledSurface> surface = buildSurface();
   if (def_.source != MotionSource::Bullet && motionTime > 0) surface->motion().advance(motionTime);
-  readClothState(r, *surface);
+  readMotionState(r, surface->motion());
   Eigen::VectorXd liquidMasses;
   Eigen::MatrixX3d impulses;
   Eigen::Vector3d vapour;
@@ -421,7 +345,7 @@ void Engine::load(const std::string& path) {
     r.fail(e.what());
   }
   stain::StainSolverSnapshot snapshot;
-  readSnapshot(r, snapshot);
+  snapshot.visit(r);
   if (!r.atEnd()) r.fail("unexpected bytes after the state");
   try {
     surface->stain().restore(snapshot);

@@ -1,14 +1,7 @@
-// The stain step, written once as the stage list of DESIGN.md.
-//
-// Design note: every stage is a free function over explicit inputs (context,
-// geometry, scratch, state); this file only decides which stages run and in
-// what order, times them, and guarantees that a failed step leaves the state
-// as it was (the state is copied into a preallocated backup before its first
-// change, which is a memcpy of a few vectors, far cheaper than any stage; a
-// dry step changes nothing and skips it). Terms a scene does not need are
-// skipped here, visibly: inertia on a surface that has not moved, solute
-// transport when there is no solute, terms with a zero coefficient, stages on
-// dry vertices; StepProfile::terms records which ran (describeTerms).
+// The stain step, written once as the stage list of DESIGN.md: each stage is
+// one line of advanceStages (docs/architecture.md). Which terms run is decided
+// once per step (activeTerms); a failed stage leaves the state as the step
+// found it (a preallocated backup, copied before the first change).
 #include <blot/stain/stages/external_forces.h>
 #include <blot/stain/stages/film_pressure.h>
 #include <blot/stain/stages/interaction.h>
@@ -17,11 +10,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstring>
 #include <iterator>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <type_traits>
 
 namespace blot::stain {
 namespace {
@@ -29,6 +22,12 @@ namespace {
 // A density below −1e-12 of the largest magnitude is negative mass, not
 // rounding (the limiter and the solves keep densities ≥ 0 to rounding).
 constexpr double kNegativeDensityTolerance = 1e-12;
+
+using Clock = std::chrono::steady_clock;
+
+double millisecondsSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
 
 /// Adds the elapsed wall-clock milliseconds to `out` when it goes out of scope.
 class ScopedTimer {
@@ -135,6 +134,7 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   wet_.assign(static_cast<size_t>(n), 0);
   wetList_.reserve(static_cast<size_t>(n));
   initialVelocities_ = RowVectors3::Zero(n, 3);
+  evaporatedMass_ = Vector::Zero(n);
 }
 
 StainSolver::~StainSolver() = default;
@@ -176,12 +176,22 @@ void StainSolver::restartMotion(const RowVectors3& positions, const RowVectors3&
   undoable_ = false;
 }
 
-void StainSolver::undoLastStep() {
-  if (!undoable_) throw std::logic_error("StainSolver::undoLastStep: no successful step to undo");
-  restoreBackup();
-  time_ = backupTime_;
-  --steps_;
-  undoable_ = false;
+void StainSolver::abandonStep(const RowVectors3& positions, const RowVectors3& velocities) {
+  if (undoable_) {  // the stain step succeeded; a later stage of the coupled step failed
+    restoreBackup();
+    time_ = backupTime_;
+    --steps_;
+  } else if (inStep_ && backedUp_) {
+    restoreBackup();
+  }
+  inStep_ = false;
+  restartMotion(positions, velocities);
+}
+
+void StainSolver::keepBackup() {
+  if (backedUp_) return;
+  backup_ = state_;  // same sizes: no allocation
+  backedUp_ = true;
 }
 
 void StainSolver::restoreBackup() {
@@ -194,20 +204,42 @@ void StainSolver::restoreBackup() {
 }
 
 void StainSolver::injectFaultForTesting(const InjectedFault& fault) {
-  static const char* const kStages[] = {"forces",         "film-pressure", "advect-velocity", "coriolis",
-                                        "advect-density", "diffuse",       "interact",        "sources"};
-  if (std::find(std::begin(kStages), std::end(kStages), fault.stage) == std::end(kStages))
-    throw std::invalid_argument("injected fault: unknown stain stage '" + fault.stage + "'");
+  if (fault.stage < Stage::BodyForces || fault.stage > Stage::Sources)
+    throw std::invalid_argument(std::string("injected fault: '") + stageName(fault.stage) + "' is not a stain stage");
   if (fault.vertex < 0 || fault.vertex >= state_.vertexCount())
     throw std::invalid_argument("injected fault: vertex " + std::to_string(fault.vertex) + " out of range [0, " +
                                 std::to_string(state_.vertexCount()) + ")");
   fault_ = fault;
+  fault_.armed = true;
 }
 
-bool StainSolver::checkStage(const char* stage, StepReport& report) {
-  if (!fault_.stage.empty() && fault_.step == steps_ + 1 && fault_.stage == stage) {
+template <class Work>
+bool StainSolver::runStage(Stage stage, bool active, StepReport& report, Work&& work) {
+  if (!active) return true;
+  const Clock::time_point start = Clock::now();
+  if constexpr (std::is_same_v<decltype(work()), SolverStatus>) {
+    const SolverStatus status = work();
+    profile_.milliseconds[static_cast<size_t>(stage)] += millisecondsSince(start);
+    profile_.markRan(stage);
+    if (status != SolverStatus::Ok) {
+      restoreBackup();
+      report.status = StepStatus::SolverFailure;
+      report.stage = stage;
+      report.message = toString(status);
+      return false;
+    }
+  } else {
+    work();
+    profile_.milliseconds[static_cast<size_t>(stage)] += millisecondsSince(start);
+    profile_.markRan(stage);
+  }
+  return checkStage(stage, report);
+}
+
+bool StainSolver::checkStage(Stage stage, StepReport& report) {
+  if (fault_.armed && fault_.step == steps_ + 1 && fault_.stage == stage) {
     state_.solvent[fault_.vertex] = std::numeric_limits<double>::quiet_NaN();
-    fault_.stage.clear();  // fires once
+    fault_.armed = false;  // fires once
   }
   // One pass over the vertices the stages touched (wet + halo, held ones
   // after "sources"): the extremes of every field and a flag that is false
@@ -226,7 +258,7 @@ bool StainSolver::checkStage(const char* stage, StepReport& report) {
     }
     finite &= std::abs(state_.velocities[i].real()) <= kLargest && std::abs(state_.velocities[i].imag()) <= kLargest;
   };
-  const bool held = std::strcmp(stage, "sources") == 0;
+  const bool held = stage == Stage::Sources;
   for (int i : wetList_) scan(i);
   if (held)
     for (const HeldRegion& region : heldRegions_)
@@ -253,8 +285,8 @@ bool StainSolver::checkStage(const char* stage, StepReport& report) {
   report.stage = stage;
   report.vertex = vertex;
   report.message = std::string(finite ? "negative density" : "non-finite value") + " at vertex " +
-                   std::to_string(vertex) + " after stage '" + stage + "' of step " + std::to_string(steps_ + 1) +
-                   "; state restored";
+                   std::to_string(vertex) + " after stage '" + stageName(stage) + "' of step " +
+                   std::to_string(steps_ + 1) + "; state restored";
   restoreBackup();
   return false;
 }
@@ -302,24 +334,48 @@ void StainSolver::updateWetMask() {
 }
 
 StepReport StainSolver::step(double h, const RowVectors3& nextPositions) {
-  return advance(h, nextPositions, nullptr);
+  StepReport report = refreshGeometry(h, nextPositions, nullptr);
+  return report.ok() ? advanceStages() : report;
 }
 
 StepReport StainSolver::stepRigid(double h, const RowVectors3& nextPositions, const Matrix3& rotation) {
-  return advance(h, nextPositions, &rotation);
+  StepReport report = refreshGeometry(h, nextPositions, &rotation);
+  return report.ok() ? advanceStages() : report;
 }
 
-StepReport StainSolver::advance(double h, const RowVectors3& nextPositions, const Matrix3* rigidRotation) {
+PhysicsSwitches StainSolver::activeTerms(bool surfaceMoved) const {
+  const PhysicsSwitches& on = def_.switches;
+  const LiquidParameters& liquid = def_.liquid;
+  const bool any = profile_.wetVertices > 0;
+  PhysicsSwitches active = on;
+  // A zero coefficient is a term switched off: zero gravity adds nothing (and
+  // drives no film pressure), a zero rate transfers nothing.
+  active.gravity = any && on.gravity && !def_.gravity.isZero(0.0);
+  active.linearInertia = any && on.linearInertia && surfaceMoved;
+  active.coriolis = any && on.coriolis && surfaceMoved;
+  active.filmPressure = any && on.filmPressure && active.gravity;
+  active.velocityAdvection = any && on.velocityAdvection;
+  active.densityAdvection = any && on.densityAdvection;
+  active.densityDiffusion = any && on.densityDiffusion;
+  active.velocityDiffusion = any && on.velocityDiffusion;
+  active.absorption = any && on.absorption && liquid.absorptionRate > 0;
+  active.adsorption = any && on.adsorption && liquid.desorptionRate > 0;
+  active.evaporation = any && on.evaporation && liquid.evaporationRate > 0;
+  active.sources = on.sources && !heldRegions_.empty();
+  return active;
+}
+
+StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositions, const Matrix3* rigidRotation) {
   StepReport report;
+  report.stage = Stage::Guard;
+  inStep_ = false;
   if (!(h > 0) || !std::isfinite(h)) {
     report.status = StepStatus::InvalidArgument;
-    report.stage = "guard";
     report.message = "time step must be finite and positive, got " + std::to_string(h);
     return report;
   }
   if (nextPositions.rows() != state_.vertexCount() || !nextPositions.allFinite()) {
     report.status = StepStatus::InvalidArgument;
-    report.stage = "guard";
     report.message = "next positions must be " + std::to_string(state_.vertexCount()) + " finite rows";
     return report;
   }
@@ -328,7 +384,6 @@ StepReport StainSolver::advance(double h, const RowVectors3& nextPositions, cons
        (rigidRotation->transpose() * *rigidRotation - Matrix3::Identity()).cwiseAbs().maxCoeff() > 1e-9 ||
        !(rigidRotation->determinant() > 0))) {
     report.status = StepStatus::InvalidArgument;
-    report.stage = "guard";
     report.message = "stepRigid: rotation must be a rotation matrix";
     return report;
   }
@@ -337,202 +392,155 @@ StepReport StainSolver::advance(double h, const RowVectors3& nextPositions, cons
   // The backup (a copy of every field, O(#V)) is taken only before the first
   // change to the state: the area rescale of a rebuild, or the first stage.
   // A dry step without sources changes nothing and copies nothing.
-  backedUp_ = false;  // backup_ is taken lazily, once the step changes the state
+  backedUp_ = false;
   undoable_ = false;
   backupTime_ = time_;
-  const StepContext ctx = makeStepContext(h, def_.gravity, def_.switches, def_.liquid);
   ScopedTimer total(profile_.total);
+  ScopedTimer t(profile_.milliseconds[static_cast<size_t>(Stage::Geometry)]);
+  report.stage = Stage::Geometry;
 
-  bool surfaceMoved = false;
   // On the first step u is in the frames at t, not in a last step's midpoint frame.
-  const bool firstStep = !started_;
-  {
-    ScopedTimer t(profile_.geometry);
-    if (!started_) {
-      // p(−h) ≈ p(0) − h v(0): the first centred acceleration sees the motion's
-      // initial velocity instead of a jump from rest.
-      geometry_.setPreviousPositions(geometry_.extrinsic().nextPositions - h * initialVelocities_);
-      started_ = true;
-    }
-    const bool rebuild = rigidRotation != nullptr ? geometry_.refreshExtrinsicRigid(nextPositions, *rigidRotation, h)
-                                                  : geometry_.refreshExtrinsic(nextPositions, h);
-    profile_.maxEdgeStrain = geometry_.maxEdgeStrain();
-    if (rebuild) {
-      backup_ = state_;  // same sizes: no allocation
-      backedUp_ = true;
-      // Densities are per area: when the dual areas change, rescale them so
-      // each vertex keeps its mass (A_old σ_old = A_new σ_new).
-      areaScratch_ = geometry_.intrinsic().vertexDualAreas;
-      systems_.releaseFactors();  // the stale factors are not kept while new operators are assembled
-      geometry_.refreshIntrinsic();
-      areaScratch_.array() /= geometry_.intrinsic().vertexDualAreas.array();
-      for (Vector* f : {&state_.solvent, &state_.solute, &state_.absorbedSolvent, &state_.absorbedSolute,
-                        &state_.adsorbedSolute})
-        f->array() *= areaScratch_.array();
-      profile_.intrinsicRefreshes = 1;
-      profile_.markRan(StepTerm::IntrinsicRebuild);
-    }
-    if (rebuild || systems_.factorizedStep() != h) {
-      profile_.markRan(StepTerm::Factorization);
-      const SolverStatus status = systems_.factorize(geometry_.intrinsic(), h);
-      if (status != SolverStatus::Ok) {
-        report.status = StepStatus::SolverFailure;
-        report.stage = "geometry";
-        report.message = std::string("factorization failed: ") + toString(status);
-        return report;
-      }
-    }
-    const ExtrinsicGeometry& e = geometry_.extrinsic();
-    surfaceMoved = !(e.previousPositions == e.positions && e.positions == e.nextPositions);
-    if (geometry_.rotationFitStats().fittedVertices > 0) {
-      profile_.markRan(StepTerm::RotationFits);
-    } else if (rigidRotation != nullptr && surfaceMoved) {
-      profile_.markRan(StepTerm::RigidFrames);
-    }
-    profile_.geometryVertices = surfaceMoved ? state_.vertexCount() : 0;
+  firstStep_ = !started_;
+  if (!started_) {
+    // p(−h) ≈ p(0) − h v(0): the first centred acceleration sees the motion's
+    // initial velocity instead of a jump from rest.
+    geometry_.setPreviousPositions(geometry_.extrinsic().nextPositions - h * initialVelocities_);
+    started_ = true;
   }
-
-  updateWetMask();
-  const bool anyLiquid = profile_.wetVertices > 0;
-  const PhysicsSwitches& on = ctx.switches;
-  wetList_.clear();  // reserved for #V: no allocation
-  if (anyLiquid)
-    for (int i = 0; i < state_.vertexCount(); ++i)
-      if (wet_[static_cast<size_t>(i)] != 0) wetList_.push_back(i);
-  if (!backedUp_ && (anyLiquid || (on.sources && !heldRegions_.empty()))) {
-    backup_ = state_;  // the state as the step found it (no rebuild above)
-    backedUp_ = true;
+  const bool rebuild = rigidRotation != nullptr ? geometry_.refreshExtrinsicRigid(nextPositions, *rigidRotation, h)
+                                                : geometry_.refreshExtrinsic(nextPositions, h);
+  profile_.maxEdgeStrain = geometry_.maxEdgeStrain();
+  if (rebuild) {
+    keepBackup();
+    // Densities are per area: when the dual areas change, rescale them so
+    // each vertex keeps its mass (A_old σ_old = A_new σ_new).
+    areaScratch_ = geometry_.intrinsic().vertexDualAreas;
+    systems_.releaseFactors();  // the stale factors are not kept while new operators are assembled
+    geometry_.refreshIntrinsic();
+    areaScratch_.array() /= geometry_.intrinsic().vertexDualAreas.array();
+    for (Vector* f : {&state_.solvent, &state_.solute, &state_.absorbedSolvent, &state_.absorbedSolute,
+                      &state_.adsorbedSolute})
+      f->array() *= areaScratch_.array();
+    profile_.intrinsicRefreshes = 1;
+    profile_.markRan(StepTerm::IntrinsicRebuild);
   }
-
-  // Forces are split around the velocity advection: gravity and linear
-  // inertia before it, the Coriolis rotation after it (docs/transport.md).
-  // With the paper's order (all forces, then advection) liquid at rest in an
-  // inertial frame on a rotating surface speeds up by 2(ωh)² per step, a
-  // first-order global error (the blob of Fig. 5 ran 9 % of a radian ahead
-  // over half a turn at ωh = 0.01); rotating after advection cancels it to
-  // O((ωh)³) per step, at the cost of one more pass over the wet vertices.
-  // The default Coriolis is the discrete frame change instead (docs/transport.md):
-  // half the frame increment here (u kept in the last step's midpoint frame
-  // goes into F^t), the frame velocity along the backtrack and the other half
-  // after the advection; no energy is created at any ωh.
-  // A zero coefficient is a term switched off: zero gravity adds nothing
-  // (and drives no film pressure), a zero rate transfers nothing.
-  const bool coriolis = anyLiquid && on.coriolis && surfaceMoved;
-  const bool frameChange = coriolis && on.velocityAdvection && on.coriolisScheme == CoriolisScheme::ExactRotation;
-  const bool gravity = on.gravity && !ctx.gravity.isZero(0.0);
-  const bool inertia = on.linearInertia && surfaceMoved;
-  if (frameChange && !firstStep) {
-    ScopedTimer t(profile_.forces);
-    applyHalfFrameRotation(ctx, geometry_.extrinsic(), wet_, state_);
-  }
-  if (anyLiquid && (gravity || inertia)) {
-    ScopedTimer t(profile_.forces);
-    StepContext forceCtx = ctx;
-    forceCtx.switches.gravity = gravity;
-    forceCtx.switches.linearInertia = inertia;
-    forceCtx.switches.coriolis = false;
-    applyExternalForces(forceCtx, geometry_.extrinsic(), wet_, state_);
-    if (gravity) profile_.markRan(StepTerm::Gravity);
-    if (inertia) profile_.markRan(StepTerm::LinearInertia);
-    if (!checkStage("forces", report)) return report;
-  }
-  if (anyLiquid && on.filmPressure && gravity) {
-    ScopedTimer t(profile_.forces);
-    applyFilmPressure(ctx, geometry_.topology(), geometry_.extrinsic(), wet_, state_);
-    profile_.markRan(StepTerm::FilmPressure);
-    if (!checkStage("film-pressure", report)) return report;
-  }
-  if (anyLiquid && on.velocityAdvection) {
-    ScopedTimer t(profile_.advectVelocity);
-    advectVelocity(ctx, geometry_.topology(), geometry_.intrinsic(), wet_, velocityScratch_, state_);
-    profile_.markRan(StepTerm::VelocityAdvection);
-    if (!checkStage("advect-velocity", report)) return report;
-  }
-  if (coriolis) {
-    ScopedTimer t(profile_.forces);
-    profile_.markRan(StepTerm::Coriolis);
-    if (frameChange) {
-      applyFrameVelocityChange(ctx, geometry_.extrinsic(), velocityScratch_.footVertices,
-                               velocityScratch_.footWeights, wet_, state_);
-    } else {
-      StepContext coriolisCtx = ctx;
-      coriolisCtx.switches.gravity = false;
-      coriolisCtx.switches.linearInertia = false;
-      applyExternalForces(coriolisCtx, geometry_.extrinsic(), wet_, state_);
-    }
-    if (!checkStage("coriolis", report)) return report;
-  }
-  if (anyLiquid && on.densityAdvection) {
-    ScopedTimer t(profile_.advectDensity);
-    const DensityAdvectionReport r =
-        advectDensities(ctx, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), wet_,
-                        densityScratch_, state_, &geometry_.restEdgeFrameNormals());
-    profile_.advectionSubsteps = r.substeps;
-    profile_.advectionVertices = r.activeVertices;
-    profile_.markRan(StepTerm::DensityAdvection);
-    if (!checkStage("advect-density", report)) return report;
-  }
-  if (anyLiquid && (on.densityDiffusion || on.velocityDiffusion)) {
-    ScopedTimer t(profile_.diffuse);
-    const DiffusionReport r = diffuse(ctx, geometry_.intrinsic(), systems_, diffusionScratch_, state_, &wet_);
-    profile_.diffusionIterations = r.densityIterations + r.velocityIterations;
-    profile_.limiterCorrectedVertices = r.limiterCorrectedVertices;
-    profile_.limiterMovedMass = r.limiterMovedMass;
-    const int n = state_.vertexCount();
-    if (r.densityMethod != DiffusionMethod::None) {
-      const bool krylov = r.densityMethod == DiffusionMethod::ConjugateGradient;
-      profile_.markRan(krylov ? StepTerm::DensityDiffusionKrylov : StepTerm::DensityDiffusionDirect);
-      profile_.densityDiffusionVertices = krylov ? r.densityActiveVertices : n;
-    }
-    if (r.velocityMethod != DiffusionMethod::None) {
-      const bool krylov = r.velocityMethod == DiffusionMethod::ConjugateGradient;
-      profile_.markRan(krylov ? StepTerm::VelocityDiffusionKrylov : StepTerm::VelocityDiffusionDirect);
-      profile_.velocityDiffusionVertices = krylov ? r.velocityActiveVertices : n;
-    }
-    if (r.status != SolverStatus::Ok) {
-      restoreBackup();
+  if (rebuild || systems_.factorizedStep() != h) {
+    profile_.markRan(StepTerm::Factorization);
+    const SolverStatus status = systems_.factorize(geometry_.intrinsic(), h);
+    if (status != SolverStatus::Ok) {
+      inStep_ = true;  // abandonStep restores the rescaled backup
       report.status = StepStatus::SolverFailure;
-      report.stage = "diffuse";
-      report.message = toString(r.status);
+      report.message = std::string("factorization failed: ") + toString(status);
       return report;
     }
-    if (!checkStage("diffuse", report)) return report;
   }
-  // With every rate zero the stage (and its drying deposit, which follows
-  // solvent that absorption or evaporation removed) is skipped.
-  StepContext interactCtx = ctx;
-  interactCtx.switches.absorption = on.absorption && ctx.liquid.absorptionRate > 0;
-  interactCtx.switches.adsorption = on.adsorption && ctx.liquid.desorptionRate > 0;
-  interactCtx.switches.evaporation = on.evaporation && ctx.liquid.evaporationRate > 0;
-  const PhysicsSwitches& transfers = interactCtx.switches;
-  if (anyLiquid && (transfers.absorption || transfers.adsorption || transfers.evaporation)) {
-    ScopedTimer t(profile_.interact);
-    interact(interactCtx, geometry_.topology(), geometry_.intrinsic(), wet_, state_);
-    if (transfers.absorption) profile_.markRan(StepTerm::Absorption);
-    if (transfers.adsorption) profile_.markRan(StepTerm::Adsorption);
-    if (transfers.evaporation) profile_.markRan(StepTerm::Evaporation);
-    if (!checkStage("interact", report)) return report;
+  const ExtrinsicGeometry& e = geometry_.extrinsic();
+  const bool surfaceMoved = !(e.previousPositions == e.positions && e.positions == e.nextPositions);
+  if (geometry_.rotationFitStats().fittedVertices > 0) {
+    profile_.markRan(StepTerm::RotationFits);
+  } else if (rigidRotation != nullptr && surfaceMoved) {
+    profile_.markRan(StepTerm::RigidFrames);
   }
-  if (on.sources && !heldRegions_.empty()) {
-    ScopedTimer t(profile_.sources);
-    applySources(ctx, heldRegions_, geometry_.intrinsic(), state_);
-    profile_.markRan(StepTerm::Sources);
-    if (!checkStage("sources", report)) return report;
+  profile_.geometryVertices = surfaceMoved ? state_.vertexCount() : 0;
+  profile_.markRan(Stage::Geometry);
+
+  updateWetMask();
+  wetList_.clear();  // reserved for #V: no allocation
+  if (profile_.wetVertices > 0)
+    for (int i = 0; i < state_.vertexCount(); ++i)
+      if (wet_[static_cast<size_t>(i)] != 0) wetList_.push_back(i);
+  ctx_ = makeStepContext(h, def_.gravity, activeTerms(surfaceMoved), def_.liquid);
+  if (ctx_.switches.sources || profile_.wetVertices > 0) keepBackup();  // the state as the step found it
+  inStep_ = true;
+  return report;
+}
+
+StepReport StainSolver::advanceStages() {
+  StepReport report;
+  if (!inStep_) {
+    report.status = StepStatus::InvalidArgument;
+    report.message = "advanceStages: no refreshGeometry that returned Ok before it";
+    return report;
+  }
+  ScopedTimer total(profile_.total);
+  const StepContext& ctx = ctx_;
+  const PhysicsSwitches& on = ctx.switches;  // the terms this step runs (activeTerms)
+  const SurfaceTopology& topology = geometry_.topology();
+  const IntrinsicGeometry& intrinsic = geometry_.intrinsic();
+  const ExtrinsicGeometry& extrinsic = geometry_.extrinsic();
+  // The Coriolis term is the discrete frame change (docs/transport.md): half
+  // the frame increment first, the frame velocity along the backtrack and the
+  // other half after the velocity advection.
+  const bool frameChange = on.coriolis && on.velocityAdvection && on.coriolisScheme == CoriolisScheme::ExactRotation;
+  if (evaporationWritten_) {  // the coupling reads it after every step
+    evaporatedMass_.setZero();
+    evaporationWritten_ = false;
   }
 
+  // clang-format off
+  if (!runStage(Stage::Coriolis, frameChange && !firstStep_, report, [&] { applyHalfFrameRotation(ctx, extrinsic, wet_, state_); }) ||
+      !runStage(Stage::BodyForces, on.gravity || on.linearInertia, report, [&] { applyBodyForces(ctx, extrinsic, wet_, state_); markTerms(StepTerm::Gravity, on.gravity, StepTerm::LinearInertia, on.linearInertia); }) ||
+      !runStage(Stage::FilmPressure, on.filmPressure, report, [&] { applyFilmPressure(ctx, topology, extrinsic, wet_, state_); markTerms(StepTerm::FilmPressure); }) ||
+      !runStage(Stage::AdvectVelocity, on.velocityAdvection, report, [&] { advectVelocity(ctx, topology, intrinsic, wet_, velocityScratch_, state_); markTerms(StepTerm::VelocityAdvection); }) ||
+      !runStage(Stage::Coriolis, on.coriolis, report, [&] { markTerms(StepTerm::Coriolis);
+                                                            frameChange ? applyFrameVelocityChange(ctx, extrinsic, velocityScratch_.footVertices, velocityScratch_.footWeights, wet_, state_)
+                                                                        : applyCoriolis(ctx, extrinsic, wet_, state_); }) ||
+      !runStage(Stage::AdvectDensity, on.densityAdvection, report, [&] { recordAdvection(advectDensities(ctx, topology, intrinsic, extrinsic, wet_, densityScratch_, state_, &geometry_.restEdgeFrameNormals())); }) ||
+      !runStage(Stage::Diffuse, on.densityDiffusion || on.velocityDiffusion, report, [&] { return recordDiffusion(diffuse(ctx, intrinsic, systems_, diffusionScratch_, state_, &wet_)); }) ||
+      !runStage(Stage::Interact, on.absorption || on.adsorption || on.evaporation, report, [&] { interact(ctx, topology, intrinsic, wet_, state_, &evaporatedMass_); evaporationWritten_ = on.evaporation;
+                                                                                                   markTerms(StepTerm::Absorption, on.absorption, StepTerm::Adsorption, on.adsorption, StepTerm::Evaporation, on.evaporation); }) ||
+      !runStage(Stage::Sources, on.sources, report, [&] { applySources(ctx, heldRegions_, intrinsic, state_); markTerms(StepTerm::Sources); }))
+    return report;
+  // clang-format on
+  return finishStep();
+}
+
+void StainSolver::markTerms(StepTerm a, bool ranA, StepTerm b, bool ranB, StepTerm c, bool ranC) {
+  if (ranA) profile_.markRan(a);
+  if (ranB) profile_.markRan(b);
+  if (ranC) profile_.markRan(c);
+}
+
+void StainSolver::recordAdvection(const DensityAdvectionReport& r) {
+  profile_.advectionSubsteps = r.substeps;
+  profile_.advectionVertices = r.activeVertices;
+  profile_.markRan(StepTerm::DensityAdvection);
+}
+
+SolverStatus StainSolver::recordDiffusion(const DiffusionReport& r) {
+  profile_.diffusionIterations = r.densityIterations + r.velocityIterations;
+  profile_.limiterCorrectedVertices = r.limiterCorrectedVertices;
+  profile_.limiterMovedMass = r.limiterMovedMass;
+  const int n = state_.vertexCount();
+  if (r.densityMethod != DiffusionMethod::None) {
+    const bool krylov = r.densityMethod == DiffusionMethod::ConjugateGradient;
+    profile_.markRan(krylov ? StepTerm::DensityDiffusionKrylov : StepTerm::DensityDiffusionDirect);
+    profile_.densityDiffusionVertices = krylov ? r.densityActiveVertices : n;
+  }
+  if (r.velocityMethod != DiffusionMethod::None) {
+    const bool krylov = r.velocityMethod == DiffusionMethod::ConjugateGradient;
+    profile_.markRan(krylov ? StepTerm::VelocityDiffusionKrylov : StepTerm::VelocityDiffusionDirect);
+    profile_.velocityDiffusionVertices = krylov ? r.velocityActiveVertices : n;
+  }
+  return r.status;
+}
+
+StepReport StainSolver::finishStep() {
+  StepReport report;
+  inStep_ = false;
   // Validated even when nothing ran (a bad value put in through
   // mutableState is reported the same way); restored only if changed.
   const int bad = firstBadVertex(state_, kNegativeDensityTolerance);
   if (bad >= 0) {
     if (backedUp_) restoreBackup();
     report.status = StepStatus::NonFinite;
-    report.stage = "validate";
+    report.stage = Stage::Validate;
     report.vertex = bad;
     report.message = "non-finite or negative value at vertex " + std::to_string(bad) + " after step " +
                      std::to_string(steps_ + 1) + "; state restored";
     return report;
   }
-  time_ += h;
+  time_ += ctx_.h;
   ++steps_;
   undoable_ = true;
   return report;

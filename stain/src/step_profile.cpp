@@ -1,19 +1,63 @@
-// Which terms of the stain step ran, as text (issue 7: "each scene reports
-// which terms ran").
-//
-// Design note. The step records the terms in StepProfile::terms, one bit per
-// StepTerm, and the vertex counts in plain ints: no allocation in the frame
-// loop, and a profile can be copied, summed and OR-ed by the engine. Only this
-// report, made on demand outside the loop, builds a string. Vertex counts are
-// printed beside the terms whose work is not simply "wet + halo": geometry on
-// #V, density advection on its sub-step halo, diffusion on its Krylov support
-// or the whole mesh. Rejected: a std::vector<std::string> of term names filled
-// by the step (an allocation per step, which DESIGN.md rules out).
-#include <blot/stain/step_context.h>
+// Stage and term names, and the report of which terms ran. The step records
+// bits and counts only (no allocation in the frame loop); strings are made
+// here, on demand, outside it.
+#include <blot/stain/step_profile.h>
 
 #include <sstream>
 
 namespace blot::stain {
+namespace {
+
+constexpr const char* kStageNames[kStageCount] = {
+    "guard",     "drops",          "cloth",    "geometry", "forces",  "film-pressure", "advect-velocity",
+    "coriolis",  "advect-density", "diffuse",  "interact", "sources", "coupling",      "validate"};
+
+}  // namespace
+
+const char* stageName(Stage stage) {
+  const int k = static_cast<int>(stage);
+  return k >= 0 && k < kStageCount ? kStageNames[k] : "unknown";
+}
+
+bool parseStage(const std::string& name, Stage& stage) {
+  for (int k = 0; k < kStageCount; ++k)
+    if (name == kStageNames[k]) {
+      stage = static_cast<Stage>(k);
+      return true;
+    }
+  return false;
+}
+
+Stage stageOf(StepTerm term) {
+  switch (term) {
+    case StepTerm::RotationFits:
+    case StepTerm::RigidFrames:
+    case StepTerm::IntrinsicRebuild:
+    case StepTerm::Factorization: return Stage::Geometry;
+    case StepTerm::Gravity:
+    case StepTerm::LinearInertia: return Stage::BodyForces;
+    case StepTerm::Coriolis: return Stage::Coriolis;
+    case StepTerm::FilmPressure: return Stage::FilmPressure;
+    case StepTerm::VelocityAdvection: return Stage::AdvectVelocity;
+    case StepTerm::DensityAdvection: return Stage::AdvectDensity;
+    case StepTerm::DensityDiffusionKrylov:
+    case StepTerm::DensityDiffusionDirect:
+    case StepTerm::VelocityDiffusionKrylov:
+    case StepTerm::VelocityDiffusionDirect: return Stage::Diffuse;
+    case StepTerm::Absorption:
+    case StepTerm::Adsorption:
+    case StepTerm::Evaporation: return Stage::Interact;
+    case StepTerm::Sources: return Stage::Sources;
+  }
+  return Stage::Guard;
+}
+
+double StepProfile::stainTime() const {
+  double sum = 0;
+  for (int k = static_cast<int>(Stage::Geometry); k <= static_cast<int>(Stage::Sources); ++k)
+    sum += milliseconds[static_cast<size_t>(k)];
+  return sum;
+}
 
 const char* stepTermName(StepTerm term) {
   switch (term) {

@@ -66,7 +66,7 @@ void BM_CoupledFlag(benchmark::State& state) {
   state.counters["ratio"] = (stainMs + coupling) / bareMs;
   state.counters["rebuilds"] = static_cast<double>(rebuilds) / n;
   state.counters["wet"] = coupled->stain().profile().wetVertices;
-  state.counters["healthy"] = coupled->bulletCloth()->isHealthy() && bare.isHealthy() ? 1 : 0;
+  state.counters["healthy"] = coupled->motion().isHealthy() && bare.isHealthy() ? 1 : 0;
 }
 BENCHMARK(BM_CoupledFlag)->ArgName("strain")->Arg(1)->Arg(20)->Arg(1000)->Iterations(300)->Unit(benchmark::kMillisecond);
 

@@ -150,7 +150,7 @@ void stainStep(benchmark::State& bench) {
   for (int k = 0; k < kWarmupSteps; ++k) {
     const StepReport r = scene.advance(path);
     if (r.status != StepStatus::Ok) {
-      bench.SkipWithError(("warm-up step failed in " + r.stage + ": " + r.message).c_str());
+      bench.SkipWithError(("warm-up step failed in " + std::string(r.stageName()) + ": " + r.message).c_str());
       return;
     }
   }
@@ -160,7 +160,7 @@ void stainStep(benchmark::State& bench) {
   for (auto _ : bench) {
     const StepReport r = scene.advance(path);
     if (r.status != StepStatus::Ok) {
-      bench.SkipWithError(("step failed in " + r.stage + ": " + r.message).c_str());
+      bench.SkipWithError(("step failed in " + std::string(r.stageName()) + ": " + r.message).c_str());
       break;
     }
     const StepProfile& p = scene.solver->profile();
@@ -175,12 +175,12 @@ void stainStep(benchmark::State& bench) {
   const int n = scene.solver->state().vertexCount();
   bench.counters["n"] = n;
   bench.counters["threads"] = threads;
-  bench.counters["geometry"] = mean(sum.geometry);
-  bench.counters["forces"] = mean(sum.forces);
-  bench.counters["advectVelocity"] = mean(sum.advectVelocity);
-  bench.counters["advectDensity"] = mean(sum.advectDensity);
-  bench.counters["diffuse"] = mean(sum.diffuse);
-  bench.counters["interact"] = mean(sum.interact);
+  bench.counters["geometry"] = mean(sum.time(Stage::Geometry));
+  bench.counters["forces"] = mean(sum.time(Stage::BodyForces) + sum.time(Stage::FilmPressure) + sum.time(Stage::Coriolis));
+  bench.counters["advectVelocity"] = mean(sum.time(Stage::AdvectVelocity));
+  bench.counters["advectDensity"] = mean(sum.time(Stage::AdvectDensity));
+  bench.counters["diffuse"] = mean(sum.time(Stage::Diffuse));
+  bench.counters["interact"] = mean(sum.time(Stage::Interact));
   bench.counters["total"] = mean(sum.total);
   bench.counters["substeps"] = mean(sum.advectionSubsteps);
   bench.counters["wet"] = mean(wet / n);

@@ -271,7 +271,7 @@ void BM_Table1(benchmark::State& state) {
     const stain::StepReport report = engine.advanceSteps(1);
     state.SetIterationTime(msSince(start) * 1e-3);
     if (report.status != stain::StepStatus::Ok) {
-      state.SkipWithError(("step failed in stage " + report.stage + ": " + report.message).c_str());
+      state.SkipWithError(("step failed in stage " + std::string(report.stageName()) + ": " + report.message).c_str());
       break;
     }
     const auto bareStart = Clock::now();
@@ -288,11 +288,17 @@ void BM_Table1(benchmark::State& state) {
   const PhaseTotals& b = before.totals;
   const double bareStep = bareMs / n;
   const double stainAndCoupling = (a.stain - b.stain + a.coupling - b.coupling) / n;
-  state.counters["inertia"] = (a.forces - b.forces) / n;
-  state.counters["advection"] = (a.advectVelocity - b.advectVelocity + a.advectDensity - b.advectDensity) / n;
-  state.counters["diffusion"] = (a.diffuse - b.diffuse) / n;
-  state.counters["interaction"] = (a.interact - b.interact + a.sources - b.sources) / n;
-  state.counters["geometry"] = (a.geometry - b.geometry) / n;
+  const auto stage = [&](std::initializer_list<stain::Stage> stages) {
+    double sum = 0;
+    for (const stain::Stage s : stages) sum += a.stage(s) - b.stage(s);
+    return sum / n;
+  };
+  using stain::Stage;
+  state.counters["inertia"] = stage({Stage::BodyForces, Stage::FilmPressure, Stage::Coriolis});
+  state.counters["advection"] = stage({Stage::AdvectVelocity, Stage::AdvectDensity});
+  state.counters["diffusion"] = stage({Stage::Diffuse});
+  state.counters["interaction"] = stage({Stage::Interact, Stage::Sources});
+  state.counters["geometry"] = stage({Stage::Geometry});
   state.counters["cloth"] = (a.cloth - b.cloth) / n;
   state.counters["coupling"] = (a.coupling - b.coupling) / n;
   state.counters["stain"] = (a.stain - b.stain) / n;
@@ -313,8 +319,7 @@ void BM_Table1(benchmark::State& state) {
   state.counters["vertices"] = engine.vertexCount();
   state.counters["faces"] = static_cast<double>(engine.faces().rows());
   state.counters["load_ms_inproc"] = loadMs;
-  const cloth::BulletCloth* bullet = engine.surface().bulletCloth();
-  state.counters["healthy"] = (bullet == nullptr || bullet->isHealthy()) && bare.isHealthy() ? 1 : 0;
+  state.counters["healthy"] = engine.surface().motion().isHealthy() && bare.isHealthy() ? 1 : 0;
 }
 
 // Warm-up steps: 30 (0.3 s: the tablecloth lands, the flag settles); timed

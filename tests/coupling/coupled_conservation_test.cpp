@@ -4,6 +4,7 @@
 //    rounding and its momentum: exactly (1e-12) through the coupling and the
 //    stain step, to Bullet's float rounding through the cloth step;
 //  - liquid loads never touch the cloth's rest lengths over a long run.
+#include "bullet_cloth_access.h"
 #include <blot/coupling/coupled_surface.h>
 
 #include <gtest/gtest.h>
@@ -49,7 +50,7 @@ void runClosedSystem(RelativeMomentum relative) {
   drop.splashSeed = 7;
   surface.stain().addDrop(drop);
 
-  const cloth::BulletCloth& cloth = *surface.bulletCloth();
+  const cloth::BulletCloth& cloth = blot::testing::bulletClothOf(surface);
   const double mass0 = surface.totalMass();
   const Eigen::Vector3d p0 = surface.totalMomentum();
   double worstExchange = 0, worstMass = 0;
@@ -111,7 +112,7 @@ TEST(CoupledFlag, LiquidLoadsNeverTouchRestLengths) {
   drop.solventMass = 0.3;
   drop.soluteMass = 0.03;
   surface->stain().addDrop(drop);
-  const cloth::BulletCloth& cloth = *surface->bulletCloth();
+  const cloth::BulletCloth& cloth = blot::testing::bulletClothOf(*surface);
   double liquidRange = 0;
   for (int k = 0; k < 600; ++k) {
     ASSERT_EQ(surface->step(kFrame).status, stain::StepStatus::Ok) << "frame " << k;

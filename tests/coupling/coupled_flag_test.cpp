@@ -2,6 +2,7 @@
 // pinned at two corners with a heavy stain sags more in two-way mode than in
 // one-way mode, and its liquid trail differs with Coriolis on and off.
 // Conservation and rest lengths: coupled_conservation_test.cpp.
+#include "bullet_cloth_access.h"
 #include <blot/coupling/coupled_surface.h>
 
 #include <gtest/gtest.h>
@@ -56,13 +57,13 @@ FlagRun runFlag(CouplingMode mode, bool coriolis, bool waving, double absorption
   FlagRun r;
   for (int k = 0; k < frames; ++k) {
     EXPECT_EQ(surface->step(kFrame).status, stain::StepStatus::Ok) << "frame " << k;
-    r.worstStrain = std::max(r.worstStrain, surface->bulletCloth()->maxEdgeStrain());
+    r.worstStrain = std::max(r.worstStrain, blot::testing::bulletClothOf(*surface).maxEdgeStrain());
   }
   const Eigen::MatrixX3d& x = surface->motion().positions();
   r.lowest = x.col(2).minCoeff();
   r.clothCentroid = x.colwise().mean().transpose();
   r.liquidCentroid = liquidCentroid(*surface);
-  r.healthy = surface->bulletCloth()->isHealthy();
+  r.healthy = blot::testing::bulletClothOf(*surface).isHealthy();
   return r;
 }
 

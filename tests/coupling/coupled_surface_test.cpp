@@ -1,4 +1,5 @@
 // CoupledSurface: step order, modes, errors, and no allocation per step.
+#include "bullet_cloth_access.h"
 #include <blot/coupling/coupled_surface.h>
 
 #include <blot/cloth/surface_motion.h>
@@ -50,8 +51,8 @@ TEST(CoupledSurface, OneWayLeavesTheClothAloneTwoWayLoadsIt) {
     ASSERT_EQ(oneWay->step(kFrame).status, stain::StepStatus::Ok);
     ASSERT_EQ(twoWay->step(kFrame).status, stain::StepStatus::Ok);
   }
-  const cloth::BulletCloth& a = *oneWay->bulletCloth();
-  const cloth::BulletCloth& b = *twoWay->bulletCloth();
+  const cloth::BulletCloth& a = blot::testing::bulletClothOf(*oneWay);
+  const cloth::BulletCloth& b = blot::testing::bulletClothOf(*twoWay);
   EXPECT_EQ(a.nodeMasses(), a.lumpedMasses());
   EXPECT_EQ(oneWay->pendingImpulses().cwiseAbs().maxCoeff(), 0.0);
   // Two-way: node mass = cloth + the liquid fed at the start of the last step
@@ -97,7 +98,7 @@ TEST(CoupledSurface, StepsAllocateNothingAfterTheFirst) {
       EXPECT_EQ(rebuilds, 0);
     }
     std::printf("strain tolerance %g: %ld of 20 steps rebuilt the stain's intrinsic tier\n", tolerance, rebuilds);
-    EXPECT_TRUE(twoWay->bulletCloth()->isHealthy());
+    EXPECT_TRUE(blot::testing::bulletClothOf(*twoWay).isHealthy());
   }
   cloth::RigidMotionDef spin;
   spin.angularVelocity = {0, 0, 2.0};

@@ -66,11 +66,13 @@ TEST(EngineFault, EachStageFailsNamingItselfAndTheEngineKeepsTheLastGoodState) {
     const std::uint64_t hash = engine.stateHash();
     const Eigen::MatrixX3d positions = engine.positions();
     const Eigen::MatrixX3d colors = engine.colors();
-    engine.injectFaultForTesting({c.stage, 6, kDropVertex});
+    stain::Stage stage = stain::Stage::Guard;
+    ASSERT_TRUE(stain::parseStage(c.stage, stage));
+    engine.injectFaultForTesting({stage, 6, kDropVertex});
 
     const stain::StepReport r = engine.advanceSteps(3);
     EXPECT_EQ(r.status, stain::StepStatus::NonFinite);
-    EXPECT_EQ(r.stage, c.stage) << r.message;
+    EXPECT_STREQ(r.stageName(), c.stage) << r.message;
     EXPECT_GE(r.vertex, 0) << r.message;
     if (std::string(c.stage) != "cloth") {
       EXPECT_EQ(r.vertex, kDropVertex);  // (Bullet may spread the cloth's within the step)
@@ -84,7 +86,7 @@ TEST(EngineFault, EachStageFailsNamingItselfAndTheEngineKeepsTheLastGoodState) {
 
     // The fault fired once: the engine goes on from the kept state.
     const stain::StepReport again = engine.advanceSteps(5);
-    EXPECT_EQ(again.status, stain::StepStatus::Ok) << again.stage << ": " << again.message;
+    EXPECT_EQ(again.status, stain::StepStatus::Ok) << again.stageName() << ": " << again.message;
     EXPECT_EQ(engine.stepCount(), 10);
     EXPECT_LT(engine.statistics().massBudget.solventError(), 1e-12);
   }
@@ -96,8 +98,8 @@ TEST(EngineFault, AOneWayClothGoesOnBitIdenticallyAfterARolledBackStep) {
   // (BulletCloth::rollBack restores every node to the bit).
   Engine uninterrupted(oneWay());
   ASSERT_EQ(uninterrupted.advanceSteps(12).status, stain::StepStatus::Ok);
-  for (const char* stage : {"cloth", "diffuse"}) {
-    SCOPED_TRACE(stage);
+  for (const stain::Stage stage : {stain::Stage::Cloth, stain::Stage::Diffuse}) {
+    SCOPED_TRACE(stain::stageName(stage));
     Engine engine(oneWay());
     engine.injectFaultForTesting({stage, 6, kDropVertex});
     EXPECT_EQ(engine.advanceSteps(12).status, stain::StepStatus::NonFinite);
@@ -110,14 +112,17 @@ TEST(EngineFault, AOneWayClothGoesOnBitIdenticallyAfterARolledBackStep) {
 TEST(EngineFault, BadInjectionsAreRefusedNamingTheProblem) {
   Engine rigid(spinning());
   try {
-    rigid.injectFaultForTesting({"cloth", 1, 0});
+    rigid.injectFaultForTesting({stain::Stage::Cloth, 1, 0});
     FAIL() << "a prescribed motion has no Bullet cloth to break";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("Bullet"), std::string::npos) << e.what();
   }
-  EXPECT_THROW(rigid.injectFaultForTesting({"coupling", 1, 0}), std::invalid_argument);
-  EXPECT_THROW(rigid.injectFaultForTesting({"difuse", 1, 0}), std::invalid_argument);
-  EXPECT_THROW(rigid.injectFaultForTesting({"diffuse", 1, rigid.vertexCount()}), std::invalid_argument);
+  EXPECT_THROW(rigid.injectFaultForTesting({stain::Stage::Coupling, 1, 0}), std::invalid_argument);
+  EXPECT_THROW(rigid.injectFaultForTesting({stain::Stage::Geometry, 1, 0}), std::invalid_argument)
+      << "only stages that check their output can carry a fault";
+  stain::Stage stage = stain::Stage::Guard;
+  EXPECT_FALSE(stain::parseStage("difuse", stage));
+  EXPECT_THROW(rigid.injectFaultForTesting({stain::Stage::Diffuse, 1, rigid.vertexCount()}), std::invalid_argument);
 }
 
 }  // namespace

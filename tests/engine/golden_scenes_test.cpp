@@ -199,7 +199,7 @@ TEST_P(GoldenSceneTest, MatchesGolden) {
   auto engine = Engine::fromSceneJson(scene.dump(), sceneFile.parent_path().string(), sceneFile.string());
   const stain::StepReport report = engine->advanceSteps(entry.steps);
   ASSERT_EQ(report.status, stain::StepStatus::Ok)
-      << name << ": stage " << report.stage << ", vertex " << report.vertex << ": " << report.message;
+      << name << ": stage " << report.stageName() << ", vertex " << report.vertex << ": " << report.message;
 
   const json config = {{"resolution", entry.resolution},
                        {"steps", entry.steps},

@@ -169,7 +169,7 @@ TEST(BadSolverStep, NonPositiveOrNonFiniteTimeStepIsRefusedAndChangesNothing) {
   for (const double h : {0.0, -0.01, kNaN, kInf}) {
     const StepReport report = solver.step(h, f.mesh.vertexPositions);
     EXPECT_EQ(report.status, StepStatus::InvalidArgument) << "h = " << h;
-    EXPECT_EQ(report.stage, "guard");
+    EXPECT_EQ(report.stage, Stage::Guard);
     expectMentions(report.message, {"time step must be finite and positive"});
   }
   EXPECT_EQ(solver.stepCount(), 0);

@@ -65,7 +65,7 @@ DiscRun runDisc(double omega, double h, int steps, const Vector3& v0,
   for (int k = 1; k <= steps; ++k) {
     const Matrix3 R = Eigen::AngleAxisd(omega * k * h, Vector3::UnitZ()).toRotationMatrix();
     const StepReport report = solver.stepRigid(h, mesh.vertexPositions * R.transpose(), R);
-    EXPECT_EQ(report.status, StepStatus::Ok) << report.stage << ": " << report.message;
+    EXPECT_EQ(report.status, StepStatus::Ok) << report.stageName() << ": " << report.message;
     if (report.status != StepStatus::Ok) return {};
   }
   // After step(h, p(t+h)) the stain is at t + h; u is in the step's midpoint

@@ -64,7 +64,7 @@ RadialProfile runSpot(const HaloSetup& setup) {
   solver.addDrop(drop);
   for (int n = 0; n < 500; ++n) {
     const StepReport r = solver.step(0.04, mesh.vertexPositions);
-    EXPECT_EQ(r.status, StepStatus::Ok) << r.stage << ": " << r.message;
+    EXPECT_EQ(r.status, StepStatus::Ok) << r.stageName() << ": " << r.message;
     if (r.status != StepStatus::Ok) break;
   }
 

@@ -198,7 +198,7 @@ StainState runRotatingDrop(int n, int threads, int steps, MassBudget* worst, dou
     next.noalias() = centered * R.transpose();
     next.rowwise() += center.transpose();
     const StepReport report = solver.stepRigid(h, next, R);
-    EXPECT_EQ(report.status, StepStatus::Ok) << report.stage << ": " << report.message;
+    EXPECT_EQ(report.status, StepStatus::Ok) << report.stageName() << ": " << report.message;
     if (report.status != StepStatus::Ok) break;
     *cgIterations += solver.profile().diffusionIterations;
     if (fewestCgRows != nullptr) {  // [0] density, [1] velocity

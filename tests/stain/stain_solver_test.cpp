@@ -43,7 +43,7 @@ TEST(StainSolver, ConservesMassOnADeformingMeshWithStrongAnisotropy) {
   double worstNegative = 0;
   for (int n = 1; n <= 1000; ++n) {
     const StepReport r = solver.step(h, wavingPositions(mesh, n * h));
-    ASSERT_EQ(r.status, StepStatus::Ok) << r.stage << ": " << r.message;
+    ASSERT_EQ(r.status, StepStatus::Ok) << r.stageName() << ": " << r.message;
     refreshes += solver.profile().intrinsicRefreshes;
     const StainState& s = solver.state();
     const double scale = std::max(s.solvent.maxCoeff(), s.solute.maxCoeff());

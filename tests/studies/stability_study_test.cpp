@@ -299,7 +299,7 @@ TEST(StabilityStudy, MeshQualitySweep) {
     for (int k = 0; k < steps; ++k) {
       const StepReport report = solver.step(h, mesh.vertexPositions);
       if (report.status != StepStatus::Ok) {
-        note = "step " + std::to_string(k + 1) + " rejected: " + report.stage + ": " + report.message;
+        note = "step " + std::to_string(k + 1) + " rejected: " + std::string(report.stageName()) + ": " + report.message;
         break;
       }
     }

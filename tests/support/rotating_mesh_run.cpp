@@ -74,7 +74,7 @@ RunResult runRotatingRealMesh(const std::string& name, double h, int steps) {
   for (int k = 1; k <= steps; ++k) {
     const StepReport r = solver.step(h, positionsAt(k * h));
     if (r.status != StepStatus::Ok) {
-      ADD_FAILURE() << name << " h=" << h << " step " << k << " stage " << r.stage << ": " << r.message;
+      ADD_FAILURE() << name << " h=" << h << " step " << k << " stage " << r.stageName() << ": " << r.message;
       return result;
     }
     const StainState& s = solver.state();

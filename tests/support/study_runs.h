@@ -225,7 +225,7 @@ inline RotatingDiscResult runRotatingDisc(const RotatingDiscSetup& s) {
     ms += clock.milliseconds();
     if (report.status != StepStatus::Ok) {
       result.ok = false;
-      result.failure = report.stage + ": " + report.message;
+      result.failure = std::string(report.stageName()) + ": " + report.message;
       break;
     }
     result.stepsDone = k;

@@ -16,6 +16,8 @@
 // standard libraries, which a cache key written to logs needs.
 #include <blot/stain/fabric/weave_pattern.h>
 
+#include <blot/stain/content_hash.h>
+
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -54,16 +56,8 @@ std::string tensorProblem(const Matrix2& tensor) {
   return {};
 }
 
-void hashBytes(std::uint64_t& hash, const void* data, size_t size) {
-  const auto* bytes = static_cast<const unsigned char*>(data);
-  for (size_t i = 0; i < size; ++i) {
-    hash ^= bytes[i];
-    hash *= 1099511628211ull;  // FNV-1a 64-bit prime.
-  }
-}
-
 std::uint64_t hashTensors(int rows, int cols, const std::vector<Matrix2>& tensors) {
-  std::uint64_t hash = 14695981039346656037ull;  // FNV-1a 64-bit offset basis.
+  std::uint64_t hash = kContentHashBasis;
   const std::int64_t shape[2] = {rows, cols};
   hashBytes(hash, shape, sizeof(shape));
   for (const Matrix2& tensor : tensors) {

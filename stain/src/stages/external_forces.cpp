@@ -81,41 +81,52 @@ inline Complex unitRotation(double a) {
 
 }  // namespace
 
-void applyExternalForces(const StepContext& ctx, const ExtrinsicGeometry& geometry,
-                         const std::vector<char>& wet, StainState& state) {
+void applyBodyForces(const StepContext& ctx, const ExtrinsicGeometry& geometry, const std::vector<char>& wet,
+                     StainState& state) {
   const PhysicsSwitches& on = ctx.switches;
   const int n = static_cast<int>(state.velocities.size());
-  const bool useGravity = on.gravity;
-  // A static mesh may provide no accelerations/angular velocities at all.
+  // A static mesh may provide no accelerations at all.
   const bool useInertia = on.linearInertia && geometry.vertexAccelerations.rows() == n;
-  const bool useCoriolis = on.coriolis && geometry.vertexAngularVelocities.rows() == n;
-  const bool useBodyForce = useGravity || useInertia;
-  if (!useBodyForce && !useCoriolis) return;
+  if (!on.gravity && !useInertia) return;
   const bool allWet = wet.empty();
   const double h = ctx.h;
-  const Vector3 gravity = useGravity ? ctx.gravity : Vector3::Zero();
-  const bool exact = on.coriolisScheme != CoriolisScheme::Explicit;
-
+  const Vector3 gravity = on.gravity ? ctx.gravity : Vector3::Zero();
 #pragma omp parallel for schedule(static) if (n >= kMinParallelVertices)
   for (int i = 0; i < n; ++i) {
     if (!allWet && !wet[static_cast<size_t>(i)]) continue;
-    Complex u = state.velocities(i);
-    if (useBodyForce) {
-      Vector3 a = gravity;
-      if (useInertia) a -= geometry.vertexAccelerations.row(i).transpose();
-      const Matrix3& frame = geometry.frames[static_cast<size_t>(i)];
-      u += h * Complex(frame.col(0).dot(a), frame.col(1).dot(a));
-    }
-    if (useCoriolis && geometry.vertexAngularVelocities(i, 2) != 0.0) {
-      const double omegaN = geometry.vertexAngularVelocities(i, 2);
-      if (exact) {
-        u *= unitRotation(-2.0 * omegaN * h);
-      } else {
-        u += -2.0 * h * omegaN * Complex(-u.imag(), u.real());
-      }
-    }
-    state.velocities(i) = u;
+    Vector3 a = gravity;
+    if (useInertia) a -= geometry.vertexAccelerations.row(i).transpose();
+    const Matrix3& frame = geometry.frames[static_cast<size_t>(i)];
+    state.velocities(i) += h * Complex(frame.col(0).dot(a), frame.col(1).dot(a));
   }
+}
+
+void applyCoriolis(const StepContext& ctx, const ExtrinsicGeometry& geometry, const std::vector<char>& wet,
+                   StainState& state) {
+  const PhysicsSwitches& on = ctx.switches;
+  const int n = static_cast<int>(state.velocities.size());
+  if (!on.coriolis || geometry.vertexAngularVelocities.rows() != n) return;
+  const bool allWet = wet.empty();
+  const double h = ctx.h;
+  const bool exact = on.coriolisScheme != CoriolisScheme::Explicit;
+#pragma omp parallel for schedule(static) if (n >= kMinParallelVertices)
+  for (int i = 0; i < n; ++i) {
+    if (!allWet && !wet[static_cast<size_t>(i)]) continue;
+    const double omegaN = geometry.vertexAngularVelocities(i, 2);
+    if (omegaN == 0.0) continue;
+    Complex& u = state.velocities(i);
+    if (exact) {
+      u *= unitRotation(-2.0 * omegaN * h);
+    } else {
+      u += -2.0 * h * omegaN * Complex(-u.imag(), u.real());
+    }
+  }
+}
+
+void applyExternalForces(const StepContext& ctx, const ExtrinsicGeometry& geometry, const std::vector<char>& wet,
+                         StainState& state) {
+  applyBodyForces(ctx, geometry, wet, state);
+  applyCoriolis(ctx, geometry, wet, state);
 }
 
 void applyHalfFrameRotation(const StepContext& ctx, const ExtrinsicGeometry& geometry, const std::vector<char>& wet,

@@ -131,7 +131,7 @@ inline double interactVertex(const Rates& r, bool onBoundary, double& free, doub
 }  // namespace
 
 void interact(const StepContext& ctx, const SurfaceTopology& topology, const IntrinsicGeometry& geometry,
-              const std::vector<char>& wet, StainState& state) {
+              const std::vector<char>& wet, StainState& state, Vector* evaporatedMass) {
   const PhysicsSwitches& switches = ctx.switches;
   if (!switches.absorption && !switches.adsorption && !switches.evaporation) return;
   const LiquidParameters& liquid = ctx.liquid;
@@ -170,6 +170,7 @@ void interact(const StepContext& ctx, const SurfaceTopology& topology, const Int
   double* absorbed = state.absorbedSolvent.data();
   double* absorbedSolute = state.absorbedSolute.data();
   double* adsorbed = state.adsorbedSolute.data();
+  double* vapour = evaporatedMass != nullptr && evaporatedMass->size() == n ? evaporatedMass->data() : nullptr;
 
   double evaporated[kChunks] = {};
   const int chunkSize = (n + kChunks - 1) / kChunks;
@@ -181,7 +182,9 @@ void interact(const StepContext& ctx, const SurfaceTopology& topology, const Int
       const bool exposed = boundary[static_cast<size_t>(i)] != 0 || (wetFront && onWetFront(i));
       const double gone = interactVertex(rates, exposed, free[i], solute[i],
                                          absorbed[i], absorbedSolute[i], adsorbed[i]);
-      sum += gone * areas[i];
+      const double mass = gone * areas[i];
+      if (vapour != nullptr) vapour[i] = mass;
+      sum += mass;
     }
     evaporated[c] = sum;
   };

@@ -206,6 +206,27 @@ struct BulletClothState {
   Eigen::MatrixX3d pendingImpulses;    ///< #V by 3 (N·s)
   bool loadsPending = false;
   std::vector<char> releasedPins;  ///< per ClothDef pin: 1 once released
+  /// Every field, once (save/load and the state hash are built on it).
+  template <class Visitor> void visit(Visitor& v) { fields(*this, v); }
+  template <class Visitor> void visit(Visitor& v) const { fields(*this, v); }
+  template <class Self, class Visitor>
+  static void fields(Self& s, Visitor& v) {
+    v.field("time", s.time);
+    v.field("positions", s.positions);
+    v.field("previousPositions", s.previousPositions);
+    v.field("velocities", s.velocities);
+    v.field("previousVelocities", s.previousVelocities);
+    v.field("forces", s.forces);
+    v.field("nodeNormals", s.nodeNormals);
+    v.field("nodeAreas", s.nodeAreas);
+    v.field("faceNormals", s.faceNormals);
+    v.field("inverseMasses", s.inverseMasses);
+    v.field("nodeMasses", s.nodeMasses);
+    v.field("pendingExtraMasses", s.pendingExtraMasses);
+    v.field("pendingImpulses", s.pendingImpulses);
+    v.field("loadsPending", s.loadsPending);
+    v.field("releasedPins", s.releasedPins);
+  }
 };
 
 /// Bullet soft-body cloth. Move-only; owns its Bullet world.
@@ -221,7 +242,6 @@ class BulletCloth final : public SurfaceMotion {
   BulletCloth(const BulletCloth&) = delete;
   BulletCloth& operator=(const BulletCloth&) = delete;
 
-  MotionKind kind() const override { return MotionKind::Deforming; }
   int vertexCount() const override { return static_cast<int>(positions_.rows()); }
   double time() const override { return time_; }
   /// Node positions at time(), #V by 3 (m). Valid until the next advance().
@@ -244,7 +264,13 @@ class BulletCloth final : public SurfaceMotion {
   /// of the link constants — never btSoftBody::setMass, which would make the
   /// current stretched link lengths the new rest lengths (docs/cloth.md).
   /// Calling it again before advance() replaces the pending loads.
-  void setLiquidLoads(const Eigen::VectorXd& extraNodeMasses, const Eigen::MatrixX3d& nodeImpulses);
+  void setLiquidLoads(const Eigen::VectorXd& extraNodeMasses, const Eigen::MatrixX3d& nodeImpulses) override;
+  bool acceptsLiquidLoads() const override { return true; }
+  const Eigen::VectorXd* clothNodeMasses() const override { return &lumpedMasses_; }
+  bool hasDynamicState() const override { return true; }
+  /// captureState / restoreState through BulletClothState's field list.
+  void saveDynamicState(MotionStateVisitor& visitor) const override;
+  void loadDynamicState(MotionStateVisitor& visitor) override;
 
   const Eigen::MatrixX3i& faces() const { return faces_; }
   /// Node masses (kg, #V): lumped cloth mass plus the liquid mass last applied
@@ -280,7 +306,7 @@ class BulletCloth final : public SurfaceMotion {
   /// one, no mesh edge longer than 10× its rest length, and Bullet has not
   /// disabled the body (it does so silently when the body's box passes 10⁶ m
   /// after a blow-up). O(#V + #E).
-  bool isHealthy() const;
+  bool isHealthy() const override;
   /// The state between two advance() calls (allocates; for save/load).
   BulletClothState captureState() const;
   /// The same into `state`, reusing its arrays: no allocation once they have

@@ -74,7 +74,6 @@ class MeshSequence final : public SurfaceMotion {
                const SequencePlayback& playback = SequencePlayback());
 
   /// Static for a single frame, Deforming otherwise.
-  MotionKind kind() const override;
   int vertexCount() const override { return static_cast<int>(frames_.front().rows()); }
   double time() const override { return time_; }
   const Eigen::MatrixX3d& positions() const override { return positions_; }

@@ -6,17 +6,29 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <vector>
+
 namespace blot::cloth {
 
-/// What the stain solver may assume about a motion: a static surface needs no
-/// inertial forces; a rigid one never changes its metric and has analytic
-/// frames; a deforming one needs per-vertex frame fits.
-enum class MotionKind { Static, Rigid, Deforming };
+/// Reads or writes a motion's dynamic state field by field (engine save/load):
+/// SurfaceMotion::visitDynamicState hands it every field once, by name.
+class MotionStateVisitor {
+ public:
+  virtual ~MotionStateVisitor() = default;
+  virtual void field(const char* name, double& value) = 0;
+  virtual void field(const char* name, bool& value) = 0;
+  virtual void field(const char* name, Eigen::MatrixX3d& value) = 0;
+  virtual void field(const char* name, Eigen::VectorXd& value) = 0;
+  virtual void field(const char* name, std::vector<char>& value) = 0;
+};
 
+/// Everything the coupling and the engine need from a cloth, whatever moves
+/// it: positions and velocities out; liquid loads in (a simulated cloth);
+/// health; the rollback point of a failed step; a known rigid rotation; the
+/// dynamic state for save/load. No caller needs the concrete type.
 class SurfaceMotion {
  public:
   virtual ~SurfaceMotion() = default;
-  virtual MotionKind kind() const = 0;
   virtual int vertexCount() const = 0;
   /// Current time, seconds.
   virtual double time() const = 0;
@@ -35,13 +47,38 @@ class SurfaceMotion {
   /// and velocities bit-identical, and the same steps after it. Before any
   /// keepRollbackPoint() it returns to the state at construction.
   virtual void rollBack() = 0;
+
+  /// True for a simulated cloth that takes the liquid's loads (two-way
+  /// coupling); a prescribed motion cannot be pushed back.
+  virtual bool acceptsLiquidLoads() const { return false; }
+  /// Liquid node masses (#V, kg, ≥ 0) and impulses (#V by 3, N·s) applied at
+  /// the next advance(). Throws std::logic_error unless acceptsLiquidLoads().
+  virtual void setLiquidLoads(const Eigen::VectorXd& extraNodeMasses, const Eigen::MatrixX3d& nodeImpulses);
+  /// The cloth's own node masses (#V, kg), or null when the motion has none
+  /// (a prescribed motion).
+  virtual const Eigen::VectorXd* clothNodeMasses() const { return nullptr; }
+  /// False once the motion has blown up (a Bullet cloth past its limits).
+  virtual bool isHealthy() const { return true; }
+  /// For a motion known to be rigid: true, with R (a rotation matrix) such
+  /// that positions() = R x̄ + c at time(). False otherwise.
+  virtual bool knownRotation(Eigen::Matrix3d& rotation) const {
+    (void)rotation;
+    return false;
+  }
+  /// The dynamic state beyond time() (a simulated cloth's nodes and loads),
+  /// one field at a time: save hands the visitor every field to read, load
+  /// has it fill them and then takes them (throws std::invalid_argument on a
+  /// size mismatch). A motion that is a pure function of its time has none
+  /// (hasDynamicState false; both do nothing).
+  virtual bool hasDynamicState() const { return false; }
+  virtual void saveDynamicState(MotionStateVisitor& visitor) const { (void)visitor; }
+  virtual void loadDynamicState(MotionStateVisitor& visitor) { (void)visitor; }
 };
 
 /// A surface that does not move.
 class StaticSurface final : public SurfaceMotion {
  public:
   explicit StaticSurface(const Eigen::MatrixX3d& restPositions);
-  MotionKind kind() const override { return MotionKind::Static; }
   int vertexCount() const override { return static_cast<int>(positions_.rows()); }
   double time() const override { return time_; }
   const Eigen::MatrixX3d& positions() const override { return positions_; }
@@ -68,7 +105,6 @@ struct RigidMotionDef {
 class RigidMotion final : public SurfaceMotion {
  public:
   RigidMotion(const Eigen::MatrixX3d& restPositions, const RigidMotionDef& def);
-  MotionKind kind() const override { return MotionKind::Rigid; }
   int vertexCount() const override { return static_cast<int>(rest_.rows()); }
   double time() const override { return time_; }
   const Eigen::MatrixX3d& positions() const override { return positions_; }
@@ -78,6 +114,11 @@ class RigidMotion final : public SurfaceMotion {
   /// Evaluates the closed form at the kept time (the same value of time()
   /// gives the same positions).
   void rollBack() override;
+  /// Always true: R = rotationAt(time()).
+  bool knownRotation(Eigen::Matrix3d& rotation) const override {
+    rotation = rotationAt(time_);
+    return true;
+  }
 
   /// Rotation exp(t [ω]×) at time t.
   Eigen::Matrix3d rotationAt(double t) const;

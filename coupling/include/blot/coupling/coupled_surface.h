@@ -2,9 +2,10 @@
 /// One moving surface with its stain: the cloth (any SurfaceMotion: Bullet
 /// cloth, mesh sequence, rigid or static) leads, the stain follows, and in
 /// two-way mode the liquid's mass and momentum go back into the cloth nodes
-/// (docs/coupling.md). This is the one place the DESIGN.md step order
-/// "cloth → stain → coupling" is written down; blot::Engine adds the
-/// fixed-step accumulator, scene loading and outputs on top.
+/// (docs/coupling.md). CoupledSurface::step is the one place the whole step
+/// is written down, top to bottom: cloth → stain geometry → stain stages →
+/// exchange with the cloth; blot::Engine adds the fixed-step accumulator,
+/// drops, scene loading and outputs on top.
 #include <blot/cloth/bullet_cloth.h>
 #include <blot/cloth/surface_motion.h>
 #include <blot/stain/stain_solver.h>
@@ -18,8 +19,9 @@ namespace blot::coupling {
 
 /// OneWay: the cloth moves the stain, the stain does not act on the cloth.
 /// TwoWay: liquid mass is added to the cloth nodes and the liquid's momentum
-/// exchange is applied to them as impulses. Two-way needs a BulletCloth (a
-/// prescribed motion cannot be pushed back).
+/// exchange is applied to them as impulses. Two-way needs a motion that
+/// accepts liquid loads (a simulated cloth; a prescribed motion cannot be
+/// pushed back).
 enum class CouplingMode { OneWay, TwoWay };
 
 /// Two-way mode: what momentum the free liquid's motion relative to the cloth
@@ -61,32 +63,30 @@ class CoupledSurface {
   CoupledSurface(const CoupledSurface&) = delete;
   CoupledSurface& operator=(const CoupledSurface&) = delete;
 
-  /// One step of h seconds: motion->advance(h) → stain step on the new
-  /// positions (stepRigid for a RigidMotion) → coupling loads for the next
-  /// cloth step (two-way). Each stage is checked (the cloth: finite positions
-  /// and velocities, and BulletCloth::isHealthy; the stain: its own stages;
-  /// the coupling: finite loads). On a failure the report names the stage
-  /// ("cloth", a stain stage, "coupling") and the vertex, and the step is
-  /// undone: the cloth is back at t exactly (SurfaceMotion::rollBack), the
-  /// stain keeps its densities and velocities of t, and its geometry restarts
-  /// from the cloth at t (StainSolver::restartMotion). Drops added before the
-  /// step stay added.
+  /// One step of h seconds: motion->advance(h) → stain geometry on the new
+  /// positions (the known rotation of a rigid motion) → stain stages →
+  /// coupling loads for the next cloth step (two-way). Each stage is checked
+  /// (the cloth: finite positions and velocities, and SurfaceMotion::isHealthy;
+  /// the stain: its own stages; the coupling: finite loads). On a failure the
+  /// report names the stage and the vertex, and the step is undone by one
+  /// rollback (abandonStep): the cloth is back at t exactly
+  /// (SurfaceMotion::rollBack), the stain keeps its densities and velocities
+  /// of t, and its geometry restarts from the cloth at t. Drops added before
+  /// the step stay added.
   stain::StepReport step(double h);
 
   /// Testing only: arms a fault (stain::InjectedFault) for the step numbered
-  /// fault.step (stain().stepCount() + 1 when it runs). "cloth": an impulse of
-  /// 1e30 N·s at the vertex before the cloth step, so Bullet itself blows up
-  /// (a Bullet cloth only); "coupling": that vertex's exchange is made
-  /// non-finite; any other stage is the stain's. Throws
-  /// std::invalid_argument for an unknown stage or vertex.
+  /// fault.step (stain().stepCount() + 1 when it runs). Stage::Cloth: an
+  /// impulse of 1e30 N·s at the vertex before the cloth step, so the cloth
+  /// itself blows up (a motion that accepts loads only); Stage::Coupling: that
+  /// vertex's exchange is made non-finite (two-way); a stain stage goes to the
+  /// stain. Throws std::invalid_argument for another stage or a bad vertex.
   void injectFaultForTesting(const stain::InjectedFault& fault);
 
   CouplingMode mode() const { return mode_; }
   RelativeMomentum relativeMomentum() const { return relative_; }
   const cloth::SurfaceMotion& motion() const { return *motion_; }
   cloth::SurfaceMotion& motion() { return *motion_; }
-  /// The Bullet cloth, or null when the motion is not one.
-  const cloth::BulletCloth* bulletCloth() const { return bullet_; }
   const stain::StainSolver& stain() const { return *stain_; }
   stain::StainSolver& stain() { return *stain_; }
   const CoupledStepTimes& lastTimes() const { return times_; }
@@ -104,7 +104,8 @@ class CoupledSurface {
   /// Bullet cloth the cloth's own mass is unknown and only the liquid's
   /// momentum is summed. Summed in vertex order, double precision.
   Eigen::Vector3d totalMomentum() const;
-  /// Total mass (kg) of cloth (Bullet only; 0 otherwise) and liquid on it now.
+  /// Total mass (kg) of cloth (when the motion has node masses; 0 otherwise)
+  /// and liquid on it now.
   double totalMass() const;
   /// Impulses (N·s, #V by 3) the last step computed for the next cloth step
   /// (two-way; zero in one-way mode).
@@ -131,8 +132,20 @@ class CoupledSurface {
 
  private:
   void gatherLiquid(Eigen::VectorXd& masses, Eigen::MatrixX3d* relativeMomenta) const;
-  /// Stage "cloth": finite positions and velocities (naming the first bad
-  /// vertex), and a healthy Bullet body.
+  /// Two-way, before the cloth moves: the liquid as the stain holds it now (a
+  /// drop added since the last step changes it; the cloth must carry that too).
+  void takeLiquidAtStart();
+  /// Stage Cloth: keeps the rollback point, advances the motion, checks it.
+  stain::StepReport advanceCloth(double h);
+  /// Stage Coupling: the loads for the next cloth step (exchangeMomentum).
+  /// On a failure it puts back its own carried state before reporting.
+  stain::StepReport exchangeWithCloth();
+  /// The one rollback of a failed step, whatever stage failed: the cloth back
+  /// at t, the stain's state of t with its geometry restarted there. Returns
+  /// `report` with the note that the state was restored.
+  stain::StepReport abandonStep(stain::StepReport report);
+  /// Stage Cloth's check: finite positions and velocities (naming the first
+  /// bad vertex), and a healthy motion.
   stain::StepReport checkMotion() const;
   /// World velocity (m/s) of the free liquid at vertex i relative to the
   /// cloth: Fᵢuᵢ, without its outward part at boundary vertices (the edge is
@@ -140,8 +153,6 @@ class CoupledSurface {
   Eigen::Vector3d relativeVelocity(int i) const;
 
   std::unique_ptr<cloth::SurfaceMotion> motion_;
-  cloth::BulletCloth* bullet_ = nullptr;  // motion_ when it is a BulletCloth
-  const cloth::RigidMotion* rigid_ = nullptr;  // motion_ when it is a RigidMotion
   // The stain's SurfaceGeometry keeps a pointer to its topology: own a copy so
   // the caller's may go away.
   std::unique_ptr<stain::SurfaceTopology> topology_;
@@ -152,15 +163,16 @@ class CoupledSurface {
   Eigen::VectorXd startMasses_;        // #V kg, at the start of this step
   Eigen::MatrixX3d startRelative_;     // #V by 3, free mass × F u at the start of this step (kg m/s)
   Eigen::MatrixX3d endRelative_;       // the same after the stain step
-  stain::InjectedFault fault_;         // testing: "cloth" or "coupling"; stage empty when none
+  stain::InjectedFault fault_;         // testing: Stage::Cloth or Stage::Coupling
   Eigen::MatrixX3d previousImpulses_;  // #V by 3, the impulses before this step's (restored on a coupling failure)
-  Eigen::VectorXd evaporationWeights_; // #V, where this step's vapour is attributed
   // Per vertex: its neighbours before and after it along its boundary loop
   // (the wall direction), or -1 for interior vertices.
   std::vector<int> wallPrevious_, wallNext_;
   Eigen::MatrixX3d impulses_;          // #V by 3 (N·s), owed to the nodes
   Eigen::Vector3d evaporatedMomentum_ = Eigen::Vector3d::Zero();
   CoupledStepTimes times_;
+  Eigen::VectorXd evaporationWeights_, vapour_;  // #V: where this step's vapour is attributed (kg)
+  double evaporatedBefore_ = 0;                  // the stain's evaporated total at the start of the step
 };
 
 }  // namespace blot::coupling

@@ -99,8 +99,9 @@ struct SurfaceHit {
 /// Sums over internal steps, for means: stain stage times (StepProfile) and
 /// coupled parts (CoupledStepTimes), milliseconds.
 struct PhaseTotals {
-  double geometry = 0, forces = 0, advectVelocity = 0, advectDensity = 0, diffuse = 0, interact = 0, sources = 0,
-         stainTotal = 0;
+  std::array<double, stain::kStageCount> stageMilliseconds{};  ///< per stain::Stage (stain stages)
+  double stainTotal = 0;
+  double stage(stain::Stage s) const { return stageMilliseconds[static_cast<size_t>(s)]; }
   double cloth = 0, stain = 0, coupling = 0, total = 0;
   /// Per stain::StepTerm bit k: the internal steps in which that term ran
   /// (StepProfile::terms), so a run reports which terms it needed.

@@ -39,19 +39,6 @@ struct MassBudget {
 /// (topology, rest shape, fabric, def): restoring it into a solver built from
 /// the same inputs makes every later step bit-identical (engine save/load).
 /// Drops are applied immediately by addDrop, so none are pending here.
-/// Testing only: a NaN written on purpose inside a step, so that tests and
-/// `blot run --testing-inject-fault` exercise the fault path end to end (the
-/// stage check, the rollback, the report). Never set it in production.
-struct InjectedFault {
-  /// Stage after which the NaN is written, as StepReport::stage names it:
-  /// "cloth" and "coupling" (CoupledSurface), or a stain stage ("forces",
-  /// "film-pressure", "advect-velocity", "coriolis", "advect-density",
-  /// "diffuse", "interact", "sources").
-  std::string stage;
-  int step = 1;    ///< 1-based number of the step it fires in; it fires once
-  int vertex = 0;  ///< where (the solvent density there; a node impulse for "cloth")
-};
-
 struct StainSolverSnapshot {
   StainState state;
   SurfaceGeometry::DynamicState geometry;  ///< positions at t−h, t, t+h, frames, rotation history, intrinsic tier
@@ -61,6 +48,21 @@ struct StainSolverSnapshot {
   double time = 0;
   int steps = 0;
   bool started = false;
+
+  /// Every field, once (save/load and the state hash are built on it).
+  template <class Visitor> void visit(Visitor& v) { fields(*this, v); }
+  template <class Visitor> void visit(Visitor& v) const { fields(*this, v); }
+  template <class Self, class Visitor>
+  static void fields(Self& s, Visitor& v) {
+    s.state.visit(v);
+    s.geometry.visit(v);
+    v.field("heldRegions", s.heldRegions);
+    v.field("initialVelocities", s.initialVelocities);
+    v.field("factorizedStep", s.factorizedStep);
+    v.field("time", s.time);
+    v.field("steps", s.steps);
+    v.field("started", s.started);
+  }
 };
 
 class StainSolver {
@@ -87,6 +89,21 @@ class StainSolver {
   /// and skips the strain test (rigid motion keeps the metric). Results equal
   /// step's to the Kabsch fit's rounding. The caller guarantees rigidity.
   StepReport stepRigid(double h, const RowVectors3& nextPositions, const Matrix3& rotation);
+
+  /// The two halves of step, for a caller that writes the coupled step as one
+  /// list (CoupledSurface::step): stages Guard and Geometry (rigidRotation is R
+  /// for a known rigid motion, or null), then the stain stages BodyForces
+  /// through Sources and Validate. advanceStages runs only after a
+  /// refreshGeometry that returned Ok. On a failure of either the state is as
+  /// the step found it (abandonStep does the rest).
+  StepReport refreshGeometry(double h, const RowVectors3& nextPositions, const Matrix3* rigidRotation);
+  StepReport advanceStages();
+  /// The one rollback of a failed coupled step, after any stage of it (the
+  /// stain's own, or a later one such as the coupling): the state as it was
+  /// before the step (densities, velocities, totals, time, step count), then
+  /// the geometry restarted on the surface at (positions, velocities), #V by 3,
+  /// m and m/s (restartMotion). A step that never began changes nothing.
+  void abandonStep(const RowVectors3& positions, const RowVectors3& velocities);
 
   void addDrop(const DropDef& drop);
   void addHeldRegion(const HeldRegion& region);
@@ -120,37 +137,56 @@ class StainSolver {
   /// after a failed step has put the cloth back at t. The metric is kept (the
   /// strain test rebuilds it if the surface is stretched past the tolerance).
   void restartMotion(const RowVectors3& positions, const RowVectors3& velocities);
-  /// Undoes the last successful step's state change (densities, velocities,
-  /// evaporated and added totals, time, step count; held at the backup taken
-  /// when it began), for a coupled step whose later stage failed. Only valid
-  /// once, right after a step that returned Ok; the geometry is not undone
-  /// (follow with restartMotion). Throws std::logic_error otherwise.
-  void undoLastStep();
-  /// Arms a testing fault for one of this solver's stages (InjectedFault).
-  /// Throws std::invalid_argument for an unknown stage or a vertex out of range.
+  /// Solvent evaporated at each vertex in the last step (#V, kg): the one
+  /// per-vertex evaporation output the coupling's vapour momentum reads.
+  const Vector& evaporatedMass() const { return evaporatedMass_; }
+  /// Arms a testing fault for one of this solver's stages, BodyForces to
+  /// Sources (InjectedFault). Throws std::invalid_argument for another stage
+  /// or a vertex out of range.
   void injectFaultForTesting(const InjectedFault& fault);
 
  private:
   void updateWetMask();
+  /// The terms this step runs: def_'s switches, less those with nothing to
+  /// act on (no liquid, a surface that did not move, a zero coefficient).
+  PhysicsSwitches activeTerms(bool surfaceMoved) const;
+  /// Copies the state into backup_ before the step's first change to it.
+  void keepBackup();
   /// state_ = backup_, rescaled to the present dual areas when the step being
   /// abandoned rebuilt the metric (each vertex keeps its mass).
   void restoreBackup();
-  /// After `stage` (a string literal): writes an armed testing fault due now,
-  /// then checks the wet + halo vertices (and held ones after "sources") for
-  /// non-finite values and negative densities. Fills `report` and restores
-  /// the state when one is bad; returns false then.
-  bool checkStage(const char* stage, StepReport& report);
-  /// step and stepRigid: rigidRotation is R for a known rigid motion, or null.
-  StepReport advance(double h, const RowVectors3& nextPositions, const Matrix3* rigidRotation);
+  /// One line of the stage list: when `active`, runs `work` (void, or a
+  /// SolverStatus), adds its time to the stage's, marks the stage as run and
+  /// checks it (checkStage). False, with `report` filled and the state
+  /// restored, when the stage failed.
+  template <class Work>
+  bool runStage(Stage stage, bool active, StepReport& report, Work&& work);
+  /// After `stage`: writes an armed testing fault due now, then checks the
+  /// wet + halo vertices (and held ones after Sources) for non-finite values
+  /// and negative densities. Fills `report` and restores the state when one
+  /// is bad; returns false then.
+  bool checkStage(Stage stage, StepReport& report);
+  /// Marks the terms that ran (up to three, each with its condition).
+  void markTerms(StepTerm a, bool ranA = true, StepTerm b = StepTerm::Sources, bool ranB = false,
+                 StepTerm c = StepTerm::Sources, bool ranC = false);
+  /// The profile's record of a density advection and of a diffusion.
+  void recordAdvection(const DensityAdvectionReport& report);
+  SolverStatus recordDiffusion(const DiffusionReport& report);
+  /// Stage Validate: every value finite, no negative density; then the
+  /// step counts (time, step number).
+  StepReport finishStep();
 
   StainSolverDef def_;
   SurfaceGeometry geometry_;
   StainState state_, backup_;
   double backupTime_ = 0;   // time_ when backup_ was taken
-  InjectedFault fault_;      // testing; stage empty when none is armed
+  InjectedFault fault_;      // testing; armed when set
+  StepContext ctx_;          // this step's constants and active terms (refreshGeometry)
   std::vector<int> wetList_;  // wet + halo vertices this step (the stage checks' domain)
   bool undoable_ = false;   // the last step succeeded and undoLastStep has not run
   bool backedUp_ = false;   // backup_ holds the state this step began with
+  bool inStep_ = false;     // refreshGeometry succeeded and the step has not finished
+  bool firstStep_ = false;  // this step is the solver's first (u is in the frames at t)
   DiffusionSystems systems_;
   DiffusionScratch diffusionScratch_;
   VelocityAdvectionScratch velocityScratch_;
@@ -158,6 +194,8 @@ class StainSolver {
   std::vector<HeldRegion> heldRegions_;
   std::vector<char> wet_;
   Vector areaScratch_;
+  Vector evaporatedMass_;  // #V kg, the last step's per-vertex evaporation
+  bool evaporationWritten_ = false;  // evaporatedMass_ holds nonzero values
   RowVectors3 initialVelocities_;
   StepProfile profile_;
   double time_ = 0;

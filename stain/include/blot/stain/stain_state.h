@@ -19,9 +19,35 @@ struct StainState {
   double addedSolvent = 0;       ///< kg added so far by sources and drops.
   double addedSolute = 0;        ///< kg added so far by sources and drops.
 
+  /// Every field, once (save/load and the state hash are built on it).
+  template <class Visitor> void visit(Visitor& v) { fields(*this, v); }
+  template <class Visitor> void visit(Visitor& v) const { fields(*this, v); }
+  template <class Self, class Visitor>
+  static void fields(Self& s, Visitor& v) {
+    v.field("solvent", s.solvent);
+    v.field("solute", s.solute);
+    v.field("absorbedSolvent", s.absorbedSolvent);
+    v.field("absorbedSolute", s.absorbedSolute);
+    v.field("adsorbedSolute", s.adsorbedSolute);
+    v.field("velocities", s.velocities);
+    v.field("evaporatedSolvent", s.evaporatedSolvent);
+    v.field("addedSolvent", s.addedSolvent);
+    v.field("addedSolute", s.addedSolute);
+  }
+
   /// Zero state for `vertexCount` vertices (allocates; call at build time).
   void resize(int vertexCount);
   int vertexCount() const { return static_cast<int>(solvent.size()); }
+  /// σ_f + σ_s at vertex i (kg/m²): the film that moves.
+  double freeDensity(int i) const { return solvent[i] + solute[i]; }
+  /// Every pool at vertex i, free, absorbed and adsorbed (kg/m²); × the dual
+  /// area it is the liquid mass the vertex holds (the one sum every caller uses).
+  double liquidDensity(int i) const {
+    return solvent[i] + solute[i] + absorbedSolvent[i] + absorbedSolute[i] + adsorbedSolute[i];
+  }
 };
+// A field added to StainState without a line in fields() fails here first.
+static_assert(sizeof(StainState) == 5 * sizeof(Vector) + sizeof(ComplexVector) + 3 * sizeof(double),
+              "StainState changed: list the new field in StainState::fields");
 
 }  // namespace blot::stain

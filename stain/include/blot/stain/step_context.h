@@ -1,9 +1,8 @@
 #pragma once
-/// Per-step constants (a fresh, const StepContext each step), the physics
-/// switches and liquid parameters a scene sets, and what a step reports.
+/// Per-step constants (a fresh, const StepContext each step), and the physics
+/// switches and liquid parameters a scene sets.
+#include <blot/stain/step_profile.h>
 #include <blot/stain/types.h>
-
-#include <string>
 
 namespace blot::stain {
 
@@ -81,84 +80,5 @@ inline StepContext makeStepContext(double h, const Vector3& gravity, const Physi
   ctx.liquid = liquid;
   return ctx;
 }
-
-/// One bit per term of the stain step (StepProfile::terms). A bit is set when
-/// the term did work this step; a term switched off (PhysicsSwitches), with a
-/// zero coefficient (rate, gravity), or with nothing to act on (no wet vertex,
-/// a surface that did not move) is skipped and its bit stays clear.
-enum class StepTerm : unsigned {
-  RotationFits = 1u << 0,        ///< extrinsic refresh with a rotation fit per vertex (all #V)
-  RigidFrames = 1u << 1,         ///< extrinsic refresh of a known rigid motion, no fits (all #V)
-  IntrinsicRebuild = 1u << 2,    ///< metric rebuilt: the strain passed the tolerance (all #V)
-  Factorization = 1u << 3,       ///< diffusion systems refactorized (new metric or new h)
-  Gravity = 1u << 4,             ///< tangential gravity (wet + halo)
-  LinearInertia = 1u << 5,       ///< −Fᵀ p̈ (wet + halo)
-  Coriolis = 1u << 6,            ///< −2 ω × u (wet + halo)
-  FilmPressure = 1u << 7,        ///< −∇p_ext/ρ (wet + halo)
-  VelocityAdvection = 1u << 8,   ///< semi-Lagrangian u (wet + halo)
-  DensityAdvection = 1u << 9,    ///< upwind σ fluxes (wet + sub-step halo)
-  DensityDiffusionKrylov = 1u << 10,   ///< σ_f, σ_s by CG on the liquid's Krylov support
-  DensityDiffusionDirect = 1u << 11,   ///< σ_f, σ_s by the factorization (all #V)
-  VelocityDiffusionKrylov = 1u << 12,  ///< u by CG on the wet + halo vertices
-  VelocityDiffusionDirect = 1u << 13,  ///< u by the factorization (all #V)
-  Absorption = 1u << 14,         ///< K_p > 0 (wet + halo)
-  Adsorption = 1u << 15,         ///< K_d > 0 (wet + halo)
-  Evaporation = 1u << 16,        ///< K_evap > 0 (wet + halo)
-  Sources = 1u << 17,            ///< held regions
-};
-/// Number of StepTerm bits (bit k = 1u << k for k in [0, kStepTermCount)).
-inline constexpr int kStepTermCount = 18;
-
-/// Wall-clock milliseconds per stage of the last step, and counters.
-struct StepProfile {
-  double geometry = 0, forces = 0, advectVelocity = 0, advectDensity = 0, diffuse = 0, interact = 0,
-         sources = 0, total = 0;
-  int advectionSubsteps = 0;       ///< density-advection sub-steps taken
-  int intrinsicRefreshes = 0;      ///< 1 if the metric changed enough to refactorize this step
-  double maxEdgeStrain = 0;        ///< largest |ℓ/ℓ_factored − 1| this step
-  int wetVertices = 0;             ///< vertices holding liquid at the start of the step
-  int diffusionIterations = 0;     ///< CG iterations, density + velocity (0: direct solves)
-  int limiterCorrectedVertices = 0;  ///< vertices whose negative density the limiter fixed
-  double limiterMovedMass = 0;     ///< kg moved by the positivity limiter
-  unsigned terms = 0;              ///< StepTerm bits of the terms that ran (see describeTerms)
-  int vertexCount = 0;             ///< #V of the surface
-  int haloVertices = 0;            ///< dry vertices next to wet ones, worked on with them
-  int geometryVertices = 0;        ///< vertices the extrinsic refresh recomputed (#V, 0 if the surface did not move)
-  int advectionVertices = 0;       ///< vertices density advection worked on (wet + sub-step halo, or #V)
-  int densityDiffusionVertices = 0;   ///< rows of the density solve (Krylov support, #V if direct)
-  int velocityDiffusionVertices = 0;  ///< rows of the velocity solve (wet + halo, #V if direct)
-  bool ran(StepTerm term) const { return (terms & static_cast<unsigned>(term)) != 0; }
-  /// Adds another step's stage times (ms), for sums over steps.
-  void addTimes(const StepProfile& other) {
-    geometry += other.geometry;
-    forces += other.forces;
-    advectVelocity += other.advectVelocity;
-    advectDensity += other.advectDensity;
-    diffuse += other.diffuse;
-    interact += other.interact;
-    sources += other.sources;
-    total += other.total;
-  }
-  void markRan(StepTerm term) { terms |= static_cast<unsigned>(term); }
-};
-
-/// Short name of one term ("gravity", "density-diffusion-krylov", ...).
-const char* stepTermName(StepTerm term);
-/// The terms that ran in `profile`, in StepTerm order, with the vertices they
-/// worked on, e.g. "rigid-frames[140625] gravity coriolis velocity-advection
-/// density-advection[612] density-diffusion-krylov[890] ... (wet 420 + halo 96
-/// of 140625)"; "none" when nothing ran. Allocates (a report, not for the
-/// frame loop).
-std::string describeTerms(const StepProfile& profile);
-
-/// Numerical failure inside a step (tier c): the stage, the vertex, and why.
-enum class StepStatus { Ok, SolverFailure, NonFinite, NegativeMass, InvalidArgument };
-
-struct StepReport {
-  StepStatus status = StepStatus::Ok;
-  std::string stage;   ///< e.g. "diffuse"
-  int vertex = -1;     ///< offending vertex, or -1
-  std::string message;
-};
 
 }  // namespace blot::stain

@@ -46,6 +46,24 @@ struct IntrinsicGeometry {
   SparseMatrix densityStiffness;        ///< #V by #V, L_Sf (PSD)
   ComplexSparseMatrix velocityStiffness;  ///< #V by #V, connection Laplacian with S_v (PSD)
   int rebuildCount = 0;                 ///< how many times this tier was built
+  /// Every field, once (save/load and the state hash are built on it).
+  template <class Visitor> void visit(Visitor& v) { fields(*this, v); }
+  template <class Visitor> void visit(Visitor& v) const { fields(*this, v); }
+  template <class Self, class Visitor>
+  static void fields(Self& s, Visitor& v) {
+    v.field("edgeLengths", s.edgeLengths);
+    v.field("faceCornerAngles", s.faceCornerAngles);
+    v.field("faceAreas", s.faceAreas);
+    v.field("edgeCotanWeights", s.edgeCotanWeights);
+    v.field("vertexDualAreas", s.vertexDualAreas);
+    v.field("polarMap.ringAngles", s.polarMap.ringAngles);
+    v.field("polarMap.vertexAngleScales", s.polarMap.vertexAngleScales);
+    v.field("edgeTransportAngles", s.edgeTransportAngles);
+    v.field("faceTransportAngles", s.faceTransportAngles);
+    v.field("densityStiffness", s.densityStiffness);
+    v.field("velocityStiffness", s.velocityStiffness);
+    v.field("rebuildCount", s.rebuildCount);
+  }
 };
 
 struct ExtrinsicGeometry {
@@ -70,7 +88,32 @@ struct ExtrinsicGeometry {
   /// setPreviousPositions. Stages may then use rest-shape quantities instead
   /// of recomputing them from the positions (density advection does).
   bool rigid = true, nextRigid = true;
+  /// Every field, once (save/load and the state hash are built on it).
+  template <class Visitor> void visit(Visitor& v) { fields(*this, v); }
+  template <class Visitor> void visit(Visitor& v) const { fields(*this, v); }
+  template <class Self, class Visitor>
+  static void fields(Self& s, Visitor& v) {
+    v.field("previousPositions", s.previousPositions);
+    v.field("positions", s.positions);
+    v.field("nextPositions", s.nextPositions);
+    v.field("vertexNormals", s.vertexNormals);
+    v.field("restFrames", s.restFrames);
+    v.field("frames", s.frames);
+    v.field("nextFrames", s.nextFrames);
+    v.field("kabschRotations", s.kabschRotations);
+    v.field("vertexAccelerations", s.vertexAccelerations);
+    v.field("vertexAngularVelocities", s.vertexAngularVelocities);
+    v.field("rigid", s.rigid);
+    v.field("nextRigid", s.nextRigid);
+  }
 };
+// A field added to either tier without a line in its fields() fails here first.
+static_assert(sizeof(IntrinsicGeometry) == 7 * sizeof(Vector) + 2 * sizeof(Eigen::MatrixX3d) + sizeof(SparseMatrix) +
+                                               sizeof(ComplexSparseMatrix) + 8,
+              "IntrinsicGeometry changed: list the new field in IntrinsicGeometry::fields");
+static_assert(sizeof(ExtrinsicGeometry) == 6 * sizeof(RowVectors3) + 4 * sizeof(std::vector<Matrix3>) + 8,
+              "ExtrinsicGeometry changed: list the new field in ExtrinsicGeometry::fields");
+
 
 /// Per edge, 4 numbers (row-major #E by 4): see SurfaceGeometry::restEdgeFrameNormals.
 using EdgeFrameNormals = Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>;
@@ -180,6 +223,22 @@ class SurfaceGeometry {
     double maxEdgeStrain = 0;
     double lastH = 0;
     int unchangedRefreshes = 2;
+    /// Every field, once (save/load and the state hash are built on it).
+    template <class Visitor> void visit(Visitor& v) { fields(*this, v); }
+    template <class Visitor> void visit(Visitor& v) const { fields(*this, v); }
+    template <class Self, class Visitor>
+    static void fields(Self& s, Visitor& v) {
+      s.intrinsic.visit(v);
+      s.extrinsic.visit(v);
+      v.field("nextNormals", s.nextNormals);
+      v.field("previousRotations", s.previousRotations);
+      v.field("rotations", s.rotations);
+      v.field("nextRotations", s.nextRotations);
+      v.field("inverseBuiltSquaredLengths", s.inverseBuiltSquaredLengths);
+      v.field("maxEdgeStrain", s.maxEdgeStrain);
+      v.field("lastH", s.lastH);
+      v.field("unchangedRefreshes", s.unchangedRefreshes);
+    }
   };
   /// Copy of the dynamic state (allocates).
   DynamicState dynamicState() const {

@@ -1,6 +1,6 @@
 #pragma once
-/// Stage "forces" (paper sec. 4): tangential gravity, linear inertia −Fᵀp̈ and
-/// Coriolis −2ω×u, applied to the velocity of wet vertices.
+/// Stages BodyForces and Coriolis (paper sec. 4): tangential gravity, linear
+/// inertia −Fᵀp̈ and Coriolis −2ω×u, applied to the velocity of wet vertices.
 #include <blot/stain/stain_state.h>
 #include <blot/stain/step_context.h>
 #include <blot/stain/geometry/surface_geometry.h>
@@ -8,15 +8,24 @@
 
 namespace blot::stain {
 
-/// u_i += h · tangential part, in frame F_i^t, of (g − p̈_i) (each term as
-/// switched on), then the Coriolis term: with ω_n = ω_i·z (frame coordinates),
-/// ExactRotation and SplitRotation multiply u_i by exp(−2iω_n h) (|u|
-/// preserved), Explicit adds −2h ω_n (i u_i) (|u| grows by √(1 + 4ω_n²h²) each
-/// step; comparison only). This is the whole Coriolis term for a liquid that
-/// is not advected; after a velocity advection the solver uses
-/// applyHalfFrameRotation and applyFrameVelocityChange instead
-/// (CoriolisScheme::ExactRotation).
+/// Stage BodyForces: u_i += h · tangential part, in frame F_i^t, of (g − p̈_i),
+/// each term as ctx.switches has it on (gravity, linearInertia). Forward Euler
+/// is exact here: the forcing does not depend on u.
 /// `wet` (#V, nonzero = wet) restricts the work; pass an empty vector for all.
+void applyBodyForces(const StepContext& ctx, const ExtrinsicGeometry& geometry, const std::vector<char>& wet,
+                     StainState& state);
+
+/// Stage Coriolis for a liquid that is not advected (or SplitRotation,
+/// Explicit): with ω_n = ω_i·z (frame coordinates), ExactRotation and
+/// SplitRotation multiply u_i by exp(−2iω_n h) (|u| preserved), Explicit adds
+/// −2h ω_n (i u_i) (|u| grows by √(1 + 4ω_n²h²) each step; comparison only).
+/// After a velocity advection with ExactRotation the solver uses
+/// applyHalfFrameRotation and applyFrameVelocityChange instead. `wet` as above.
+void applyCoriolis(const StepContext& ctx, const ExtrinsicGeometry& geometry, const std::vector<char>& wet,
+                   StainState& state);
+
+/// applyBodyForces then applyCoriolis (the paper's whole force term, for tests
+/// and callers without an advection between them).
 void applyExternalForces(const StepContext& ctx, const ExtrinsicGeometry& geometry,
                          const std::vector<char>& wet, StainState& state);
 

@@ -17,11 +17,13 @@ namespace blot::stain {
 ///              vertices whose `wet` value is 2, "holds liquid", next to one
 ///              that is not: the liquid's own edge); the remainder from σ_p
 ///              when σ_f runs out;
-///              the evaporated mass (× dual area) is added to state.evaporatedSolvent;
+///              the evaporated mass (× dual area) is added to state.evaporatedSolvent
+///              and, when `evaporatedMass` (#V, kg) is given, written per
+///              vertex at the vertices processed (the caller zeroes the rest);
 ///  drying      solute left with no free solvent is deposited (moved to σ_s,a),
 ///              and desorption needs free solvent to dissolve into.
 /// Solute is conserved exactly (moved between its three pools, never created).
 void interact(const StepContext& ctx, const SurfaceTopology& topology, const IntrinsicGeometry& geometry,
-              const std::vector<char>& wet, StainState& state);
+              const std::vector<char>& wet, StainState& state, Vector* evaporatedMass = nullptr);
 
 }  // namespace blot::stain

@@ -37,6 +37,15 @@ struct HeldRegion {
   std::vector<int> vertices;
   double solventDensity = 0;  ///< kg/m²
   double soluteDensity = 0;   ///< kg/m²
+  /// Every field, once (save/load and the state hash are built on it).
+  template <class Visitor> void visit(Visitor& v) { fields(*this, v); }
+  template <class Visitor> void visit(Visitor& v) const { fields(*this, v); }
+  template <class Self, class Visitor>
+  static void fields(Self& s, Visitor& v) {
+    v.field("vertices", s.vertices);
+    v.field("solventDensity", s.solventDensity);
+    v.field("soluteDensity", s.soluteDensity);
+  }
 };
 
 void applySources(const StepContext& ctx, const std::vector<HeldRegion>& regions,

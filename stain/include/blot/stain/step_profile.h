@@ -1,0 +1,139 @@
+#pragma once
+/// The step's vocabulary: one Stage per line of the coupled step (DESIGN.md,
+/// docs/architecture.md), and what a step reports: its status, the time and
+/// work of each stage (StepProfile), and the terms each stage ran (StepTerm).
+#include <array>
+#include <string>
+
+namespace blot::stain {
+
+/// One line of the coupled step, in step order. It indexes the profile's
+/// times and "ran" bits, StepReport::stage and InjectedFault::stage.
+/// Guard and Validate are the checks before and after the work; Drops, Cloth
+/// and Coupling belong to the coupled step (coupling/, engine/), the others to
+/// the stain step (StainSolver).
+enum class Stage : int {
+  Guard,           ///< arguments checked before anything changes
+  Drops,           ///< drops queued since the last step are added
+  Cloth,           ///< the cloth (any SurfaceMotion) advances to t + h
+  Geometry,        ///< extrinsic refresh; intrinsic rebuild and refactorization when the metric changed
+  BodyForces,      ///< tangential gravity and linear inertia −Fᵀp̈
+  FilmPressure,    ///< −∇p_ext/ρ of the film's hydrostatic pressure
+  AdvectVelocity,  ///< semi-Lagrangian u
+  Coriolis,        ///< −2ω × u (discrete frame change, or a rotation after advection)
+  AdvectDensity,   ///< upwind σ fluxes
+  Diffuse,         ///< implicit diffusion of σ_f, σ_s and u
+  Interact,        ///< absorption, adsorption, evaporation
+  Sources,         ///< held regions
+  Coupling,        ///< liquid mass and momentum exchanged with the cloth
+  Validate,        ///< every value finite and no negative density after the step
+};
+inline constexpr int kStageCount = 14;
+
+/// The stage's name in reports, fault injection and profile JSON ("guard",
+/// "cloth", "forces", "film-pressure", "advect-velocity", ...).
+const char* stageName(Stage stage);
+/// The stage named `name` (as stageName writes it); false when there is none.
+bool parseStage(const std::string& name, Stage& stage);
+
+/// What a stage did, one bit per term (StepProfile::terms): the finer record
+/// behind StepProfile::ran(Stage) (which forces, which solver, fits or rigid
+/// frames). A bit is set when the term did work this step; a term switched off
+/// (PhysicsSwitches), with a zero coefficient (rate, gravity), or with nothing
+/// to act on (no wet vertex, a surface that did not move) stays clear.
+/// stageOf(term) is the stage it belongs to.
+enum class StepTerm : unsigned {
+  RotationFits = 1u << 0,        ///< Geometry: a rotation fit per vertex (all #V)
+  RigidFrames = 1u << 1,         ///< Geometry: a known rigid motion, no fits (all #V)
+  IntrinsicRebuild = 1u << 2,    ///< Geometry: metric rebuilt, the strain passed the tolerance (all #V)
+  Factorization = 1u << 3,       ///< Geometry: diffusion systems refactorized (new metric or new h)
+  Gravity = 1u << 4,             ///< BodyForces: tangential gravity (wet + halo)
+  LinearInertia = 1u << 5,       ///< BodyForces: −Fᵀ p̈ (wet + halo)
+  Coriolis = 1u << 6,            ///< Coriolis: −2 ω × u (wet + halo)
+  FilmPressure = 1u << 7,        ///< FilmPressure: −∇p_ext/ρ (wet + halo)
+  VelocityAdvection = 1u << 8,   ///< AdvectVelocity: semi-Lagrangian u (wet + halo)
+  DensityAdvection = 1u << 9,    ///< AdvectDensity: upwind σ fluxes (wet + sub-step halo)
+  DensityDiffusionKrylov = 1u << 10,   ///< Diffuse: σ_f, σ_s by CG on the liquid's Krylov support
+  DensityDiffusionDirect = 1u << 11,   ///< Diffuse: σ_f, σ_s by the factorization (all #V)
+  VelocityDiffusionKrylov = 1u << 12,  ///< Diffuse: u by CG on the wet + halo vertices
+  VelocityDiffusionDirect = 1u << 13,  ///< Diffuse: u by the factorization (all #V)
+  Absorption = 1u << 14,         ///< Interact: K_p > 0 (wet + halo)
+  Adsorption = 1u << 15,         ///< Interact: K_d > 0 (wet + halo)
+  Evaporation = 1u << 16,        ///< Interact: K_evap > 0 (wet + halo)
+  Sources = 1u << 17,            ///< Sources: held regions
+};
+/// Number of StepTerm bits (bit k = 1u << k for k in [0, kStepTermCount)).
+inline constexpr int kStepTermCount = 18;
+
+/// Short name of one term ("gravity", "density-diffusion-krylov", ...).
+const char* stepTermName(StepTerm term);
+/// The stage a term belongs to.
+Stage stageOf(StepTerm term);
+
+/// Wall-clock milliseconds per stage of the last step, what ran, and counters.
+struct StepProfile {
+  std::array<double, kStageCount> milliseconds{};  ///< per Stage (ms)
+  double total = 0;                ///< the whole step (ms)
+  unsigned stagesRan = 0;          ///< bit k: Stage k did work this step
+  unsigned terms = 0;              ///< StepTerm bits of the terms that ran (see describeTerms)
+  int advectionSubsteps = 0;       ///< density-advection sub-steps taken
+  int intrinsicRefreshes = 0;      ///< 1 if the metric changed enough to refactorize this step
+  double maxEdgeStrain = 0;        ///< largest |ℓ/ℓ_factored − 1| this step
+  int wetVertices = 0;             ///< vertices holding liquid at the start of the step
+  int diffusionIterations = 0;     ///< CG iterations, density + velocity (0: direct solves)
+  int limiterCorrectedVertices = 0;  ///< vertices whose negative density the limiter fixed
+  double limiterMovedMass = 0;     ///< kg moved by the positivity limiter
+  int vertexCount = 0;             ///< #V of the surface
+  int haloVertices = 0;            ///< dry vertices next to wet ones, worked on with them
+  int geometryVertices = 0;        ///< vertices the extrinsic refresh recomputed (#V, 0 if the surface did not move)
+  int advectionVertices = 0;       ///< vertices density advection worked on (wet + sub-step halo, or #V)
+  int densityDiffusionVertices = 0;   ///< rows of the density solve (Krylov support, #V if direct)
+  int velocityDiffusionVertices = 0;  ///< rows of the velocity solve (wet + halo, #V if direct)
+
+  double time(Stage stage) const { return milliseconds[static_cast<size_t>(stage)]; }
+  bool ran(Stage stage) const { return (stagesRan & (1u << static_cast<unsigned>(stage))) != 0; }
+  bool ran(StepTerm term) const { return (terms & static_cast<unsigned>(term)) != 0; }
+  void markRan(Stage stage) { stagesRan |= 1u << static_cast<unsigned>(stage); }
+  void markRan(StepTerm term) { terms |= static_cast<unsigned>(term); }
+  /// The stain stages' time (ms): Geometry through Sources.
+  double stainTime() const;
+  /// Adds another step's stage times (ms), for sums over steps.
+  void addTimes(const StepProfile& other) {
+    for (int k = 0; k < kStageCount; ++k) milliseconds[static_cast<size_t>(k)] += other.milliseconds[static_cast<size_t>(k)];
+    total += other.total;
+  }
+};
+
+/// The terms that ran in `profile`, in StepTerm order, with the vertices they
+/// worked on, e.g. "rigid-frames[140625] gravity coriolis velocity-advection
+/// density-advection[612] density-diffusion-krylov[890] ... (wet 420 + halo 96
+/// of 140625)"; "none" when nothing ran. Allocates (a report, not for the
+/// frame loop).
+std::string describeTerms(const StepProfile& profile);
+
+/// Numerical failure inside a step (tier c): the stage, the vertex, and why.
+enum class StepStatus { Ok, SolverFailure, NonFinite, NegativeMass, InvalidArgument };
+
+struct StepReport {
+  StepStatus status = StepStatus::Ok;
+  Stage stage = Stage::Guard;  ///< where it failed (meaningful when status != Ok)
+  int vertex = -1;             ///< offending vertex, or -1
+  std::string message;
+  const char* stageName() const { return blot::stain::stageName(stage); }
+  bool ok() const { return status == StepStatus::Ok; }
+};
+
+/// Testing only: a NaN written on purpose inside a step, so that tests and
+/// `blot run --testing-inject-fault` exercise the fault path end to end (the
+/// stage check, the rollback, the report). Never set it in production.
+struct InjectedFault {
+  /// Stage after which the NaN is written: Cloth (an impulse that blows up a
+  /// Bullet cloth) and Coupling (CoupledSurface), or a stain stage from
+  /// BodyForces to Sources.
+  Stage stage = Stage::Guard;
+  int step = 1;    ///< 1-based number of the step it fires in; it fires once
+  int vertex = 0;  ///< where (the solvent density there; a node impulse for Cloth)
+  bool armed = false;  ///< set by injectFaultForTesting, cleared when it fires
+};
+
+}  // namespace blot::stain
