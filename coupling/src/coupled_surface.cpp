@@ -249,7 +249,8 @@ stain::StepReport CoupledSurface::exchangeWithCloth() {
 
 stain::StepReport CoupledSurface::abandonStep(stain::StepReport report) {
   motion_->rollBack();
-  stain_->abandonStep(motion_->positions(), motion_->velocities());
+  // The stain has not begun this step when the cloth failed: its state is t's.
+  if (report.stage != stain::Stage::Cloth) stain_->abandonStep(motion_->positions(), motion_->velocities());
   if (report.stage == stain::Stage::Cloth || report.stage == stain::Stage::Coupling)
     report.message += "; cloth and stain restored to the state before the step";
   return report;
