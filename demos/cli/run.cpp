@@ -20,6 +20,7 @@
 #include <blot/engine/ply_frame_writer.h>
 #include <blot/engine/renderer.h>
 #include <blot/engine/scene.h>
+#include <blot/stain/io/atomic_file.h>
 
 #include <nlohmann/json.hpp>
 #include <omp.h>
@@ -102,13 +103,8 @@ void writeCheckpoint(const engine::Engine& engine, const std::filesystem::path& 
   const std::string stateFile = "checkpoint_" + std::to_string(frame) + ".state";
   engine.save((directory / stateFile).string());
   const nlohmann::json record = {{"frame", frame}, {"state", stateFile}, {"state_hash", hexHash(engine.stateHash())}};
-  const std::filesystem::path json = directory / "checkpoint.json", temporary = directory / "checkpoint.json.tmp";
-  {
-    std::ofstream out(temporary);
-    out << record.dump(2) << "\n";
-    if (!out.flush()) throw std::runtime_error(temporary.string() + ": cannot write the checkpoint record");
-  }
-  std::filesystem::rename(temporary, json);
+  const std::string text = record.dump(2) + "\n";
+  stain::writeFileAtomically((directory / "checkpoint.json").string(), text.data(), text.size());
   if (!previousStateFile.empty() && previousStateFile != stateFile) {
     std::error_code ignored;
     std::filesystem::remove(directory / previousStateFile, ignored);
@@ -412,8 +408,9 @@ int runScene(const RunOptions& options) {
       {"last_step_terms", stain::describeTerms(s.lastProfile)},
       {"mass_budget_kg", massBudgetJson(s.massBudget)},
       {"outputs", {{"directory", directory}, {"ply", plyPaths}, {"preview", previewPath}, {"preview_rest_shape", restPreviewPath}, {"summary", summaryPath}}}};
-  std::ofstream(summaryPath) << summary.dump(2) << "\n";
-  std::cout << summary.dump(2) << "\n";
+  const std::string summaryText = summary.dump(2) + "\n";
+  stain::writeFileAtomically(summaryPath, summaryText.data(), summaryText.size());  // every write checked
+  std::cout << summaryText;
   return 0;
 }
 

@@ -21,6 +21,8 @@
 // every array) and memory dumps of the objects (pointers, Bullet internals).
 #include <blot/engine/engine.h>
 
+#include <blot/stain/io/atomic_file.h>
+
 #include <cstring>
 #include <fstream>
 #include <iterator>
@@ -282,15 +284,12 @@ void Engine::save(const std::string& path) const {
   w.raw(surface_->evaporatedMomentum().data(), 3);
   surface_->stain().snapshot().visit(w);
 
-  // Write-then-rename: a reader never sees a half-written state.
-  const std::string temporary = path + ".tmp";
-  {
-    std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
-    if (!out) throw StateFileError(path + ": cannot open for writing");
-    out.write(w.bytes().data(), static_cast<std::streamsize>(w.bytes().size()));
-    if (!out) throw StateFileError(path + ": write failed");
+  // Atomic: a reader never sees a half-written state.
+  try {
+    stain::writeFileAtomically(path, w.bytes().data(), w.bytes().size());
+  } catch (const std::runtime_error& e) {
+    throw StateFileError(e.what());
   }
-  if (std::rename(temporary.c_str(), path.c_str()) != 0) throw StateFileError(path + ": cannot rename " + temporary);
 }
 
 void Engine::load(const std::string& path) {

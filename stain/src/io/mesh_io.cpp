@@ -29,6 +29,8 @@
 // double ulps of the squared size: only faces that are degenerate up to
 // round-off fail it (the thinnest triangle of the CGAL camel has 1.8e-9).
 #include <blot/stain/io/mesh_io.h>
+
+#include <blot/stain/io/atomic_file.h>
 #include <blot/stain/geometry/surface_topology.h>
 #include <tiny_obj_loader.h>
 
@@ -1196,22 +1198,10 @@ void saveMeshPly(const TriangleMesh& mesh, const std::string& path) {
     out += '\n';
   }
 
-  // Write beside the target and rename, so a reader never sees half a file.
-  const std::string temporary = path + ".tmp";
-  errno = 0;
-  std::FILE* file = std::fopen(temporary.c_str(), "wb");
-  if (!file) fail(path, "cannot write '" + temporary + "': " + std::strerror(errno));
-  const bool written = std::fwrite(out.data(), 1, out.size(), file) == out.size();
-  const int writeErrno = errno;
-  const bool closed = std::fclose(file) == 0;
-  if (!written || !closed) {
-    std::remove(temporary.c_str());
-    fail(path, "cannot write '" + temporary + "': " + std::strerror(written ? errno : writeErrno));
-  }
-  if (std::rename(temporary.c_str(), path.c_str()) != 0) {
-    const int renameErrno = errno;
-    std::remove(temporary.c_str());
-    fail(path, "cannot rename '" + temporary + "' to the target: " + std::strerror(renameErrno));
+  try {
+    writeFileAtomically(path, out.data(), out.size());
+  } catch (const std::runtime_error& e) {
+    throw MeshError(e.what());  // "<path>: cannot write ..."
   }
 }
 

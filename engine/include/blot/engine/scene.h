@@ -10,8 +10,7 @@
 /// against it), and weave-pattern files are read; homogenization and the
 /// fabric layout happen when the Engine is built.
 #include <blot/engine/engine.h>
-#include <blot/engine/ply_frame_writer.h>
-#include <blot/engine/renderer.h>
+#include <blot/engine/output_options.h>
 
 #include <stdexcept>
 #include <string>

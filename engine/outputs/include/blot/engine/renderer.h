@@ -9,6 +9,7 @@
 /// Buffers are kept between frames, so a sequence of same-size frames allocates
 /// only when a mesh grows.
 #include <blot/engine/image.h>
+#include <blot/engine/output_options.h>
 #include <blot/stain/types.h>
 
 #include <Eigen/Core>
@@ -20,8 +21,6 @@ namespace blot::engine {
 
 /// Linear colour, each channel in [0, 1]; written to images as round(255 c).
 using Color = Eigen::Vector3d;
-
-enum class Projection { Perspective, Orthographic };
 
 /// A look-at camera. Screen x points along forward x up, screen y along up.
 struct Camera {

@@ -9,6 +9,7 @@
 ///   element face #F: property list uchar int vertex_indices (three per face).
 /// Binary little-endian by default, ASCII on request. Writes are atomic
 /// (temporary file + rename) and refuse non-finite values.
+#include <blot/engine/output_options.h>
 #include <blot/stain/types.h>
 
 #include <Eigen/Core>
@@ -18,8 +19,6 @@
 #include <vector>
 
 namespace blot::engine {
-
-enum class PlyFormat { BinaryLittleEndian, Ascii };
 
 /// Scalar type written for a property (values are always given as double).
 enum class PlyScalarType { Float32, Float64 };

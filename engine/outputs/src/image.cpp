@@ -12,7 +12,7 @@
 // LCD character generator), stored as five column bytes per glyph, bit 0 = top.
 #include <blot/engine/image.h>
 
-#include "atomic_file.h"
+#include <blot/stain/io/atomic_file.h>
 
 #include <png.h>
 
@@ -235,7 +235,7 @@ void writePng(const Image& image, const std::string& path) {
     throw ImageError(path + ": PNG encoding failed: " + status.message);
   }
   try {
-    detail::writeFileAtomically(path, encoded.data(), encoded.size());
+    stain::writeFileAtomically(path, encoded.data(), encoded.size());
   } catch (const std::runtime_error& error) {
     throw ImageError(error.what());
   }

@@ -12,7 +12,7 @@
 // crash mid-frame leaves a truncated file with a valid-looking header).
 #include <blot/engine/ply_frame_writer.h>
 
-#include "atomic_file.h"
+#include <blot/stain/io/atomic_file.h>
 
 #include <algorithm>
 #include <charconv>
@@ -257,7 +257,7 @@ void writePlyFrame(const std::string& path, const PlyFrame& frame,
       bytes.push_back('\n');
     }
   }
-  detail::writeFileAtomically(path, bytes.data(), bytes.size());
+  stain::writeFileAtomically(path, bytes.data(), bytes.size());
 }
 
 PlyFrameWriter::PlyFrameWriter(std::string directory, std::string prefix, PlyWriteOptions options)

@@ -1,15 +1,16 @@
 #pragma once
-/// Private helper shared by the PLY and PNG writers: whole-file atomic writes.
+/// The one atomic whole-file write: mesh files, state files, frame caches,
+/// previews and checkpoints all go through it.
 #include <cstddef>
 #include <string>
 
-namespace blot::engine::detail {
+namespace blot::stain {
 
 /// Writes `size` bytes to `path` so that readers only ever see the old file or
 /// the complete new one: the bytes go to a temporary file in the same directory
 /// (`<path>.<pid>.tmp`), which is then renamed over `path` (atomic on POSIX
 /// within one filesystem). On any failure the temporary is removed and a
-/// std::runtime_error names the path and the system error.
+/// std::runtime_error "<path>: cannot write ...: <system error>" is thrown.
 void writeFileAtomically(const std::string& path, const void* data, std::size_t size);
 
-}  // namespace blot::engine::detail
+}  // namespace blot::stain

@@ -9,7 +9,7 @@
 // writing in place after truncation (a crash leaves a half-written frame that
 // looks valid up to the header). Not done: fsync before rename; it protects
 // against power loss, not process death, and costs milliseconds per frame.
-#include "atomic_file.h"
+#include <blot/stain/io/atomic_file.h>
 
 #include <cerrno>
 #include <cstdio>
@@ -17,13 +17,13 @@
 #include <stdexcept>
 #include <unistd.h>
 
-namespace blot::engine::detail {
+namespace blot::stain {
 
 void writeFileAtomically(const std::string& path, const void* data, std::size_t size) {
   const std::string tempPath = path + "." + std::to_string(static_cast<long>(::getpid())) + ".tmp";
   std::FILE* file = std::fopen(tempPath.c_str(), "wb");
   if (file == nullptr) {
-    throw std::runtime_error(path + ": cannot create temporary file " + tempPath + ": " +
+    throw std::runtime_error(path + ": cannot write the temporary file " + tempPath + ": " +
                              std::strerror(errno));
   }
   const std::size_t written = size == 0 ? 0 : std::fwrite(data, 1, size, file);
@@ -31,15 +31,15 @@ void writeFileAtomically(const std::string& path, const void* data, std::size_t 
   const bool closedOk = std::fclose(file) == 0;
   if (written != size || !closedOk) {
     std::remove(tempPath.c_str());
-    throw std::runtime_error(path + ": write failed after " + std::to_string(written) + " of " +
+    throw std::runtime_error(path + ": cannot write, failed after " + std::to_string(written) + " of " +
                              std::to_string(size) + " bytes: " + std::strerror(writeErrno));
   }
   if (std::rename(tempPath.c_str(), path.c_str()) != 0) {
     const int renameErrno = errno;
     std::remove(tempPath.c_str());
-    throw std::runtime_error(path + ": cannot rename temporary file into place: " +
+    throw std::runtime_error(path + ": cannot write, renaming the temporary file into place failed: " +
                              std::strerror(renameErrno));
   }
 }
 
-}  // namespace blot::engine::detail
+}  // namespace blot::stain
