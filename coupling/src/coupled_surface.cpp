@@ -90,8 +90,6 @@ CoupledSurface::CoupledSurface(std::unique_ptr<cloth::SurfaceMotion> motion, con
   endRelative_ = Eigen::MatrixX3d::Zero(n, 3);
   impulses_ = Eigen::MatrixX3d::Zero(n, 3);
   previousImpulses_ = Eigen::MatrixX3d::Zero(n, 3);
-  evaporationWeights_ = Eigen::VectorXd::Zero(n);
-  vapour_ = Eigen::VectorXd::Zero(n);
   wallPrevious_.assign(static_cast<size_t>(n), -1);
   wallNext_.assign(static_cast<size_t>(n), -1);
   for (const std::vector<int>& loop : topology_->boundaryLoops()) {
@@ -172,11 +170,6 @@ stain::StepReport CoupledSurface::step(double h) {
 
 void CoupledSurface::takeLiquidAtStart() {
   gatherLiquid(startMasses_, &startRelative_);
-  const stain::StainState& s = stain_->state();
-  const double wet = stain_->definition().liquid.wetThreshold;
-  for (int i = 0; i < s.vertexCount(); ++i)
-    evaporationWeights_[i] = s.solvent[i] + s.absorbedSolvent[i] > wet ? 1.0 : 0.0;
-  evaporatedBefore_ = s.evaporatedSolvent;
   if (startMasses_ != liquidMasses_) {
     liquidMasses_ = startMasses_;
     motion_->setLiquidLoads(liquidMasses_, impulses_);
@@ -206,29 +199,10 @@ stain::StepReport CoupledSurface::exchangeWithCloth() {
   }
   impulses_.swap(previousImpulses_);  // kept until the impulses below are known to be finite
   gatherLiquid(liquidMasses_, &endRelative_);
-  {
-    const stain::StainState& s = stain_->state();
-    const int n = s.vertexCount();
-    const double wet = stain_->definition().liquid.wetThreshold;
-    const double evaporated = s.evaporatedSolvent - evaporatedBefore_;
-    double weightSum = 0;
-    if (evaporated > 0) {
-      const stain::LiquidParameters& liquid = stain_->definition().liquid;
-      const stain::Vector& areas = stain_->geometry().intrinsic().vertexDualAreas;
-      const std::vector<char>& boundary = topology_->vertexIsBoundary();
-      for (int i = 0; i < n; ++i) {
-        const bool holds = evaporationWeights_[i] > 0 || s.solvent[i] + s.absorbedSolvent[i] > wet;
-        evaporationWeights_[i] =
-            holds ? areas[i] * (boundary[static_cast<size_t>(i)] ? liquid.boundaryEvaporationFactor : 1.0) : 0.0;
-        weightSum += evaporationWeights_[i];
-      }
-    }
-    const double vapourPerWeight = weightSum > 0 ? evaporated / weightSum : 0.0;
-    for (int i = 0; i < n; ++i) vapour_[i] = vapourPerWeight * evaporationWeights_[i];
-  }
+  // Vapour leaves each vertex as the interaction stage evaporated it there.
   Eigen::Vector3d vapourMomentum = evaporatedMomentum_;
   int bad = exchangeMomentum(startMasses_, liquidMasses_, startRelative_, endRelative_, motion_->velocities(),
-                             vapour_, impulses_, vapourMomentum);
+                             stain_->evaporatedMass(), impulses_, vapourMomentum);
   if (fault_.armed && fault_.stage == stain::Stage::Coupling && fault_.step == stain_->stepCount()) {
     impulses_(fault_.vertex, 0) = std::numeric_limits<double>::quiet_NaN();
     if (bad < 0 || fault_.vertex < bad) bad = fault_.vertex;

@@ -171,8 +171,6 @@ class CoupledSurface {
   Eigen::MatrixX3d impulses_;          // #V by 3 (N·s), owed to the nodes
   Eigen::Vector3d evaporatedMomentum_ = Eigen::Vector3d::Zero();
   CoupledStepTimes times_;
-  Eigen::VectorXd evaporationWeights_, vapour_;  // #V: where this step's vapour is attributed (kg)
-  double evaporatedBefore_ = 0;                  // the stain's evaporated total at the start of the step
 };
 
 }  // namespace blot::coupling
