@@ -1,53 +1,6 @@
 // Bullet soft-body cloth behind the SurfaceMotion interface.
 //
-// Design note.
-//  - Model: Bullet's classic position-based cloth (btSoftBody in a
-//    btSoftRigidDynamicsWorld). Per substep hₛ Bullet integrates
-//    v += hₛ(g + f/m), x += hₛ v, then projects every link (i, j) toward its
-//    rest length ℓ̄ with Gauss–Seidel sweeps (positionIterations), each removing
-//    the fraction kLST of the error (linearized: Δx ∝ (ℓ̄² − ℓ²)/(ℓ̄² + ℓ²)),
-//    weighted by inverse masses; then v = (x − x_prev)/hₛ · (1 − kDP).
-//  - Links come from the caller's plain arrays (ClothDef.edges and
-//    .bendingPairs; coupling::describeClothMesh derives them from the stain's
-//    SurfaceTopology in O(#V + #F), so cloth/ never sees stain/): mesh
-//    edges (structural or shear by their direction in UV space) and one bending
-//    link per interior edge joining the two opposite vertices. Nodes and faces
-//    are appended in mesh order, so node i is vertex i and face f is face f.
-//    Rejected: btSoftBodyHelpers::CreateFromTriMesh and
-//    btSoftBody::generateBendingConstraints — both allocate a #V × #V table
-//    (1.2 GB at 35K vertices, int overflow past ~46K), and CreateFromTriMesh
-//    shuffles links and faces.
-//  - Masses: lumped (one third of the one-ring area × areal density), so an
-//    irregular mesh does not put more mass where triangles are small. Pins have
-//    infinite mass (m_im = 0) and follow their trajectory: before each substep
-//    the node's velocity is set to (x_target(t + hₛ) − x)/hₛ, so Bullet's
-//    integration lands it on the target and the links see it moving.
-//  - Liquid mass is written into m_im followed by updateLinkConstants(): the
-//    link constant m_c0 = (m_im,a + m_im,b)/kLST is all that depends on mass.
-//    Rejected: btSoftBody::setMass, which raises the "update runtime constants"
-//    flag so the next step calls resetLinkRestLengths() and the current,
-//    stretched lengths become the rest lengths (the cloth creeps longer every
-//    time liquid is added).
-//  - Tethers (long-range attachments, Kim et al. 2012): Gauss–Seidel carries a
-//    pin's correction about one ring per sweep, so a cloth hanging from two
-//    corner pins stretches with resolution: measured at 4 iterations × 4
-//    substeps, the bottom of a 1 m, 35K-node flag hung 1.23 m below its rest
-//    height (median edge strain 6%); at 2 × 2 it passed 14 m and failed the
-//    health check. After
-//    each substep a node farther from its nearest pin than its rest geodesic
-//    distance (fast marching at build time) is pulled back onto that sphere,
-//    with the velocity change that implies. It only ever pulls toward a pin,
-//    so it never resists folding or waving; with it the same flag hangs 7 mm
-//    below its rest shape (median strain 0.4%).
-//  - Rejected: Bullet's deformable world (btDeformableMultiBodyDynamicsWorld,
-//    implicit mass-spring). It would rebuild masses from m_im itself, but it
-//    measured 3–7× slower per step on this machine (8.4 ms vs 1–2 ms at 10K
-//    nodes, 39.8 ms vs 5.5–11 ms at 35K, one iteration to four) and ignores
-//    m_f; the classic solver is stable for long runs with 4 iterations × 4
-//    substeps and tethers (docs/cloth.md has the measurements).
-//  - Ground planes are large static boxes: Bullet's soft-rigid contact uses a
-//    sparse signed-distance cache that only evaluates convex shapes (a
-//    btStaticPlaneShape reads as distance 0 everywhere).
+// Design note: docs/design-notes.md, "cloth/src/bullet_cloth.cpp".
 #include <blot/cloth/bullet_cloth.h>
 
 #include "bullet_cloth_testing.h"

@@ -1,31 +1,6 @@
 // Mesh-sequence playback (frames from files or from code, fixed connectivity).
 //
-// Design note.
-//  - Interpolant: frame k sits at t_k = k T, T = 1 / frameRate. With u = t/T,
-//    k = ⌊u⌋, s = u − k, the default is the uniform Catmull–Rom spline: the cubic
-//    Hermite segment between P_k and P_{k+1} with tangents
-//    m_k = (P_{k+1} − P_{k−1}) / 2, written as weights on P_{k−1..k+2}; at the
-//    ends of a held sequence the missing frame is the linear extrapolation
-//    (P_{−1} = 2P_0 − P_1), so linear motion is reproduced exactly everywhere.
-//    Velocities are the time derivative of the same cubic (÷ T).
-//    Why not piecewise linear by default: its velocity jumps at every frame, so
-//    the stain's centred second difference p̈ turns each frame boundary into an
-//    impulse Δv/h and is zero in between; and the chord between two frames of a
-//    rotating piece is shorter than the arc (edge strain ≈ φ²/8 for φ rad per
-//    frame: 5.6e-4 at 2 rad/s and 30 fps, half the default rebuild tolerance),
-//    which would make the stain refactorize every frame. Catmull–Rom has a
-//    continuous velocity, reproduces quadratics inside the sequence, and its
-//    edge-length error under rotation is O(φ⁴). Linear stays available: it never
-//    overshoots, which matters for frames far apart in shape.
-//  - Past the last frame: Hold keeps the last frame with zero velocity (the
-//    velocity jumps to zero there); Loop wraps with period N T, treating frame 0
-//    as the frame after N − 1 (the spline is then periodic). Times before 0 are
-//    treated as 0.
-//  - File names come from the pattern by our own formatting of the single
-//    integer field (never by passing user text to printf as a format).
-//  - Every frame must match frame 0's vertex count and faces exactly; the error
-//    names the file and the first face that differs, since a sequence exported
-//    with re-triangulated frames is the usual mistake.
+// Design note: docs/design-notes.md, "cloth/src/mesh_sequence.cpp".
 #include <blot/cloth/mesh_sequence.h>
 
 

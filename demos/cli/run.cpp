@@ -76,7 +76,7 @@ stain::InjectedFault parseInjectedFault(const std::string& text) {
   return fault;
 }
 
-// Checkpoints (issue 8): every `checkpointEvery` frames the whole engine state
+// Checkpoints: every `checkpointEvery` frames the whole engine state
 // goes to <out>/checkpoint_<frame>.state (Engine::save writes a temporary and
 // renames it), then <out>/checkpoint.json — frame, state file, state hash — is
 // replaced the same way, and only then is the previous state file removed. A

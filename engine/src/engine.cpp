@@ -1,24 +1,7 @@
 // blot::Engine: the fixed-step loop, drops, views and statistics around one
 // CoupledSurface (cloth → stain → coupling).
 //
-// Design note.
-//  - Accumulator: step(frameDt) adds frameDt / h to a counter kept in units of
-//    the internal step h and runs ⌊counter + 1e-9⌋ internal steps (at most
-//    maxStepsPerCall; the excess is dropped and reported, Box2D/Gaffer's
-//    "spiral of death" guard). A remainder within 1e-9 steps of a whole number
-//    snaps to it, so frame times that add up to whole steps leave exactly zero
-//    behind whichever way they were split: the same internal steps run and the
-//    results are bit-identical (the simulation never sees frameDt itself).
-//    Rejected: variable internal steps (refactorizing M + hL each frame and
-//    results depending on the frame rate) and interpolating the views between
-//    steps (the caller can, from two views; the engine keeps one state).
-//  - Drops are queued and applied at the start of the next internal step, in
-//    the order: scheduled (EngineDef::drops, by time) then runtime (call order),
-//    so a drop never lands mid-step and a replay with the same calls gives the
-//    same state.
-//  - Views are published once per step() call (not per internal step) into
-//    preallocated arrays: normals and world-frame liquid velocities from the
-//    stain's newest frames, display colours by Beer–Lambert.
+// Design note: docs/design-notes.md, "engine/src/engine.cpp".
 #include <blot/engine/engine.h>
 
 #include <blot/stain/content_hash.h>

@@ -1,24 +1,6 @@
 // Engine::save / Engine::load: the whole simulation state in one binary file.
 //
-// Design note. Layout (little-endian, as the host writes it; files are not
-// meant to move between architectures):
-//   "BLOTSTAT" | u32 version | u32 motion source | i64 #V | i64 #F |
-//   u64 mesh fingerprint (FNV-1a of rest positions and faces) | f64 h |
-//   engine: i64 steps, f64 accumulator, u64 next scheduled drop, pending drops |
-//   motion: f64 time (+ the Bullet cloth's state) | coupling: liquid masses,
-//   impulses owed, vapour momentum | stain: StainSolverSnapshot.
-// Arrays are written as (rows, cols, raw column-major doubles), sparse
-// matrices in compressed form. The fields and their order come from each
-// state struct's field list (visit): StainSolverSnapshot, its StainState and
-// geometry tiers, and the motion's dynamic state (SurfaceMotion::
-// visitDynamicState). Everything step() reads is in the file — the
-// stain's geometry tiers, its rotation history (it warm-starts the next fit,
-// so leaving it out changes the last bits) — which is what makes a loaded run
-// bit-identical to the original. Prescribed motions (static, rigid, sequence)
-// are pure functions of their time, so their time is enough: a fresh motion
-// is advanced to it in one call, landing on the same double.
-// Rejected: text/JSON (3-5x larger, slow, and %.17g round-trips need care for
-// every array) and memory dumps of the objects (pointers, Bullet internals).
+// Design note: docs/design-notes.md, "engine/src/engine_state.cpp".
 #include <blot/engine/engine.h>
 
 #include <blot/stain/io/atomic_file.h>

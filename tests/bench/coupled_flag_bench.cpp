@@ -1,4 +1,4 @@
-// The coupled 2.5K-vertex two-way flag (issue 5): per 1/60 s step, the
+// The coupled 2.5K-vertex two-way flag: per 1/60 s step, the
 // Bullet cloth step, the stain step and the coupling, and in the same loop a
 // bare Bullet cloth (same mesh, same ClothDef, no liquid) stepped alongside,
 // so both see the same machine load. Target: stain + coupling ≤ bare Bullet.

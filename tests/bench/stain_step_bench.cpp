@@ -1,5 +1,5 @@
 // The full stain step (StainSolver::step) per phase, on meshes of the paper's
-// Table 1 sizes, under rigid rotation, every physics term on (issue 4).
+// Table 1 sizes, under rigid rotation, every physics term on.
 //
 // Meshes: flat grids gridMesh(n, n, 1, 1) of 2,500, 10,000 and 34,969
 // vertices, and the Stanford bunny (CGAL's bunny00.off, 37,706 vertices).

@@ -1,4 +1,4 @@
-// The paper's Table 1 scenes at their sizes (issue 7), per internal step, with
+// The paper's Table 1 scenes at their sizes, per internal step, with
 // a bare Bullet cloth on the same mesh stepped in the same loop as the
 // reference, plus peak memory and load time per scene, and a 140K-vertex
 // two-way coupled flag for the memory/load targets (< 1 GB, well under 1 s

@@ -1,4 +1,4 @@
-// Cost of the stain step against wet area on a 140,625-vertex cloth (issue 7:
+// Cost of the stain step against wet area on a 140,625-vertex cloth (DESIGN.md:
 // "model no more than a scene needs").
 //
 // Design note. A 1 m square grid (375 x 375 vertices) turns rigidly about a

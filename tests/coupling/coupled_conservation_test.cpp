@@ -1,4 +1,4 @@
-// Issue 5 evidence for the coupling (docs/coupling.md), the bookkeeping half:
+// Evidence for the coupling (docs/coupling.md), the bookkeeping half:
 //  - a closed system (no gravity, pins, colliders, damping or evaporation;
 //    liquid moving relative to a moving, deforming cloth) keeps its mass to
 //    rounding and its momentum: exactly (1e-12) through the coupling and the

@@ -1,4 +1,4 @@
-// Issue 5 evidence for the coupling (docs/coupling.md): a 2,500-vertex flag
+// Evidence for the coupling (docs/coupling.md): a 2,500-vertex flag
 // pinned at two corners with a heavy stain sags more in two-way mode than in
 // one-way mode, and its liquid trail differs with Coriolis on and off.
 // Conservation and rest lengths: coupled_conservation_test.cpp.

@@ -1,4 +1,4 @@
-// Numerical faults in a whole engine step (issue 8): a NaN after any stage —
+// Numerical faults in a whole engine step: a NaN after any stage —
 // the Bullet cloth, each stain stage, the coupling — stops the step with a
 // report naming the stage, the internal step and the vertex, and the engine
 // keeps the last good state: the same state hash as before the failed step.

@@ -1,4 +1,4 @@
-// Coupled regression tests (issue 5): every registered scene of assets/scenes/
+// Coupled regression tests: every registered scene of assets/scenes/
 // runs at a reduced mesh size for a few hundred internal steps, and a summary
 // of the result is compared with a stored golden, tests/data/goldens/<scene>.json.
 //

@@ -237,7 +237,7 @@ TEST(SceneTest, MissingFileIsAnError) {
 }  // namespace
 }  // namespace blot::engine
 
-// Issue 8, found by tests/fuzz/scene_fuzz.cpp (fuzz_scene): regressions and the
+// Found by tests/fuzz/scene_fuzz.cpp (fuzz_scene): regressions and the
 // seed corpus replayed in the normal and the sanitized build.
 namespace blot::engine {
 namespace {

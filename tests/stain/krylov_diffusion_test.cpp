@@ -1,4 +1,4 @@
-// The iterative path of the diffusion stage (issue 4, "Speed"): Jacobi-PCG
+// The iterative path of the diffusion stage: Jacobi-PCG
 // restricted to the liquid's Krylov support for the densities, to the wet
 // region for the velocity, with the factorization as the fallback. What must
 // hold whichever method runs: the same solution to the CG tolerance, mass to

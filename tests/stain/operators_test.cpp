@@ -386,7 +386,7 @@ TEST_F(EveryMesh, EdgewiseFormIsIndefiniteOnTheCamel) {
   // is computed edge by edge (its Rayleigh quotient bounds λ_min from above).
   const Geometry g(loadMesh(blot::test::externalMesh("camel.off")));
   const int negative = static_cast<int>((g.cotanWeights.array() < 0.0).count());
-  EXPECT_EQ(negative, 3485);  // as measured in issue 2 (Debian's CGAL camel.off)
+  EXPECT_EQ(negative, 3485);  // Debian's CGAL camel.off, as measured when the per-triangle assembly was chosen
   const ComplexSparseMatrix E = edgewiseConnectionLaplacian(g);
   const SparseMatrix M = g.mass();
   const ComplexSparseMatrix complexM = M.cast<Complex>();
@@ -421,7 +421,7 @@ TEST_F(EveryMesh, EdgewiseFormIsIndefiniteOnTheCamel) {
   std::printf("camel: %d negative cotan weights; edge-wise form: %d negative eigenvalue(s), "
               "λ_min(M⁻¹E) ∈ [%.4e, %.4e], witness Rayleigh quotient %.4e\n",
               negative, negativeEigenvalues, below, above, rayleigh);
-  // Issue 2 measured −1.7e5.
+  // Measured before: −1.7e5 (DESIGN.md).
   EXPECT_LT(rayleigh, -1.6e5);
   EXPECT_NEAR(rayleigh, 0.5 * (below + above), 1e-6 * std::abs(below));
   // The per-triangle form is PSD on the same mesh: the witness has energy ≥ 0.

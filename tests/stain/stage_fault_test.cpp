@@ -1,4 +1,4 @@
-// Numerical faults inside a stain step (issue 8): every stage is checked, a
+// Numerical faults inside a stain step: every stage is checked, a
 // NaN put in after a stage is reported with that stage, the step and the
 // vertex, and the solver keeps the state it had before the step (to the bit;
 // with the masses kept when the failed step rebuilt the metric).

@@ -1,4 +1,4 @@
-// Which terms the stain step runs (issue 7: "model no more than a scene
+// Which terms the stain step runs ("model no more than a scene
 // needs ... each scene reports which terms ran"): a dry step runs no
 // transport, switched-off and zero-coefficient terms are skipped and reported
 // as not run, diffusion reports its method and rows, and skipping a term with

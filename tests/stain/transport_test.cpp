@@ -2,7 +2,7 @@
 // holonomy on flat and curved meshes.
 //
 // Which identity is "the holonomy around each interior vertex equals its angle
-// defect" (issue 2)? Two transports live on the mesh:
+// defect"? Two transports live on the mesh:
 //  (1) Face-to-face Levi-Civita transport (unfold the two faces across their
 //      shared edge). Its holonomy around the dual loop of vertex v (the faces
 //      of v's star, in order) is exactly d_v = 2π − γ_v: the loop encloses v

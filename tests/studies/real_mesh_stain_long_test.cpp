@@ -1,5 +1,5 @@
 // Long study (label "study"): 1000 steps of the rotating bunny and camel with
-// every term on at h = 0.01, 0.025 and 0.1 s (issue 4, "Real meshes").
+// every term on at h = 0.01, 0.025 and 0.1 s.
 #include <gtest/gtest.h>
 
 #include "rotating_mesh_run.h"

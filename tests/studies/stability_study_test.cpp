@@ -8,7 +8,7 @@
 // vs explicit diffusion σ ← σ − h M⁻¹Lσ and vs implicit without the limiter;
 // sub-stepped upwind vs one sub-step (cap 1) vs the naive un-limited upwind;
 // Coriolis as the discrete frame change (ours) vs the split exact rotation
-// exp(−2iωh) after advection (the previous default) vs explicit u += −2hω×u.
+// exp(−2iωh) after advection vs explicit u += −2hω×u.
 // The Coriolis runs put a thin film over the whole disc (every vertex wet,
 // RotatingDiscSetup::filmEverywhere), so the energy measures the integration,
 // not dry vertices' placeholder velocities.

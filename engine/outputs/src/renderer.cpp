@@ -1,25 +1,6 @@
 // Headless software rasterizer for previews.
 //
-// Design note: classic z-buffered scan conversion on an n x n supersampled
-// grid, averaged down ("SSAA"). Pipeline per triangle: view-space vertices ->
-// clip (near plane, and side planes at twice the image size as a guard band so
-// snapped coordinates stay small) -> snap to 1/256-sample fixed point -> exact
-// 64-bit edge functions with the top-left fill rule, so triangles sharing an
-// edge cover every sample exactly once (no cracks, no double blending) ->
-// per sample: depth key 1/d (perspective) or -d (orthographic), both affine in
-// screen space, so interpolating them with screen barycentrics is exact;
-// colours and normals use perspective-correct weights (lambda_k / d_k).
-// Shading: albedo x (ambient + diffuse max(0, n.l)), one directional light,
-// back faces lit with the flipped normal when two-sided (cloth is seen from
-// both sides). Wireframe: the screen distance of a sample to each original
-// edge is w_k / |e_k| (edge function over edge length), drawn where it is
-// below half the width: one pass, correctly hidden, no depth fighting, which a
-// second pass of depth-tested 3D lines would suffer.
-// Lines and points are screen-space capsules/discs with interpolated depth.
-// Rejected: OpenGL/OSMesa/EGL (a display or GPU stack on CI machines, and
-// output that varies by driver); scanline-with-float-edges (cracks and double
-// hits on shared edges). Everything runs single-threaded in draw order, so
-// output bytes are deterministic; ties in depth keep the first-drawn sample.
+// Design note: docs/design-notes.md, "engine/outputs/src/renderer.cpp".
 #include <blot/engine/renderer.h>
 
 #include <algorithm>

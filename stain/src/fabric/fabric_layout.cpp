@@ -1,28 +1,6 @@
 // Fabric on the mesh: patches, weft fields, per-face tensors (paper sec. 3.2).
 //
-// Design note.
-//  - Weft field: the paper solves ∇·∇e = 0 per patch with the user's direction
-//    constraints. We discretize e as one complex number per vertex in the
-//    vertex's tangent frame and use the isotropic connection Laplacian of the
-//    patch's own sub-mesh (assembled per triangle, PSD on any mesh); the patch
-//    border is then a natural (free) boundary, so neighbouring patches do not
-//    pull on each other's fields and a corner where three patches meet needs
-//    nothing special. A constraint on face f fixes the three corner values to
-//    the given direction carried from the face frame into each vertex frame
-//    (inverse of faceTransportAngles); the fixed values are eliminated as
-//    Dirichlet data (identity rows, columns moved to the right-hand side), and
-//    the Hermitian system goes to CHOLMOD. Per face, the three corner vectors
-//    carried into the face frame are averaged and normalised.
-//    On a flat patch the transport is exact, so the constant field solves the
-//    system and one constraint reproduces itself everywhere to round-off.
-//    Rejected: a penalty weight on the constrained vertices (one more
-//    parameter, and the field only approaches the constraint as the weight
-//    grows); solving on the whole mesh with patch-wise constraints (patches
-//    would blend across their borders, which the paper avoids by treating
-//    each patch separately).
-//  - Tensors: a patch with a pattern gets S_eff (Homogenizer, cached by content,
-//    so a pattern shared by patches is solved once); the per-face rows are
-//    (s_ww, s_wp, s_pp) in the face's (weft, warp) basis, x = weft.
+// Design note: docs/design-notes.md, "stain/src/fabric/fabric_layout.cpp".
 #include <blot/stain/fabric/fabric_layout.h>
 
 #include <blot/stain/geometry/intrinsic_geometry.h>

@@ -1,23 +1,6 @@
 // Intrinsic geometry from edge lengths.
 //
-// Design note. Everything here is a function of the #E edge lengths, so it is
-// invariant under rigid and isometric motion and is only recomputed when the
-// metric changes (DESIGN.md, "intrinsic tier").
-//  - Areas: Heron's formula in Kahan's sorted form,
-//      A = ¼ sqrt((a + (b + c)) (c − (a − b)) (c + (a − b)) (a + (b − c))), a ≥ b ≥ c,
-//    which keeps full relative accuracy for needle and cap triangles; the naive
-//    sqrt(s(s−a)(s−b)(s−c)) loses all digits when a ≈ b + c.
-//  - Corner angles: θ = atan2(4A, b² + c² − a²), i.e. the law of cosines for the
-//    cosine and the stable area for the sine (sin θ = 2A / (bc)), with the
-//    cosine term evaluated as (b − a)(b + a) + c², b ≥ c, so that a short side
-//    c is not lost against b² − a² (needles). Rejected:
-//    acos of the clamped cosine, whose error near θ = 0 or π grows like
-//    sqrt(machine ε) (1e-8 rad) and would spoil cotan weights of thin triangles.
-//  - Cotan weights w_ij = ½ (cot α + cot β); cot θ = cos θ / sin θ of the angle
-//    above equals (b² + c² − a²) / (4A) to a few ulps.
-//  - Dual areas: barycentric (one third of the one-ring area), the lumped P1
-//    mass; positive on every mesh, unlike mixed Voronoi areas it never needs
-//    an obtuse-triangle special case.
+// Design note: docs/design-notes.md, "stain/src/geometry/intrinsic_geometry.cpp".
 #include <blot/stain/geometry/intrinsic_geometry.h>
 
 #include <algorithm>

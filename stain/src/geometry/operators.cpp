@@ -1,40 +1,7 @@
 // P1 finite-element operators: anisotropic stiffness, cotan Laplacian, lumped
 // mass, and the connection Laplacian (paper sec. 3.2, eq. 7).
 //
-// Design note.
-//  - Element kernel: with ∇φ_k = J (p_{k+2} − p_{k+1}) / (2A_signed), J the +90°
-//    rotation, the triangle's stiffness is K = |A| Gᵀ S G (G the 2x3 matrix of
-//    gradients). The signed area makes it independent of orientation; S = I
-//    gives K_kl = −½ cot(angle opposite edge kl), the cotan Laplacian.
-//  - Each face is laid out in its own frame (x along v0→v1, y = n × x, the
-//    frame faceTransportAngles rotates into). The fabric tensor S, given in the
-//    (weft e, warp e⊥ = n × e) basis, becomes S_T = E S Eᵀ with E = [e e⊥] in
-//    face coordinates, e the weft direction projected to the face plane and
-//    normalised.
-//  - Degenerate weft: a weft direction with no component in the face plane
-//    (zero, or parallel to the normal) leaves the fabric orientation undefined.
-//    For an isotropic tensor (s_wp = 0, s_ww = s_pp) the orientation does not
-//    matter and is ignored, so identity tensors may come with zero wefts; for
-//    an anisotropic tensor we throw std::invalid_argument naming the face: the
-//    weft field is input data (from UVs or a scene), and guessing a direction
-//    would silently rotate the diffusion.
-//  - Connection Laplacian, assembled per triangle: the energy of the linear
-//    interpolation of the three vertex vectors after carrying each into the
-//    face frame, E_T(u) = Σ_kl K_kl conj(r_k u_k) r_l u_l, r_k = exp(iφ(f, k)).
-//    In matrix form the block is D^H K D with D = diag(r) unitary, so it is PSD
-//    for SPD tensors on any mesh, obtuse or not. Rejected: the edge-wise form
-//    Σ_ij w_ij |u_i − R_ij u_j|² of the paper, which is indefinite as soon as a
-//    cotan weight is negative (3,485 such edges on the 9,770-vertex camel; the
-//    form then has negative eigenvalues and M + hL stops being SPD). Both agree
-//    on flat meshes up to how each edge's rotation is split, and both reduce to
-//    the scalar cotan/anisotropic Laplacian when all rotations are 1. It keeps
-//    the sparsity of the scalar operator, so one symbolic analysis serves both.
-//  - Assembly of the per-face operators: straight into the one-ring pattern
-//    (built from the edge list), adding each face's block in face order, so
-//    the result is bit-identical to setFromTriplets. Rejected: the triplet
-//    list, which with Eigen's transposed temporary needed ~5x the final
-//    matrix (110 MB for the complex operator at 140K vertices) at the moment
-//    an intrinsic rebuild peaks in memory.
+// Design note: docs/design-notes.md, "stain/src/geometry/operators.cpp".
 #include <blot/stain/geometry/operators.h>
 
 #include <algorithm>

@@ -1,60 +1,7 @@
 // The two-tier geometry cache: intrinsic operators rebuilt on strain, extrinsic
 // frames refreshed every step (paper sec. 3.1 and 4; DESIGN.md step 2).
 //
-// Design note.
-//  - Rotations U_i (paper: U_i = argmin_R Σ_j |(v_j − v_i) − R(v̄_j − v̄_i)|²)
-//    maximise tr(Rᵀ C) with C = Σ_j (v_j − v_i)(v̄_j − v̄_i)ᵀ. The reference is
-//    Kabsch: SVD C = U Σ Vᵀ, R = U diag(1, 1, det(UVᵀ)) Vᵀ (~640 ns a vertex,
-//    tests/bench/geometry_refresh_bench).
-//    The step uses Newton's method on SO(3) instead: with R = R₀ exp([δ]×) and
-//    M = R₀ᵀC, f(δ) ≈ tr M + 2 δ·m − ½ δᵀ (tr M·I − sym M) δ, m = vee(skew M),
-//    so δ = 2 (tr M·I − sym M)⁻¹ m, and the update is quaternion q ← q ⊗ (1, δ/2)
-//    (normalised), accurate to O(|δ|³), which keeps the convergence quadratic.
-//    The start is U_i extrapolated at constant angular velocity,
-//    U^t (U^{t−h})ᵀ U^t. It stops when |g| = |2 m| < 1e-13 tr M (rigid motion:
-//    the extrapolation is exact, so one gradient evaluation and no solve) or
-//    after a step under 1e-7 rad (error left O(step²)); smooth cloth motion
-//    takes one or two solves. Non-convergence, a step over 1 rad, or a
-//    Hessian that is not positive definite (the start was near a saddle, or the
-//    ring is degenerate) fall back to the SVD, so the result is always the Kabsch
-//    rotation. Rejected: Müller et al. 2016's quaternion iteration (scaled
-//    gradient step ω = Σ r_k × c_k / |Σ r_k·c_k|): its error contracts by
-//    σ_k / tr Σ per iteration, i.e. only by ½ for a flat one-ring (σ₃ = 0,
-//    σ₁ ≈ σ₂): measured 24 iterations on average from a 0.02 rad start to
-//    1e-9 on hexagonal rings, flat or bumpy. Rejected: Higham's Newton polar iteration
-//    X ← (X + X⁻ᵀ)/2, which cannot be warm-started (it acts on singular values
-//    only) and divides by σ₃ = 0 on flat rings.
-//  - Angular velocity: ω_i = log((F^t)ᵀ F^{t+h}) / h, the exact log map, taken
-//    from the quaternions as rel = q^t* ⊗ q^{t+h}, θ = 2 atan2(|v|, w) (w ≥ 0),
-//    ω = F̄ᵀ (θ v/|v|) / h. This equals the matrix form axis = vee(skew A),
-//    θ = atan2(|vee(skew A)|, (tr A − 1)/2) for A = (F^t)ᵀF^{t+h}, so a constant
-//    rotation gives ω exactly. The paper's vee((A − Aᵀ)/2)/h is its first-order
-//    form: it gives sin(θ)/h, i.e. ω (1 − θ²/6 + …), a relative error
-//    (|ω|h)²/6 (7e-5 at 2 rad/s and h = 0.01 s).
-//  - Accelerations: p̈ = (p^{t+h} − 2p^t + p^{t−h}) / h² (paper); when the last
-//    two steps differ (h ≠ h_prev), the non-uniform centred second difference
-//    2/(h + h_prev) ((p^{t+h} − p^t)/h − (p^t − p^{t−h})/h_prev).
-//  - Normals at t + h come from the same one-ring edge vectors as the fit,
-//    Σ e_m × e_{m+1} over the ring's faces (area weighted, as vertexNormals()),
-//    so they cost no extra memory traffic; they become vertexNormals (at t)
-//    on the next refresh.
-//  - Strain test: r_e = ℓ_e² / ℓ_e,built², max and min over the ring edges
-//    inside the same loop (each edge twice, which max and min ignore),
-//    strain = max(√r_max − 1, 1 − √r_min): no branch, root or division per edge.
-//  - One OpenMP loop over vertices, static schedule; each vertex writes only its
-//    own outputs and the reductions are max/min/integer sums, so results are
-//    bit-identical for any thread count.
-//  - No motion: when p(t+h) equals p(t) bit for bit, no fit is done (U, frames
-//    and normals are copied, ω = 0); after two such refreshes nothing changes
-//    at all and the refresh is a comparison only.
-//  - Weft directions are given on the rest shape. At an intrinsic rebuild each
-//    face's weft is carried as a material line: w = a e₁ + b e₂ where
-//    w̄ = a ē₁ + b ē₂ in the rest face (ē₁, ē₂ its edges from corner 0). This
-//    is the face's deformation gradient applied to w̄; for an isometric face it
-//    is the rotation taking the rest face's (edge 0, normal) frame to the
-//    current one. Rejected: that rotation (keeping the angle to edge 0) for
-//    sheared faces: cloth shears easily, and under shear a thread not along
-//    edge 0 turns with the material, not with edge 0.
+// Design note: docs/design-notes.md, "stain/src/geometry/surface_geometry.cpp".
 #include <blot/stain/geometry/surface_geometry.h>
 
 #include <blot/stain/geometry/extrinsic_geometry.h>

@@ -1,29 +1,7 @@
 // Discrete parallel transport: geodesic polar maps, edge and face transport
 // angles (paper sec. 3.1, eq. 6).
 //
-// Design note.
-//  - Polar map: α_ij = s_i Σ (corner angles at i between the reference edge and
-//    edge ij, counter-clockwise), with s_i = 2π/γ_i at interior vertices and
-//    s_i = 1 at boundary vertices. The paper rescales every fan to 2π; a
-//    boundary fan has no such target (rescaling it to π rotates vectors at every
-//    corner of a flat sheet: a flat 41×41 grid's connection Laplacian then has
-//    smallest eigenvalue 0.38 instead of 0 with our per-triangle assembly
-//    (operators_test), 1.02 with the edge-wise form; DESIGN.md quotes 0.99), so
-//    boundary fans keep their true angles and a flat sheet, corners included,
-//    has exactly trivial transport.
-//  - Edge transport θ_ij = α_ij − α_ji + π carries j's frame into i's:
-//    a vector along j→i has angle α_ji at j and α_ij + π at i.
-//  - Face transport φ(f, k): rotation from the frame of corner vertex v_k into
-//    face f's frame (x along v0→v1, y = n × x). Each edge of f at v_k gives an
-//    estimate (angle of the edge in the face) − (its α); the two differ by
-//    c_k (1 − s_k), zero where the polar map is unscaled, so we take their mean,
-//    written in closed form as (first estimate) + c_k (1 − s_k) / 2 so that no
-//    angle wrapping can split the average. Face-frame edge angles come from
-//    the 2D layout p0 = 0, p1 on +x, p2 above: at v0 the edge to v1 has angle 0,
-//    at v1 the edge to v2 has angle π − c1, at v2 the edge to v0 has angle π + c0.
-//    Going through the face, vertex l → k transport is φ_l − φ_k
-//    = θ_kl − ½ (c_k (1 − s_k) + c_l (1 − s_l)): eq. 6 up to half of the
-//    rescaling at each end, exactly eq. 6 on flat or boundary vertices.
+// Design note: docs/design-notes.md, "stain/src/geometry/transport.cpp".
 #include <blot/stain/geometry/transport.h>
 
 #include <cmath>

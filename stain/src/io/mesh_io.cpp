@@ -1,33 +1,6 @@
 // Reading and writing triangle meshes: OBJ, PLY (ASCII, binary little-endian), OFF.
 //
-// Design note: every reader reduces its format to one intermediate, a
-// TriangleMesh plus ElementOrigins (the line each vertex and triangle came from
-// and the file polygon each triangle was cut from), and one validation pass
-// serves all formats, so a geometric fault found after parsing still names the
-// line in the file. Polygons are fan-triangulated from their first corner,
-// (c0, ck, ck+1): it needs no geometry, keeps the polygon's orientation and
-// numbers triangles the same way in every format. Ear clipping (what
-// tinyobjloader offers) was rejected: it is only needed for non-convex
-// polygons, which cloth meshes do not use, and it would make OBJ triangles
-// differ from PLY/OFF triangles for the same polygon.
-//
-// OBJ: tinyobjloader parses the file (triangulation off) and gives the
-// polygons with their position and texture-coordinate indices. Alongside it we
-// scan the lines ourselves, because tinyobjloader (a) reads coordinates as
-// float in the build blot_stain links and turns a non-numeric token into 0
-// silently, (b) reports no line for an out-of-range index, and (c) drops
-// `usemtl` names when no .mtl file is found. The scan gives double-precision
-// coordinates, the line of every element, and the labels; the two parses are
-// cross-checked polygon by polygon.
-//
-// PLY: our own parser (Debian packages no PLY library). Each element instance
-// of an ASCII file must sit on one line, which is what every writer does and
-// lets a count mismatch be reported as "line N has too many values".
-//
-// Validation thresholds: a face is "zero-area" when its area is at most
-// 1e-14 times the squared bounding-box diagonal, a scale-free test some 45
-// double ulps of the squared size: only faces that are degenerate up to
-// round-off fail it (the thinnest triangle of the CGAL camel has 1.8e-9).
+// Design note: docs/design-notes.md, "stain/src/io/mesh_io.cpp".
 #include <blot/stain/io/mesh_io.h>
 
 #include <blot/stain/io/atomic_file.h>

@@ -51,7 +51,7 @@
 //    [~1/(1 + r), ~2], so for r <= kIterativeStiffnessRatio (4) Jacobi-PCG
 //    reaches a relative residual of kIterativeTolerance (1e-9) in ~5-15
 //    iterations (measured: 7 / 10 / 9 for the densities and 4-6 for the
-//    velocity on issue 4's 2.5K / 10K / 35K grids, r = 0.05-0.75), while the
+//    velocity on the 2.5K / 10K / 35K grids of stain_step_bench, r = 0.05-0.75), while the
 //    direct solve reads the whole factor (nnz(L) ~ 25 #V) per field whatever
 //    the stain's size. CG is warm-started at σ^t (whose support is the
 //    liquid), and the iterate's support grows by exactly one ring per
@@ -313,7 +313,7 @@ std::pair<int, double> limit(const Rings& rings, const Vector& dualAreas, Vector
       // Fast path, bit for bit the first ring of the search below: the ring's
       // entries other than i are distinct (a matrix column), so no visited set
       // is needed when the first ring covers the deficit, as it does for
-      // almost every fix (7K per step on the 35K grid of issue 4's bench).
+      // almost every fix (7K per step on the 35K grid of stain_step_bench).
       const NeighborRange ring = rings(i);
       double available = 0.0;
       for (const int* j = ring.begin; j != ring.end; ++j) {

@@ -1,51 +1,6 @@
 // Stage "interact": stain–fabric interaction per vertex (paper sec. 5, eqs. 9–12).
 //
-// Design note. Symbols: σ_f free solvent, σ_s free solute, σ_p absorbed
-// solvent, σ_s,p absorbed solute, σ_s,a adsorbed solute (all kg/m²); K_p, K_d
-// rates (1/s); σ_sat, A_d capacities (kg/m²); K_evap (kg/(m² s)); a_evap the
-// boundary factor. Each law is applied in turn at each vertex, in this order:
-//  - Absorption, dσ_p/dt = K_p (σ_sat − σ_p): the paper's scheme
-//      Δσ_p = min(K_p h/(1 + K_p h) (σ_sat − σ_p), σ_f),
-//    the implicit-Euler factor, so σ_p approaches σ_sat geometrically, never
-//    overshoots, and the step is bounded by the free solvent there is.
-//    Fibres never expel solvent (Δσ_p ≥ 0 even if σ_p > σ_sat).
-//  - Absorbed solute, dσ_s,p/dt = K_p (σ_sat − σ_p) σ_s/σ_f = (dσ_p/dt) σ_s/σ_f:
-//    the solute moves with the absorbed solvent at the free concentration,
-//    Δσ_s,p = Δσ_p σ_s/σ_f (all of σ_s when all of σ_f goes), so it is bounded
-//    by σ_s exactly when Δσ_p is bounded by σ_f and absorption never changes the
-//    free concentration.
-//  - Langmuir adsorption, dσ_s,a/dt = K_d (A_d − σ_s,a) (eq. 9), "discretised
-//    exactly as absorption": Δσ_s,a = K_d h/(1 + K_d h)(A_d − σ_s,a), limited by
-//    the free solute σ_s when positive; when σ_s,a > A_d (a lowered capacity) it
-//    is negative and returns solute to σ_s (bounded by σ_s,a automatically,
-//    since the factor is below 1).
-//  - Evaporation, dσ_f/dt = −a K_evap (eq. 10), a = a_evap on mesh-boundary
-//    vertices (topology) and 1 inside: E = a K_evap h leaves σ_f first, bounded
-//    by what is there; the rest of E leaves the absorbed solvent σ_p (the paper:
-//    absorbed solvent "goes through the same evaporation process"), so a vertex
-//    dries at the same rate whether its liquid is free or in the fibres, and
-//    absorbed solvent cannot stay forever once the free film is gone. Solute
-//    never evaporates. Rejected: evaporating σ_p in parallel with σ_f
-//    (doubling the rate at wet vertices) and not evaporating σ_p at all
-//    (permanently wet fibres).
-//  - Drying: free solute at a vertex whose free solvent is gone (evaporated or
-//    absorbed) is deposited, i.e. moved to σ_s,a, and desorption back into σ_s
-//    needs free solvent. The paper leaves this open; without it, dissolved
-//    solute with no solvent keeps diffusing (σ_s diffuses independently of
-//    σ_f) and spreads over dry cloth long after the stain has dried, which is
-//    what a stain is not. So σ_s,a may exceed A_d by the dried deposit; A_d
-//    bounds only what Langmuir adsorption takes from the solution.
-// Conservation: every transfer is one amount added to one pool and subtracted
-// from another, so solute (σ_s + σ_s,p + σ_s,a) is conserved to rounding and
-// solvent leaves only through evaporation (counted, × dual area, in
-// state.evaporatedSolvent). The evaporated mass is summed in a fixed number of
-// fixed chunks and then in chunk order, so the total is bit-identical for any
-// thread count.
-// Vertices are processed when the `wet` mask says so (empty mask: all) or when
-// they still hold absorbed solvent (which evaporates even after the free film
-// is gone, whatever the caller's notion of wet). The per-vertex work has
-// independent outputs, so it runs on OpenMP threads above kParallelThreshold
-// vertices (see there for why that threshold is high).
+// Design note: docs/design-notes.md, "stain/src/stages/interaction.cpp".
 #include <blot/stain/stages/interaction.h>
 
 #include <algorithm>

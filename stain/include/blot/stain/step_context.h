@@ -32,7 +32,7 @@ struct LiquidParameters {
 /// velocity's change along the backtrack (applyHalfFrameRotation and
 /// applyFrameVelocityChange; no energy is
 /// created at any ωh), or exp(−2iω_n h) when the velocity is not advected.
-/// SplitRotation: always exp(−2iω_n h) after advection (the previous default;
+/// SplitRotation: always exp(−2iω_n h) after advection (kept for comparison;
 /// energy grows at ωh ≳ 1). Explicit adds −2h ω × u (gains energy; kept only
 /// for comparison).
 enum class CoriolisScheme { ExactRotation, Explicit, SplitRotation };
