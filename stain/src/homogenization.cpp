@@ -294,8 +294,8 @@ HomogenizationResult finishResult(const WeavePattern& pattern, const CellProblem
 
 /// kAutoSubdivisions: graded meshes from one ray per side and radius 0.05,
 /// deepened while the unresolved energy is over a quarter of the gap (to a tail
-/// of a twentieth of the tolerance, by the observed ring ratio), widened (rays
-/// doubled, same depth) otherwise.
+/// of a twentieth of the tolerance, by the observed ring ratio), widened (more
+/// rays, same depth) otherwise.
 HomogenizationResult refineUntilBoundsMeet(const WeavePattern& pattern, const HomogenizationOptions& options) {
   const int rows = pattern.rows(), cols = pattern.cols();
   GradedMeshLevel level{1, gradedLayersFor(1, kInitialInnerRadius)};
@@ -331,7 +331,11 @@ HomogenizationResult refineUntilBoundsMeet(const WeavePattern& pattern, const Ho
                                                static_cast<long>(deepest - level.layers)}));
       next.layers += std::max(extra, 1);
     } else {
-      next.raysPerSide = 2 * level.raysPerSide;
+      // Resolved corners leave the smooth rate, gap ~ m⁻²: aim at 0.7·tolerance,
+      // at least one ray more and at most three times as many.
+      const int m = level.raysPerSide;
+      const double predicted = m * std::sqrt(result.gap / (0.7 * options.tolerance));
+      next.raysPerSide = std::clamp(static_cast<int>(std::ceil(predicted)), m + 1, 3 * m);
       next.layers = gradedLayersFor(next.raysPerSide, result.innerRadius);
     }
     if (gradedVertexCount(rows, cols, next) > options.maxUnknowns) break;  // budget spent: not converged
