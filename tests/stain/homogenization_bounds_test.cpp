@@ -310,7 +310,7 @@ TEST(HomogenizationBounds, GradedMeshesBeatUniformOnesInGapPerUnknown) {
     std::ofstream csv(std::filesystem::path(dir) / "homogenization_gap.csv");
     csv << "series,unknowns,gap\n";
     for (const Series& s : series)
-      for (const auto& [n, gap] : s.points) csv << s.name << "," << n << "," << gap << "\n";
+      for (const auto& [n, gap] : s.points) csv << "\"" << s.name << "\"," << n << "," << gap << "\n";
   }
 }
 
