@@ -62,14 +62,16 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr double kInitialInnerRadius = 0.05;
 constexpr double kMinInnerRadius = 1e-60;
 
-/// P1 homogenized tensor of `cellTensors` on `mesh`, plus the energy of each
-/// (lattice corner, ring) for the tail indicator. `solver` keeps one symbolic
-/// analysis across calls on the same mesh.
+/// One cell-problem solve: the P1 homogenized tensor (symmetrised) and, on
+/// graded meshes, the energy of the two correctors per (lattice corner, ring).
 struct CellSolve {
   Matrix2 tensor;
   std::vector<double> ringEnergies;  ///< latticeCornerCount x ringCount, row-major; empty for uniform meshes.
 };
 
+/// Solves the cell problems for the per-cell tensors `cellTensors` on `mesh`.
+/// `solver` keeps its symbolic analysis across calls on the same mesh (the
+/// primal and the dual system share the sparsity pattern).
 CellSolve solveCellProblem(const CellMesh& mesh, const std::vector<Matrix2>& cellTensors, int cellCount,
                            RealCholeskySolver& solver, const std::string& sourceName) {
   const int vertexCount = mesh.vertexCount;

@@ -1,6 +1,7 @@
 #pragma once
 /// Homogenization of a weave pattern into one effective (bulk) diffusion tensor
-/// (paper sec. 2, eqs. 1-2), plus the classical bounds it must lie between.
+/// (paper sec. 2, eqs. 1-2) with two-sided bounds (primal and complementary
+/// P1 cell problems) refined until they meet, plus the classical bounds.
 ///
 /// All tensors are 2x2, symmetric, in the pattern's (x, y) = (weft, warp) basis
 /// and the pattern's diffusion units (m²/s in the engine). S_eff does not depend
