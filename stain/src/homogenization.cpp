@@ -339,6 +339,11 @@ HomogenizationResult refineUntilBoundsMeet(const WeavePattern& pattern, const Ho
       const double predicted = m * std::sqrt(result.gap / (0.7 * options.tolerance));
       next.raysPerSide = std::clamp(static_cast<int>(std::ceil(predicted)), m + 1, 3 * m);
       next.layers = gradedLayersFor(next.raysPerSide, result.innerRadius);
+      // Near the budget, the widest mesh that still fits.
+      while (next.raysPerSide > m + 1 && gradedVertexCount(rows, cols, next) > options.maxUnknowns) {
+        --next.raysPerSide;
+        next.layers = gradedLayersFor(next.raysPerSide, result.innerRadius);
+      }
     }
     if (gradedVertexCount(rows, cols, next) > options.maxUnknowns) break;  // budget spent: not converged
     level = next;

@@ -129,7 +129,7 @@ HomogenizationResult homogenize(const WeavePattern& pattern, const Homogenizatio
 HomogenizationResult homogenize(const WeavePattern& pattern,
                                 int subdivisions = kAutoSubdivisions);
 
-/// Homogenizes with a cache keyed by pattern content and K, so a pattern used by
+/// Homogenizes with a cache keyed by pattern content and options, so a pattern used by
 /// several patches or scenes is solved once. Owns its cache; not thread-safe.
 class Homogenizer {
  public:
