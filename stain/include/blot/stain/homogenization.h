@@ -25,9 +25,10 @@ inline constexpr int kAutoSubdivisions = 0;
 /// Default relative gap between the bounds (HomogenizationOptions::tolerance).
 inline constexpr double kDefaultGapTolerance = 0.01;
 /// Most unknowns (mesh vertices) of one cell-problem solve: peak memory stays
-/// under ~1 GB and one solve under ~5 s (measured in docs/patterns.md).
+/// under 0.5 GB and one solve (primal and dual) under about a minute
+/// (measured in docs/patterns.md).
 inline constexpr long kMaxCellProblemUnknowns = 500000;
-/// Most cells in a tile (e.g. 100 x 100): the coarsest graded mesh, 36 unknowns
+/// Most cells in a tile (e.g. 100 x 100): the coarsest graded mesh, 28 unknowns
 /// per cell, then fits kMaxCellProblemUnknowns.
 inline constexpr int kMaxTileCells = 10000;
 
