@@ -1,17 +1,22 @@
-// `blot homogenize PATTERN.json | --preset NAME [--subdivisions K]`: the
-// effective diffusion tensor of a weave pattern, as one JSON object on stdout.
+// `blot homogenize PATTERN.json | --preset NAME [--tolerance T] [--subdivisions K]`:
+// the effective diffusion tensor of a weave pattern with two-sided bounds, as
+// one JSON object on stdout.
 //
 // Design note: the command is a thin shell over stain/'s loadWeavePattern and
 // homogenize, so the numbers a user sees are exactly the ones a scene gets.
-// Output keys, in this order (docs/patterns.md): "effective", "average",
-// "reuss", "voigt" (2x2, row-major nested arrays, pattern units),
-// "eigenvalues" [min, max], "anisotropy" (max/min eigenvalue),
-// "principal_angle_deg" (major axis from the weft/x axis, counter-clockwise,
-// in (-90, 90]), "subdivisions" (K used), "pattern_hash" (16 hex digits of the
-// content hash: equal for equal tensors, whatever the file), "pattern",
-// "rows", "cols". One key per line, values compact. Bad input is reported on
-// stderr naming the file, key and position, with exit code 1; nothing is
-// printed on stdout then, so scripts never parse half a result.
+// Output keys, in this order (docs/patterns.md): "effective" (the mean of the
+// bounds), "upper", "lower", "gap" (relative, per entry / largest eigenvalue),
+// "converged", "tolerance", "unknowns", "average", "reuss", "voigt" (2x2,
+// row-major nested arrays, pattern units), "eigenvalues" [min, max],
+// "anisotropy" (max/min eigenvalue), "principal_angle_deg" (major axis from
+// the weft/x axis, counter-clockwise, in (-90, 90]), "subdivisions" (K, or the
+// graded mesh's intervals per cell side), "graded_layers", "inner_radius",
+// "levels", "pattern_hash" (16 hex digits of the content hash: equal for equal
+// tensors, whatever the file), "pattern", "rows", "cols". One key per line,
+// values compact. Bad input, and a K or tile beyond the documented limits, is
+// reported on stderr naming the file or option, with exit code 1; nothing is
+// printed on stdout then, so scripts never parse half a result. A result that
+// did not converge is printed with "converged": false and a warning on stderr.
 #include "commands.h"
 
 #include <blot/stain/fabric/homogenization.h>
@@ -35,6 +40,7 @@ struct HomogenizeOptions {
   std::string patternPath;
   std::string preset;
   int subdivisions = stain::kAutoSubdivisions;
+  double tolerance = stain::kDefaultGapTolerance;
   bool listPresets = false;
 };
 
@@ -75,8 +81,27 @@ int runHomogenize(const HomogenizeOptions& options) {
   try {
     const stain::WeavePattern pattern = options.preset.empty() ? stain::loadWeavePattern(options.patternPath)
                                                                : stain::presetWeavePattern(options.preset);
-    const stain::HomogenizationResult r = stain::homogenize(pattern, options.subdivisions);
+    const long cells = static_cast<long>(pattern.rows()) * pattern.cols();
+    if (options.subdivisions > stain::maxUniformSubdivisions(pattern)) {
+      std::cerr << "blot homogenize: error: --subdivisions " << options.subdivisions << ": a " << pattern.rows()
+                << "x" << pattern.cols() << "-cell tile needs rows*cols*K^2 = "
+                << cells * options.subdivisions * options.subdivisions << " unknowns, more than the limit of "
+                << stain::kMaxCellProblemUnknowns << "; the largest K for this tile is "
+                << stain::maxUniformSubdivisions(pattern) << " (or leave --subdivisions out to refine until "
+                << "the bounds meet)\n";
+      return 1;
+    }
+    stain::HomogenizationOptions homogenization;
+    homogenization.subdivisions = options.subdivisions;
+    homogenization.tolerance = options.tolerance;
+    const stain::HomogenizationResult r = stain::homogenize(pattern, homogenization);
     const Json out = {{"effective", matrixJson(r.effective)},
+                      {"upper", matrixJson(r.upper)},
+                      {"lower", matrixJson(r.lower)},
+                      {"gap", r.gap},
+                      {"converged", r.converged},
+                      {"tolerance", r.tolerance},
+                      {"unknowns", r.vertexCount},
                       {"average", matrixJson(r.average)},
                       {"reuss", matrixJson(r.reussBound)},
                       {"voigt", matrixJson(r.voigtBound)},
@@ -84,10 +109,21 @@ int runHomogenize(const HomogenizeOptions& options) {
                       {"anisotropy", r.eigenvalues(1) / r.eigenvalues(0)},
                       {"principal_angle_deg", r.principalAngle * 180.0 / kPi + 0.0},
                       {"subdivisions", r.subdivisions},
+                      {"graded_layers", r.gradedLayers},
+                      {"inner_radius", r.innerRadius},
+                      {"levels", r.levels},
                       {"pattern_hash", hashText(r.patternHash)},
                       {"pattern", pattern.sourceName()},
                       {"rows", pattern.rows()},
                       {"cols", pattern.cols()}};
+    if (!r.converged)
+      std::cerr << "blot homogenize: warning: " << pattern.sourceName() << ": not converged: the bounds differ by "
+                << r.gap << " of the largest eigenvalue, more than the tolerance " << r.tolerance << ", at "
+                << r.vertexCount << " unknowns"
+                << (options.subdivisions > 0 ? " (a fixed --subdivisions; leave it out to refine)"
+                                             : " (the next refinement would exceed the limit of " +
+                                                   std::to_string(stain::kMaxCellProblemUnknowns) + " unknowns)")
+                << "\n";
     printObject(out);
     return 0;
   } catch (const std::exception& e) {
@@ -109,8 +145,13 @@ void registerHomogenizeCommand(CLI::App& app, int& exitCode) {
                                    "satin-5, basket, rib-knit");
   file->excludes(preset);
   command->add_option("-k,--subdivisions", options->subdivisions,
-                      "Squares per cell side K (default: chosen from the tile size, see docs/patterns.md)")
+                      "Solve once on the uniform mesh with K squares per cell side, rows*cols*K^2 <= 500000 "
+                      "(default: graded meshes refined until the bounds meet, docs/patterns.md)")
       ->check(CLI::Range(1, 256));
+  command->add_option("-t,--tolerance", options->tolerance,
+                      "Relative gap between the upper and lower bound to reach, per entry as a fraction of the "
+                      "largest eigenvalue (default 0.01)")
+      ->check(CLI::Range(1e-6, 0.5));
   command->add_flag("--list-presets", options->listPresets, "List the presets and their cells as JSON");
   command->callback([options, &exitCode]() { exitCode = runHomogenize(*options); });
 }

@@ -11,6 +11,7 @@
 // dependency and still not know the mesh's vertex count.
 #include <blot/engine/scene.h>
 #include <blot/stain/io/mesh_io.h>
+#include <blot/stain/fabric/homogenization.h>
 #include <blot/stain/geometry/mesh_primitives.h>
 #include <blot/stain/fabric/weave_pattern.h>
 
@@ -449,6 +450,7 @@ void parseFabric(ObjectReader& r, const stain::TriangleMesh& mesh, EngineDef& de
   def.diffusivity = r.number("diffusivity", def.diffusivity, positive());
   def.viscosity = r.number("viscosity", def.viscosity, nonNegative());
   def.homogenizationSubdivisions = r.integer("subdivisions", 0, closed(0, 64));
+  const bool acceptUnconverged = r.boolean("accept_unconverged", false);
   const int faceCount = static_cast<int>(mesh.faces.rows());
   const json& patches = r.array("patches");
   for (std::size_t i = 0; i < patches.size(); ++i) {
@@ -493,6 +495,23 @@ void parseFabric(ObjectReader& r, const stain::TriangleMesh& mesh, EngineDef& de
       }
     } else {
       patch.tensor = parseTensor(ctx, p.require("tensor"), p.path("tensor"));
+    }
+    // The engine gets the homogenized tensor only if its bounds met (or the
+    // scene accepts a looser one); the solve is repeated in the engine, cheap
+    // next to loading a scene (docs/patterns.md).
+    if (patch.pattern) {
+      const std::string key = p.path(p.has("pattern") ? "pattern" : "preset");
+      stain::HomogenizationResult h;
+      try {
+        h = stain::homogenize(*patch.pattern, def.homogenizationSubdivisions);
+      } catch (const std::invalid_argument& e) {
+        ctx.fail(key, e.what());
+      }
+      if (!h.converged && !acceptUnconverged)
+        ctx.fail(key, "homogenization did not converge: the bounds differ by " + formatNumber(h.gap) +
+                          " of the largest eigenvalue (tolerance " + formatNumber(h.tolerance) + ") at " +
+                          std::to_string(h.vertexCount) + " unknowns; set \"fabric.accept_unconverged\": true to use "
+                          "the mean of the bounds anyway");
     }
     // Scale: the patch's tensor (S_eff for a pattern, after homogenization in
     // the engine) is scaled so its mean eigenvalue, trace / 2, is this (m²/s).

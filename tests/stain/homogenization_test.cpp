@@ -2,6 +2,7 @@
 // and SPD-ness on random tiles, exact 90° rotation covariance, linearity in
 // the coefficients, monotone convergence under mesh refinement with the
 // observed order printed, eigen-decomposition conventions, and the cache.
+// The two-sided bounds and the graded refinement: homogenization_bounds_test.cpp.
 #include <blot/stain/fabric/homogenization.h>
 
 #include <gtest/gtest.h>
@@ -47,7 +48,8 @@ TEST(Homogenization, LaminateOfColumnsIsHarmonicAcrossAndArithmeticAlong) {
   // arithmetic mean 50.5.
   const WeavePattern columns(1, 2, {Matrix2::Identity(), 100.0 * Matrix2::Identity()}, "columns");
   const HomogenizationResult r = homogenize(columns);
-  EXPECT_EQ(r.subdivisions, defaultSubdivisions(columns));
+  EXPECT_TRUE(r.converged);
+  EXPECT_LT(r.gap, 1e-6);
   EXPECT_NEAR(r.effective(0, 0), 200.0 / 101.0, 1e-6 * 200.0 / 101.0);
   EXPECT_NEAR(r.effective(1, 1), 50.5, 1e-6 * 50.5);
   EXPECT_NEAR(r.effective(0, 1), 0.0, 1e-9);
@@ -85,7 +87,7 @@ TEST(Homogenization, RandomTilesAreSpdBetweenBoundsAndRotateExactly) {
     for (int cols : {2, 3, 4}) {
       const WeavePattern tile = randomTile(rows, cols, 5.0, 1000u + static_cast<unsigned>(10 * rows + cols));
       SCOPED_TRACE(std::to_string(rows) + "x" + std::to_string(cols));
-      const HomogenizationResult r = homogenize(tile);
+      const HomogenizationResult r = homogenize(tile, defaultSubdivisions(tile));
       const double scale = r.voigtBound.norm();
       EXPECT_EQ(r.effective, r.effective.transpose());
       EXPECT_GT(r.eigenvalues(0), 0.0);
@@ -101,6 +103,14 @@ TEST(Homogenization, RandomTilesAreSpdBetweenBoundsAndRotateExactly) {
       EXPECT_NEAR(q.effective(0, 0), r.effective(1, 1), 1e-10 * scale);
       EXPECT_NEAR(q.effective(1, 1), r.effective(0, 0), 1e-10 * scale);
       EXPECT_NEAR(q.effective(0, 1), -r.effective(0, 1), 1e-10 * scale);
+      // The graded mesh maps to itself under quarter turns too.
+      const GradedMeshLevel level{2, gradedLayersFor(2, 1e-4)};
+      const CellProblemBounds g = cellProblemBounds(tile, gradedCellMesh(rows, cols, level));
+      const CellProblemBounds gq = cellProblemBounds(tile.rotated90(), gradedCellMesh(cols, rows, level));
+      EXPECT_NEAR(gq.upper(0, 0), g.upper(1, 1), 1e-10 * scale);
+      EXPECT_NEAR(gq.upper(1, 1), g.upper(0, 0), 1e-10 * scale);
+      EXPECT_NEAR(gq.upper(0, 1), -g.upper(0, 1), 1e-10 * scale);
+      EXPECT_NEAR(gq.lower(0, 1), -g.lower(0, 1), 1e-10 * scale);
       ++tiles;
     }
   }
@@ -124,8 +134,9 @@ TEST(Homogenization, SymmetricPatternsHaveNoShear) {
 
 TEST(Homogenization, RefinementConvergesMonotonicallyWithObservedOrder) {
   // Doubling K nests the P1 spaces (each square splits into four with
-  // alternating diagonals), and S_eff,h is an energy minimum over them, so it
-  // can only decrease in the Loewner order as K doubles.
+  // alternating diagonals), and the upper bound is an energy minimum over
+  // them, so it can only decrease in the Loewner order as K doubles (and the
+  // lower bound, the same for the dual tensors, only increase).
   struct Case {
     const char* name;
     WeavePattern pattern;
@@ -137,11 +148,16 @@ TEST(Homogenization, RefinementConvergesMonotonicallyWithObservedOrder) {
       {"random 2x3, contrast e^6", randomTile(2, 3, 6.0, 99u), 0.8}};
   for (const Case& c : cases) {
     SCOPED_TRACE(c.name);
-    std::vector<Matrix2> values;
-    for (int K : {2, 4, 8, 16}) values.push_back(homogenize(c.pattern, K).effective);
+    std::vector<Matrix2> values, lowers;
+    for (int K : {2, 4, 8, 16}) {
+      const HomogenizationResult r = homogenize(c.pattern, K);
+      values.push_back(r.upper);
+      lowers.push_back(r.lower);
+    }
     std::vector<double> differences;
     for (size_t i = 0; i + 1 < values.size(); ++i) {
       EXPECT_GE(minEigenvalue(values[i] - values[i + 1]), -1e-11 * values[i].norm());
+      EXPECT_GE(minEigenvalue(lowers[i + 1] - lowers[i]), -1e-11 * values[i].norm());
       differences.push_back((values[i] - values[i + 1]).norm() / values.back().norm());
     }
     const double order01 = std::log2(differences[0] / differences[1]);
@@ -169,7 +185,7 @@ TEST(Homogenization, EigenvaluesAndPrincipalAngleConventions) {
   EXPECT_EQ(principalAngle(homogenize(presetWeavePattern("plain")).effective), kPi / 2);
 }
 
-TEST(Homogenization, HomogenizerCachesByContentAndSubdivisions) {
+TEST(Homogenization, HomogenizerCachesByContentAndOptions) {
   Homogenizer homogenizer;
   const WeavePattern twill = presetWeavePattern("twill-2-1");
   const HomogenizationResult& first = homogenizer.homogenize(twill);
@@ -178,13 +194,16 @@ TEST(Homogenization, HomogenizerCachesByContentAndSubdivisions) {
   EXPECT_EQ(&first, &second);
   EXPECT_EQ(homogenizer.cacheHits(), 1);
   EXPECT_EQ(homogenizer.cacheMisses(), 1);
-  // Auto and the explicit default K are the same entry; another K is not.
-  homogenizer.homogenize(twill, defaultSubdivisions(twill));
+  // The same options are the same entry; a fixed K or another tolerance is not.
+  HomogenizationOptions options;
+  homogenizer.homogenize(twill, options);
   EXPECT_EQ(homogenizer.cacheHits(), 2);
   homogenizer.homogenize(twill, 2);
+  options.tolerance = 1e-3;
+  homogenizer.homogenize(twill, options);
   homogenizer.homogenize(presetWeavePattern("plain"));
-  EXPECT_EQ(homogenizer.cacheMisses(), 3);
-  EXPECT_EQ(homogenizer.cacheSize(), 3);
+  EXPECT_EQ(homogenizer.cacheMisses(), 4);
+  EXPECT_EQ(homogenizer.cacheSize(), 4);
   EXPECT_EQ(first.effective, homogenize(twill).effective);  // cached == fresh, bit for bit
   homogenizer.clear();
   EXPECT_EQ(homogenizer.cacheSize(), 0);

@@ -80,8 +80,9 @@ test::TiledSpotResult runCase(const std::string& name, const WeavePattern& patte
   const Matrix2& a = r.homogenized.average;
   std::printf("%s: %d x %d cells (%d tiles), %d vertices, t = %.3g, %d implicit steps\n", name.c_str(), r.cellsX,
               r.cellsY, setup.tilesX * setup.tilesY, r.verticesX * r.verticesY, setup.duration, setup.steps);
-  std::printf("  S_eff   = [%.6g %.3g; %.3g %.6g] (K = %d)\n", e(0, 0), e(0, 1), e(1, 0), e(1, 1),
-              r.homogenized.subdivisions);
+  std::printf("  S_eff   = [%.6g %.3g; %.3g %.6g] (mean of the bounds, gap %.2g, %d unknowns)\n", e(0, 0),
+              e(0, 1), e(1, 0), e(1, 1), r.homogenized.gap, r.homogenized.vertexCount);
+  EXPECT_TRUE(r.homogenized.converged);
   std::printf("  average = [%.6g %.3g; %.3g %.6g]\n", a(0, 0), a(0, 1), a(1, 0), a(1, 1));
   std::printf("  relative L2 distance from the fine-field result: effective %.4f, average %.4f (ratio %.1f)\n",
               r.effectiveError, r.averageError, r.averageError / r.effectiveError);

@@ -27,16 +27,24 @@
 //    Rejected: a dense rank-one term 11ᵀ (destroys sparsity); a Lagrange
 //    multiplier (saddle point, not SPD, so no Cholesky); regularising with εM
 //    (changes the answer by O(ε)).
-//  - The discrete S_eff is an energy minimum over a subspace of the periodic
-//    H¹ functions, so it satisfies the same bounds as the exact one:
-//    Reuss ≤ S_eff ≤ S_eff,h ≤ Voigt in the Loewner order, and converges from
-//    above as K grows (O(h^{2s}), s ≤ 1 set by the corner singularities where
-//    four cells meet).
+//  - Bounds: the discrete S_eff is an energy minimum over a subspace of the
+//    periodic H¹ functions, so it bounds the exact one from above (Loewner).
+//    The complementary principle, η·S_eff⁻¹η = min ⟨q·S⁻¹q⟩ over periodic
+//    divergence-free q with ⟨q⟩ = η, becomes in 2-D (q = J(Jᵀη + ∇ψ)) the
+//    same cell problem for T = JᵀS⁻¹J = S/det S, so the same P1 solver bounds
+//    T_eff from above and S_eff = T_eff/det T_eff from below. Derivation,
+//    tests and rates: docs/patterns.md.
+//  - Refinement (kAutoSubdivisions): graded meshes (homogenization_mesh.cpp),
+//    deepened toward the lattice corners while the energy left unresolved
+//    inside the innermost rings, extrapolated from its ring-by-ring decay, is
+//    a large part of the gap, widened otherwise, until the gap meets the
+//    tolerance or the next mesh would exceed the unknown budget.
 #include <blot/stain/fabric/homogenization.h>
 
 #include <blot/stain/geometry/operators.h>
 #include <blot/stain/numerics/sparse_solver.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <stdexcept>
@@ -49,19 +57,121 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-/// Element matrices of one cell: the square's two triangles for each diagonal.
-/// Local corner order: triangle t of diagonal d uses square corners
-/// kTriangleCorners[d][t] with corner c at (c & 1, c >> 1) / K.
-struct CellElements {
-  Matrix3 stiffness[2][2];  ///< [diagonal][triangle]
+/// Innermost fan radius of the first graded mesh, and the deepest one refined to
+/// (cells): below ~1e-60 the element areas (~r²) leave the normal doubles.
+constexpr double kInitialInnerRadius = 0.05;
+constexpr double kMinInnerRadius = 1e-60;
+
+/// One cell-problem solve: the P1 homogenized tensor (symmetrised) and, on
+/// graded meshes, the energy of the two correctors per (lattice corner, ring).
+struct CellSolve {
+  Matrix2 tensor;
+  std::vector<double> ringEnergies;  ///< latticeCornerCount x ringCount, row-major; empty for uniform meshes.
 };
 
-/// Square corners 0 = (0,0), 1 = (1,0), 2 = (0,1), 3 = (1,1); counter-clockwise
-/// triangles. Diagonal 0 ("/") joins corners 0 and 3, diagonal 1 ("\") 1 and 2.
-constexpr int kTriangleCorners[2][2][3] = {{{0, 1, 3}, {0, 3, 2}}, {{0, 1, 2}, {1, 3, 2}}};
+/// Solves the cell problems for the per-cell tensors `cellTensors` on `mesh`.
+/// `solver` keeps its symbolic analysis across calls on the same mesh (the
+/// primal and the dual system share the sparsity pattern).
+CellSolve solveCellProblem(const CellMesh& mesh, const std::vector<Matrix2>& cellTensors, int cellCount,
+                           RealCholeskySolver& solver, const std::string& sourceName) {
+  const int vertexCount = mesh.vertexCount;
+  const size_t triangleCount = mesh.triangleVertices.size();
+  auto elementStiffness = [&](size_t t) {
+    const Eigen::Matrix<double, 3, 2>& p = mesh.triangleCorners[t];
+    return triangleStiffness(p.row(0).transpose(), p.row(1).transpose(), p.row(2).transpose(),
+                             cellTensors[static_cast<size_t>(mesh.triangleCells[t])]);
+  };
 
-Vector2 squareCorner(int corner, double h) {
-  return Vector2((corner & 1) * h, (corner >> 1) * h);
+  // Periodic stiffness with vertex 0 pinned, and the two loads −K_T x_i.
+  constexpr int pinned = 0;
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(9 * triangleCount + 1);
+  Eigen::MatrixX2d loads = Eigen::MatrixX2d::Zero(vertexCount, 2);
+  for (size_t t = 0; t < triangleCount; ++t) {
+    const Matrix3 Ke = elementStiffness(t);
+    const Eigen::Matrix<double, 3, 2> load = -Ke * mesh.triangleCorners[t];
+    const std::array<int, 3>& ids = mesh.triangleVertices[t];
+    for (int k = 0; k < 3; ++k) {
+      const int a = ids[static_cast<size_t>(k)];
+      if (a == pinned) continue;
+      loads.row(a) += load.row(k);
+      for (int l = 0; l < 3; ++l) {
+        const int b = ids[static_cast<size_t>(l)];
+        if (b != pinned) triplets.emplace_back(a, b, Ke(k, l));
+      }
+    }
+  }
+  triplets.emplace_back(pinned, pinned, 1.0);
+  SparseMatrix stiffness(vertexCount, vertexCount);
+  stiffness.setFromTriplets(triplets.begin(), triplets.end());
+  std::vector<Eigen::Triplet<double>>().swap(triplets);  // free before the factorization
+
+  SolverStatus status = solver.isAnalyzed() ? SolverStatus::Ok : solver.analyzePattern(stiffness);
+  if (status == SolverStatus::Ok) status = solver.factorize(stiffness);
+  if (status != SolverStatus::Ok)
+    throw std::runtime_error(sourceName + ": homogenization: cell-problem factorization failed (" +
+                             toString(status) + ")");
+  Eigen::MatrixX2d correctors(vertexCount, 2);
+  Vector rhs, solution;
+  for (int i = 0; i < 2; ++i) {
+    rhs = loads.col(i);
+    const SolverStatus solved = solver.solve(rhs, solution);
+    if (solved != SolverStatus::Ok)
+      throw std::runtime_error(sourceName + ": homogenization: cell-problem solve failed (" + toString(solved) + ")");
+    correctors.col(i) = solution.array() - solution.mean();  // zero-mean f_i
+  }
+  solver.releaseFactor();
+
+  // Eq. (1): column i is the mean flux (1/|Ω|) Σ_T ∫_T S(e_i + ∇f_i); the
+  // diagonal terms are the energies, summed per ring for the tail indicator.
+  CellSolve result;
+  const bool graded = !mesh.triangleRings.empty();
+  if (graded) result.ringEnergies.assign(static_cast<size_t>(mesh.latticeCornerCount) * mesh.ringCount, 0.0);
+  Matrix2 fluxSum = Matrix2::Zero();
+  for (size_t t = 0; t < triangleCount; ++t) {
+    const Matrix3 Ke = elementStiffness(t);
+    const Eigen::Matrix<double, 3, 2>& local = mesh.triangleCorners[t];
+    Eigen::Matrix<double, 3, 2> potential = local;  // x_i + f_i at the corners
+    for (int k = 0; k < 3; ++k) potential.row(k) += correctors.row(mesh.triangleVertices[t][static_cast<size_t>(k)]);
+    const Eigen::Matrix<double, 3, 2> flux = Ke * potential;
+    fluxSum += local.transpose() * flux;  // (j, i): x_jᵀ K_T (x_i + f_i)
+    if (graded) {
+      const double energy = potential.col(0).dot(flux.col(0)) + potential.col(1).dot(flux.col(1));
+      result.ringEnergies[static_cast<size_t>(mesh.triangleLatticeCorners[t]) * mesh.ringCount +
+                          static_cast<size_t>(mesh.triangleRings[t])] += energy;
+    }
+  }
+  const Matrix2 tensor = fluxSum / static_cast<double>(cellCount);
+  result.tensor = 0.5 * (tensor + tensor.transpose());
+  return result;
+}
+
+/// The tail indicator of one solve: (share of the energy below the resolved
+/// rings, summed over the corners; per-ring energy ratio at the worst corner).
+/// Around a corner singularity r^α the energy per ring decays like q^ℓ with
+/// q = σ^(2α); it is read off two blocks of m rings (one e-fold of radius
+/// each) clear of the fan, whose neighbourhood the mesh gets wrong, and the
+/// geometric series below the inner block is the estimate.
+std::pair<double, double> energyTail(const CellMesh& mesh, const CellSolve& solve) {
+  const int rings = mesh.ringCount, m = mesh.raysPerSide;
+  const int fan = rings - 1;
+  if (solve.ringEnergies.empty() || fan < 3 * m) return {0.0, 0.0};
+  double total = 0.0, tail = 0.0, worstTail = -1.0, worstRatio = 0.0;
+  for (int c = 0; c < mesh.latticeCornerCount; ++c) {
+    const double* e = solve.ringEnergies.data() + static_cast<size_t>(c) * rings;
+    double outer = 0.0, inner = 0.0;  // rings [fan − 3m, fan − 2m) and [fan − 2m, fan − m)
+    for (int l = 0; l < rings; ++l) {
+      total += e[l];
+      if (l >= fan - 3 * m && l < fan - 2 * m) outer += e[l];
+      if (l >= fan - 2 * m && l < fan - m) inner += e[l];
+    }
+    if (!(outer > 0.0) || !(inner > 0.0)) continue;
+    const double blockRatio = std::min(inner / outer, 0.999);
+    const double cornerTail = inner * blockRatio / (1.0 - blockRatio);  // the last m rings, the fan and below
+    tail += cornerTail;
+    if (cornerTail > worstTail) worstTail = cornerTail, worstRatio = std::pow(blockRatio, 1.0 / m);
+  }
+  return {total > 0.0 ? tail / total : 0.0, worstRatio};
 }
 
 }  // namespace
@@ -108,113 +218,161 @@ int defaultSubdivisions(const WeavePattern& pattern) {
   return K;
 }
 
-HomogenizationResult homogenize(const WeavePattern& pattern, int subdivisions) {
-  if (subdivisions == kAutoSubdivisions) subdivisions = defaultSubdivisions(pattern);
-  if (subdivisions < 1)
-    throw std::invalid_argument("homogenize: subdivisions must be >= 1, got " + std::to_string(subdivisions));
-  const int rows = pattern.rows(), cols = pattern.cols(), K = subdivisions;
-  const int nx = cols * K, ny = rows * K;  // squares (= vertices) per side of the torus
-  const int vertexCount = nx * ny;
-  const double h = 1.0 / K;
-  auto vertex = [nx, ny](int i, int j) { return ((j + ny) % ny) * nx + (i + nx) % nx; };
+int maxUniformSubdivisions(const WeavePattern& pattern) {
+  const long cells = static_cast<long>(pattern.rows()) * pattern.cols();
+  return static_cast<int>(std::floor(std::sqrt(static_cast<double>(kMaxCellProblemUnknowns) / cells) + 1e-12));
+}
 
-  // Element matrices per cell (the squares of one cell are congruent).
-  std::vector<CellElements> elements(static_cast<size_t>(rows * cols));
-  for (int r = 0; r < rows; ++r) {
-    for (int c = 0; c < cols; ++c) {
-      CellElements& cell = elements[static_cast<size_t>(r * cols + c)];
-      for (int d = 0; d < 2; ++d)
-        for (int t = 0; t < 2; ++t) {
-          const int* corners = kTriangleCorners[d][t];
-          cell.stiffness[d][t] = triangleStiffness(squareCorner(corners[0], h), squareCorner(corners[1], h),
-                                                   squareCorner(corners[2], h), pattern.cellTensor(r, c));
-        }
-    }
-  }
-  // Visits every triangle: (cell elements, global vertex ids, local corner coordinates).
-  auto forEachTriangle = [&](auto&& visit) {
-    for (int j = 0; j < ny; ++j) {
-      const int row = rows - 1 - j / K;  // file row 0 is the top of the tile
-      for (int i = 0; i < nx; ++i) {
-        const CellElements& cell = elements[static_cast<size_t>(row * cols + i / K)];
-        const int diagonal = (i + j) % 2;
-        const int squareVertices[4] = {vertex(i, j), vertex(i + 1, j), vertex(i, j + 1), vertex(i + 1, j + 1)};
-        for (int t = 0; t < 2; ++t) {
-          const int* corners = kTriangleCorners[diagonal][t];
-          std::array<int, 3> ids;
-          Eigen::Matrix<double, 3, 2> local;
-          for (int k = 0; k < 3; ++k) {
-            ids[static_cast<size_t>(k)] = squareVertices[corners[k]];
-            local.row(k) = squareCorner(corners[k], h).transpose();
-          }
-          visit(cell.stiffness[diagonal][t], ids, local);
-        }
-      }
-    }
-  };
+Matrix2 dualTensor(const Matrix2& tensor) {
+  const Matrix2 dual = tensor / tensor.determinant();
+  return 0.5 * (dual + dual.transpose());
+}
 
-  // Periodic stiffness with vertex 0 pinned, and the two loads −K_T x_i.
-  constexpr int pinned = 0;
-  std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(static_cast<size_t>(18) * static_cast<size_t>(vertexCount) + 1);
-  Eigen::MatrixX2d loads = Eigen::MatrixX2d::Zero(vertexCount, 2);
-  forEachTriangle([&](const Matrix3& Ke, const std::array<int, 3>& ids, const Eigen::Matrix<double, 3, 2>& local) {
-    const Eigen::Matrix<double, 3, 2> load = -Ke * local;
-    for (int k = 0; k < 3; ++k) {
-      const int a = ids[static_cast<size_t>(k)];
-      if (a == pinned) continue;
-      loads.row(a) += load.row(k);
-      for (int l = 0; l < 3; ++l) {
-        const int b = ids[static_cast<size_t>(l)];
-        if (b != pinned) triplets.emplace_back(a, b, Ke(k, l));
-      }
-    }
-  });
-  triplets.emplace_back(pinned, pinned, 1.0);
-  SparseMatrix stiffness(vertexCount, vertexCount);
-  stiffness.setFromTriplets(triplets.begin(), triplets.end());
+double relativeGap(const Matrix2& upper, const Matrix2& lower) {
+  return (upper - lower).cwiseAbs().maxCoeff() / symmetricEigenvalues(upper)(1);
+}
 
-  RealCholeskySolver solver;
-  const SolverStatus status = solver.compute(stiffness);
-  if (status != SolverStatus::Ok)
-    throw std::runtime_error(pattern.sourceName() + ": homogenization: cell-problem factorization failed (" +
-                             toString(status) + ")");
-  Eigen::MatrixX2d correctors(vertexCount, 2);
-  Vector rhs, solution;
-  for (int i = 0; i < 2; ++i) {
-    rhs = loads.col(i);
-    const SolverStatus solved = solver.solve(rhs, solution);
-    if (solved != SolverStatus::Ok)
-      throw std::runtime_error(pattern.sourceName() + ": homogenization: cell-problem solve failed (" +
-                               toString(solved) + ")");
-    correctors.col(i) = solution.array() - solution.mean();  // zero-mean f_i
-  }
+CellProblemBounds cellProblemBounds(const WeavePattern& pattern, const CellMesh& mesh) {
+  const int cellCount = pattern.rows() * pattern.cols();
+  std::vector<Matrix2> dualTensors;
+  dualTensors.reserve(pattern.cellTensors().size());
+  for (const Matrix2& tensor : pattern.cellTensors()) dualTensors.push_back(dualTensor(tensor));
+  RealCholeskySolver solver;  // one analysis: both systems have the mesh's pattern
+  const CellSolve primal = solveCellProblem(mesh, pattern.cellTensors(), cellCount, solver, pattern.sourceName());
+  const CellSolve dual = solveCellProblem(mesh, dualTensors, cellCount, solver, pattern.sourceName());
+  CellProblemBounds bounds;
+  bounds.upper = primal.tensor;
+  bounds.lower = dualTensor(dual.tensor);
+  const auto [primalTail, primalRatio] = energyTail(mesh, primal);
+  const auto [dualTail, dualRatio] = energyTail(mesh, dual);
+  bounds.tailFraction = std::max(primalTail, dualTail);
+  bounds.tailRatio = primalTail >= dualTail ? primalRatio : dualRatio;
+  return bounds;
+}
 
-  // Eq. (1): column i of S_eff is the mean flux (1/|Ω|) Σ_T ∫_T S(e_i + ∇f_i).
-  Matrix2 fluxSum = Matrix2::Zero();
-  forEachTriangle([&](const Matrix3& Ke, const std::array<int, 3>& ids, const Eigen::Matrix<double, 3, 2>& local) {
-    Eigen::Matrix<double, 3, 2> potential = local;  // x_i + f_i at the corners
-    for (int k = 0; k < 3; ++k) potential.row(k) += correctors.row(ids[static_cast<size_t>(k)]);
-    fluxSum += local.transpose() * (Ke * potential);  // (j, i): x_jᵀ K_T (x_i + f_i)
-  });
-  const Matrix2 effective = fluxSum / static_cast<double>(rows * cols);
+namespace {
 
+void checkOptions(const WeavePattern& pattern, const HomogenizationOptions& options) {
+  const std::string name = pattern.sourceName() + ": homogenize: ";
+  const long cells = static_cast<long>(pattern.rows()) * pattern.cols();
+  if (cells > kMaxTileCells)
+    throw std::invalid_argument(name + "the tile has " + std::to_string(pattern.rows()) + "x" +
+                                std::to_string(pattern.cols()) + " = " + std::to_string(cells) +
+                                " cells, more than the maximum of " + std::to_string(kMaxTileCells) +
+                                " (docs/patterns.md)");
+  if (!(options.tolerance > 0.0 && options.tolerance < 1.0))
+    throw std::invalid_argument(name + "tolerance must be in (0, 1), got " + std::to_string(options.tolerance));
+  if (options.maxUnknowns < 1 || options.maxUnknowns > kMaxCellProblemUnknowns)
+    throw std::invalid_argument(name + "the unknown budget must be in [1, " + std::to_string(kMaxCellProblemUnknowns) +
+                                "], got " + std::to_string(options.maxUnknowns));
+  if (options.subdivisions < 0)
+    throw std::invalid_argument(name + "subdivisions must be >= 1 (or 0 for refinement), got " +
+                                std::to_string(options.subdivisions));
+  const long K = options.subdivisions;
+  if (K > 0 && cells * K * K > options.maxUnknowns)
+    throw std::invalid_argument(name + "subdivisions " + std::to_string(K) + " on a " + std::to_string(pattern.rows()) +
+                                "x" + std::to_string(pattern.cols()) + "-cell tile needs " +
+                                std::to_string(cells * K * K) + " unknowns, more than the limit of " +
+                                std::to_string(options.maxUnknowns) + " (largest K for this tile: " +
+                                std::to_string(static_cast<long>(std::sqrt(static_cast<double>(options.maxUnknowns) / cells))) + ")");
+}
+
+HomogenizationResult finishResult(const WeavePattern& pattern, const CellProblemBounds& bounds, double tolerance) {
   HomogenizationResult result;
-  result.effective = 0.5 * (effective + effective.transpose());
+  result.upper = bounds.upper;
+  result.lower = bounds.lower;
+  result.effective = 0.5 * (bounds.upper + bounds.lower);
+  result.gap = relativeGap(bounds.upper, bounds.lower);
+  result.tolerance = tolerance;
+  result.converged = result.gap <= tolerance;
   result.voigtBound = voigtBound(pattern);
   result.average = result.voigtBound;
   result.reussBound = reussBound(pattern);
   result.eigenvalues = symmetricEigenvalues(result.effective);
   result.principalAngle = principalAngle(result.effective);
-  result.subdivisions = K;
   result.patternHash = pattern.contentHash();
-  result.vertexCount = vertexCount;
   return result;
 }
 
-const HomogenizationResult& Homogenizer::homogenize(const WeavePattern& pattern, int subdivisions) {
-  if (subdivisions == kAutoSubdivisions) subdivisions = defaultSubdivisions(pattern);
-  const auto key = std::make_pair(pattern.contentHash(), subdivisions);
+/// kAutoSubdivisions: graded meshes from one ray per side and radius 0.05,
+/// deepened while the unresolved energy is over a quarter of the gap (to a tail
+/// of a twentieth of the tolerance, by the observed ring ratio), widened (more
+/// rays, same depth) otherwise.
+HomogenizationResult refineUntilBoundsMeet(const WeavePattern& pattern, const HomogenizationOptions& options) {
+  const int rows = pattern.rows(), cols = pattern.cols();
+  GradedMeshLevel level{1, gradedLayersFor(1, kInitialInnerRadius)};
+  if (gradedVertexCount(rows, cols, level) > options.maxUnknowns)
+    throw std::invalid_argument(pattern.sourceName() + ": homogenize: the coarsest graded mesh of a " +
+                                std::to_string(rows) + "x" + std::to_string(cols) + "-cell tile needs " +
+                                std::to_string(gradedVertexCount(rows, cols, level)) +
+                                " unknowns, more than the limit of " + std::to_string(options.maxUnknowns));
+  HomogenizationResult result;
+  for (int levels = 1;; ++levels) {
+    const CellMesh mesh = gradedCellMesh(rows, cols, level);
+    const CellProblemBounds bounds = cellProblemBounds(pattern, mesh);
+    result = finishResult(pattern, bounds, options.tolerance);
+    result.subdivisions = 2 * level.raysPerSide;
+    result.gradedLayers = level.layers;
+    result.innerRadius = gradedInnerRadius(level);
+    result.levels = levels;
+    result.vertexCount = mesh.vertexCount;
+    if (result.converged) break;
+
+    GradedMeshLevel next = level;
+    const long perLayer = 8L * rows * cols * level.raysPerSide;  // vertices added by one more layer
+    const long layerBudget = (options.maxUnknowns - gradedVertexCount(rows, cols, level)) / perLayer;
+    const double q = bounds.tailRatio;
+    const bool deepen = bounds.tailFraction > 0.25 * result.gap && q > 0.0 &&
+                        result.innerRadius > kMinInnerRadius && layerBudget > 0;
+    if (deepen) {
+      const double target = 0.05 * options.tolerance;
+      int extra = static_cast<int>(std::ceil(std::log(target / bounds.tailFraction) / std::log(q)));
+      extra = std::max(extra, level.raysPerSide);  // at least one e-fold deeper
+      const int deepest = gradedLayersFor(level.raysPerSide, kMinInnerRadius);
+      extra = static_cast<int>(std::min<long>({static_cast<long>(extra), layerBudget,
+                                               static_cast<long>(deepest - level.layers)}));
+      next.layers += std::max(extra, 1);
+    } else {
+      // Resolved corners leave the smooth rate, gap ~ m⁻²: aim at 0.7·tolerance,
+      // at least one ray more and at most three times as many.
+      const int m = level.raysPerSide;
+      const double predicted = m * std::sqrt(result.gap / (0.7 * options.tolerance));
+      next.raysPerSide = std::clamp(static_cast<int>(std::ceil(predicted)), m + 1, 3 * m);
+      next.layers = gradedLayersFor(next.raysPerSide, result.innerRadius);
+      // Near the budget, the widest mesh that still fits.
+      while (next.raysPerSide > m + 1 && gradedVertexCount(rows, cols, next) > options.maxUnknowns) {
+        --next.raysPerSide;
+        next.layers = gradedLayersFor(next.raysPerSide, result.innerRadius);
+      }
+    }
+    if (gradedVertexCount(rows, cols, next) > options.maxUnknowns) break;  // budget spent: not converged
+    level = next;
+  }
+  return result;
+}
+
+}  // namespace
+
+HomogenizationResult homogenize(const WeavePattern& pattern, const HomogenizationOptions& options) {
+  checkOptions(pattern, options);
+  if (options.subdivisions == kAutoSubdivisions) return refineUntilBoundsMeet(pattern, options);
+  const CellMesh mesh = uniformCellMesh(pattern.rows(), pattern.cols(), options.subdivisions);
+  HomogenizationResult result = finishResult(pattern, cellProblemBounds(pattern, mesh), options.tolerance);
+  result.subdivisions = options.subdivisions;
+  result.levels = 1;
+  result.vertexCount = mesh.vertexCount;
+  return result;
+}
+
+HomogenizationResult homogenize(const WeavePattern& pattern, int subdivisions) {
+  HomogenizationOptions options;
+  options.subdivisions = subdivisions;
+  return homogenize(pattern, options);
+}
+
+const HomogenizationResult& Homogenizer::homogenize(const WeavePattern& pattern,
+                                                    const HomogenizationOptions& options) {
+  const auto key = std::make_tuple(pattern.contentHash(), options.subdivisions, options.tolerance, options.maxUnknowns);
   const auto [first, last] = cache_.equal_range(key);
   for (auto it = first; it != last; ++it) {
     if (it->second.cols == pattern.cols() && it->second.cellTensors == pattern.cellTensors()) {
@@ -223,8 +381,14 @@ const HomogenizationResult& Homogenizer::homogenize(const WeavePattern& pattern,
     }
   }
   ++cacheMisses_;
-  Entry entry{pattern.cellTensors(), pattern.cols(), blot::stain::homogenize(pattern, subdivisions)};
+  Entry entry{pattern.cellTensors(), pattern.cols(), blot::stain::homogenize(pattern, options)};
   return cache_.emplace(key, std::move(entry))->second.result;
+}
+
+const HomogenizationResult& Homogenizer::homogenize(const WeavePattern& pattern, int subdivisions) {
+  HomogenizationOptions options;
+  options.subdivisions = subdivisions;
+  return homogenize(pattern, options);
 }
 
 void Homogenizer::clear() {

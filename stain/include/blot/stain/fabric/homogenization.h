@@ -1,38 +1,69 @@
 #pragma once
 /// Homogenization of a weave pattern into one effective (bulk) diffusion tensor
-/// (paper sec. 2, eqs. 1-2), plus the classical bounds it must lie between.
+/// (paper sec. 2, eqs. 1-2) with two-sided bounds (primal and complementary
+/// P1 cell problems) refined until they meet, plus the classical bounds.
 ///
 /// All tensors are 2x2, symmetric, in the pattern's (x, y) = (weft, warp) basis
 /// and the pattern's diffusion units (m²/s in the engine). S_eff does not depend
 /// on the physical cell size, so the tile is meshed with unit cells.
+#include <blot/stain/fabric/homogenization_mesh.h>
 #include <blot/stain/types.h>
 #include <blot/stain/fabric/weave_pattern.h>
 
 #include <cstdint>
 #include <map>
+#include <tuple>
 #include <utility>
 #include <vector>
 
 namespace blot::stain {
 
-/// Passed as `subdivisions`: choose K with defaultSubdivisions(pattern).
+/// Passed as `subdivisions`: refine graded meshes until the bounds meet (see
+/// HomogenizationOptions).
 inline constexpr int kAutoSubdivisions = 0;
 
-/// The default K (squares per cell side) for a pattern: the largest even K in
-/// [4, 32] with rows·cols·K² <= 16384 unknowns, and 4 for tiles larger than
-/// 32x32 cells. From the convergence study in docs/patterns.md: the error of
-/// S_eff decays like K^-1.9 for the woven presets (0.2% at K = 4) and like
-/// K^-1 to K^-1.3 where neighbouring cells differ by ~60:1 or more (rib knit:
-/// 2.7% at K = 4, 0.6% at K = 16), while the cost is one sparse Cholesky of
-/// rows·cols·K² unknowns. A fixed K would either waste time on large tiles or
-/// accuracy on small ones; the budget keeps every default solve at about
-/// 16K unknowns (a 32x32-cell tile gets K = 4, the 4x8 rib knit K = 22, the
-/// 4x4 plain weave K = 32).
+/// Default relative gap between the bounds (HomogenizationOptions::tolerance).
+inline constexpr double kDefaultGapTolerance = 0.01;
+/// Most unknowns (mesh vertices) of one cell-problem solve: peak memory stays
+/// under 0.5 GB and one solve (primal and dual) under about a minute
+/// (measured in docs/patterns.md).
+inline constexpr long kMaxCellProblemUnknowns = 500000;
+/// Most cells in a tile (e.g. 100 x 100): the coarsest graded mesh, 28 unknowns
+/// per cell, then fits kMaxCellProblemUnknowns.
+inline constexpr int kMaxTileCells = 10000;
+
+/// The uniform K of earlier releases, still used for studies: the largest even
+/// K in [4, 32] with rows·cols·K² <= 16384 unknowns, and 4 for tiles larger than
+/// 32x32 cells. Not used by kAutoSubdivisions any more.
 int defaultSubdivisions(const WeavePattern& pattern);
+
+/// Largest K accepted for `pattern` on the uniform mesh: rows·cols·K² <=
+/// kMaxCellProblemUnknowns (0 if not even K = 1 fits).
+int maxUniformSubdivisions(const WeavePattern& pattern);
+
+/// How homogenize solves.
+struct HomogenizationOptions {
+  /// K >= 1: one solve on the uniform mesh, each cell K x K squares (a study;
+  /// `converged` still reports whether the gap met the tolerance).
+  /// kAutoSubdivisions: graded meshes (homogenization_mesh.h), refined in depth
+  /// toward the lattice corners or in width until the gap <= tolerance or the
+  /// next mesh would exceed maxUnknowns.
+  int subdivisions = kAutoSubdivisions;
+  double tolerance = kDefaultGapTolerance;    ///< Relative gap to reach, in (0, 1).
+  long maxUnknowns = kMaxCellProblemUnknowns; ///< Per solve, in [1, kMaxCellProblemUnknowns].
+};
 
 /// Everything `blot homogenize` reports about one pattern.
 struct HomogenizationResult {
-  Matrix2 effective;    ///< S_eff of eq. (1), symmetrised (asymmetry is solver round-off).
+  /// Best estimate of S_eff: (upper + lower) / 2, which is within gap/2·λ_max
+  /// of the exact value in every entry (the exact value lies between the bounds).
+  Matrix2 effective;
+  Matrix2 upper;  ///< Primal (energy) P1 bound: upper − S_eff is PSD.
+  Matrix2 lower;  ///< Complementary (flux) P1 bound: S_eff − lower is PSD.
+  /// Relative gap max_ij |upper − lower|_ij / λ_max(upper).
+  double gap = 0.0;
+  bool converged = false;  ///< gap <= tolerance.
+  double tolerance = kDefaultGapTolerance;
   Matrix2 average;      ///< Plain cell average ⟨S⟩ (the paper's "direct average"; equals the Voigt bound).
   Matrix2 reussBound;   ///< Harmonic bound ⟨S⁻¹⟩⁻¹: S_eff − reussBound is PSD.
   Matrix2 voigtBound;   ///< Arithmetic bound ⟨S⟩: voigtBound − S_eff is PSD.
@@ -40,10 +71,41 @@ struct HomogenizationResult {
   /// Angle from the weft (x) axis to the eigenvector of the largest eigenvalue,
   /// counter-clockwise, in radians, in (−π/2, π/2]; 0 when isotropic.
   double principalAngle = 0.0;
-  int subdivisions = 0;          ///< K used.
+  /// Uniform mesh: K. Graded mesh: intervals per cell side along the cell
+  /// midlines (2·raysPerSide).
+  int subdivisions = 0;
+  int gradedLayers = 0;      ///< Graded mesh: rings per quarter cell; 0 for the uniform mesh.
+  double innerRadius = 0.0;  ///< Graded mesh: radius of the innermost fan (cells); 0 for uniform.
+  int levels = 0;            ///< Meshes solved (1 for the uniform mesh).
   std::uint64_t patternHash = 0; ///< WeavePattern::contentHash() of the input.
-  int vertexCount = 0;           ///< Vertices of the torus mesh (rows·K · cols·K).
+  int vertexCount = 0;           ///< Unknowns of the final mesh (its vertices).
 };
+
+/// The cell tensor of the complementary problem, T = JᵀS⁻¹J = S / det S (J the
+/// 90° rotation; docs/patterns.md). The map is its own inverse, and the lower
+/// bound is dualTensor(T_h) for the P1 homogenized T_h.
+Matrix2 dualTensor(const Matrix2& tensor);
+
+/// max_ij |upper − lower|_ij / λ_max(upper).
+double relativeGap(const Matrix2& upper, const Matrix2& lower);
+
+/// Both bounds on one mesh.
+struct CellProblemBounds {
+  Matrix2 upper;  ///< P1 homogenized S (symmetrised).
+  Matrix2 lower;  ///< dualTensor of the P1 homogenized dual tensors.
+  /// Graded meshes: estimated share of the energy (primal or dual, the larger)
+  /// inside the innermost rings that the mesh cannot resolve, from the decay of
+  /// the energy ring by ring around each lattice corner; 0 for uniform meshes.
+  double tailFraction = 0.0;
+  /// Energy ratio between consecutive rings at the corner with the largest
+  /// tail (≈ σ^(2α) for a corner singularity r^α); 0 for uniform meshes.
+  double tailRatio = 0.0;
+};
+
+/// Solves the primal and complementary cell problems of `pattern` on `mesh`
+/// (one symbolic analysis, two factorizations). Throws std::runtime_error if
+/// the solver fails (it cannot for a valid pattern).
+CellProblemBounds cellProblemBounds(const WeavePattern& pattern, const CellMesh& mesh);
 
 /// Harmonic (Reuss) bound ⟨S⁻¹⟩⁻¹ over the tile's cells (equal areas).
 Matrix2 reussBound(const WeavePattern& pattern);
@@ -56,22 +118,26 @@ Vector2 symmetricEigenvalues(const Matrix2& tensor);
 /// largest eigenvalue of a symmetric 2x2 tensor; 0 when the eigenvalues agree.
 double principalAngle(const Matrix2& tensor);
 
-/// Solves the two periodic cell problems ∇·S(∇f_i + e_i) = 0 with P1 elements on
-/// a torus mesh of the tile (each cell K x K squares, each square two triangles
-/// with alternating diagonals), CHOLMOD on the system with one vertex pinned,
-/// and evaluates S_eff by eq. (1). `subdivisions` (K) >= 1, or kAutoSubdivisions. Cost: one sparse
-/// Cholesky of size rows·cols·K². Throws std::runtime_error if the solver fails
-/// (it cannot for a valid pattern).
+/// Homogenizes `pattern` with two-sided bounds (docs/patterns.md): the primal
+/// P1 solution bounds S_eff from above, the complementary one, the same solver
+/// on the tensors dualTensor(S), from below. Throws std::invalid_argument,
+/// naming the limit, for a tile above kMaxTileCells cells, a K whose mesh would
+/// exceed options.maxUnknowns, or options out of range; the result of a
+/// refinement that stopped at the budget has converged = false.
+HomogenizationResult homogenize(const WeavePattern& pattern, const HomogenizationOptions& options);
+
+/// homogenize(pattern, {subdivisions}) with the default tolerance and budget.
 HomogenizationResult homogenize(const WeavePattern& pattern,
                                 int subdivisions = kAutoSubdivisions);
 
-/// Homogenizes with a cache keyed by pattern content and K, so a pattern used by
+/// Homogenizes with a cache keyed by pattern content and options, so a pattern used by
 /// several patches or scenes is solved once. Owns its cache; not thread-safe.
 class Homogenizer {
  public:
-  /// The result for (pattern, subdivisions), computed on first request; the key
-  /// uses the resolved K, so auto and the explicit default share an entry.
-  /// The reference stays valid until clear() or the Homogenizer is destroyed.
+  /// The result for (pattern, options), computed on first request. The
+  /// reference stays valid until clear() or the Homogenizer is destroyed.
+  const HomogenizationResult& homogenize(const WeavePattern& pattern, const HomogenizationOptions& options);
+  /// homogenize(pattern, {subdivisions}).
   const HomogenizationResult& homogenize(const WeavePattern& pattern,
                                          int subdivisions = kAutoSubdivisions);
   int cacheHits() const { return cacheHits_; }
@@ -85,7 +151,8 @@ class Homogenizer {
     int cols = 0;
     HomogenizationResult result;
   };
-  std::multimap<std::pair<std::uint64_t, int>, Entry> cache_;
+  /// (content hash, K, tolerance, unknown budget).
+  std::multimap<std::tuple<std::uint64_t, int, double, long>, Entry> cache_;
   int cacheHits_ = 0;
   int cacheMisses_ = 0;
 };
