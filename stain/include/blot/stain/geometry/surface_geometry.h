@@ -145,9 +145,6 @@ inline Vector3 dualEdgeNormal(const SurfaceTopology& topology, const RowVectors3
   return normal;
 }
 
-/// Why the intrinsic tier was (re)built on a given step.
-enum class IntrinsicRefreshReason { None, Initial, StrainTolerance };
-
 /// How refreshExtrinsic fits the per-vertex rotations U_i.
 enum class RotationFitMethod {
   WarmStartedNewton,  ///< default: Newton on SO(3) from U_i extrapolated in time, SVD fallback
