@@ -132,8 +132,7 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   diffusionScratch_.resize(n);
   velocityScratch_.resize(n);
   densityScratch_.resize(n, topology.edgeCount());
-  wet_.assign(static_cast<size_t>(n), 0);
-  wetList_.reserve(static_cast<size_t>(n));
+  band_.resize(n);
   initialVelocities_ = RowVectors3::Zero(n, 3);
 }
 
@@ -209,7 +208,7 @@ bool StainSolver::checkStage(const char* stage, StepReport& report) {
     state_.solvent[fault_.vertex] = std::numeric_limits<double>::quiet_NaN();
     fault_.stage.clear();  // fires once
   }
-  // One pass over the vertices the stages touched (wet + halo, held ones
+  // One pass over the vertices the stages touched (the band, held ones
   // after "sources"): the extremes of every field and a flag that is false
   // for NaN or ±inf. The search for the vertex runs only on a failure.
   const Vector* fields[] = {&state_.solvent, &state_.solute, &state_.absorbedSolvent, &state_.absorbedSolute,
@@ -227,7 +226,7 @@ bool StainSolver::checkStage(const char* stage, StepReport& report) {
     finite &= std::abs(state_.velocities[i].real()) <= kLargest && std::abs(state_.velocities[i].imag()) <= kLargest;
   };
   const bool held = std::strcmp(stage, "sources") == 0;
-  for (int i : wetList_) scan(i);
+  for (int i : band_.vertices) scan(i);
   if (held)
     for (const HeldRegion& region : heldRegions_)
       for (int v : region.vertices) scan(v);
@@ -240,7 +239,7 @@ bool StainSolver::checkStage(const char* stage, StepReport& report) {
     return !std::isfinite(state_.velocities[i].real()) || !std::isfinite(state_.velocities[i].imag());
   };
   int vertex = -1;
-  for (int i : wetList_)
+  for (int i : band_.vertices)
     if (bad(i)) {
       vertex = i;
       break;
@@ -274,31 +273,36 @@ void StainSolver::addHeldRegion(const HeldRegion& region) {
   heldRegions_.push_back(region);
 }
 
-void StainSolver::updateWetMask() {
-  // Wet: holds any liquid; the halo (one ring around) is wet too, since
-  // advection and diffusion move liquid into it this step.
-  const SurfaceTopology& topo = geometry_.topology();
-  const double threshold = def_.liquid.wetThreshold;
-  const int n = state_.vertexCount();
-  int wetCount = 0, haloCount = 0;
-  for (int i = 0; i < n; ++i) {
-    const bool holds = state_.solvent[i] > threshold || state_.absorbedSolvent[i] > threshold ||
-                       state_.solute[i] > threshold;
-    wet_[static_cast<size_t>(i)] = holds ? 2 : 0;
+void StainSolver::updateWetMask(const StepContext& ctx, bool surfaceMoved, bool gravity, bool inertia,
+                                bool halfFrameRotation) {
+  // The wet set, then the band around it with u extended onto it
+  // (liquid_band.h). A whole-mesh direct velocity solve reads u everywhere,
+  // so then the band (and the extension) covers the mesh.
+  markWetVertices(def_.liquid.wetThreshold, state_, band_);
+  if (band_.wetCount() == 0) {
+    profile_.wetVertices = profile_.haloVertices = profile_.bandVertices = 0;
+    return;
   }
-  for (int i = 0; i < n; ++i) {
-    if (wet_[static_cast<size_t>(i)] != 2) continue;
-    ++wetCount;
-    for (int m = topo.ringOffsets()[static_cast<size_t>(i)]; m < topo.ringOffsets()[static_cast<size_t>(i) + 1]; ++m) {
-      char& w = wet_[static_cast<size_t>(topo.ringNeighbors()[static_cast<size_t>(m)])];
-      if (w == 0) {
-        w = 1;
-        ++haloCount;
-      }
-    }
+  if (!backedUp_) {
+    backup_ = state_;  // the state as the step found it
+    backedUp_ = true;
   }
-  profile_.wetVertices = wetCount;
-  profile_.haloVertices = haloCount;
+  // u of the wet vertices into F^t first (the discrete frame change), so the
+  // extension reads and writes one frame convention.
+  if (halfFrameRotation) applyHalfFrameRotation(ctx, geometry_.extrinsic(), band_.wetMask, state_);
+  LiquidBandInputs inputs;
+  inputs.h = ctx.h;
+  inputs.gravity = gravity ? ctx.gravity : Vector3::Zero();
+  inputs.useAccelerations = inertia;
+  inputs.surfaceMoved = surfaceMoved;
+  const bool directVelocitySolve = ctx.switches.velocityDiffusion && !systems_.vectorIterative();
+  inputs.extraRings = directVelocitySolve ? state_.vertexCount() : 0;
+  growLiquidBand(inputs, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), band_, state_);
+  profile_.wetVertices = band_.wetCount();
+  profile_.haloVertices = band_.haloCount;
+  profile_.bandVertices = band_.size();
+  profile_.bandRings = band_.rings;
+  profile_.reachRings = band_.reachRings;
 }
 
 StepReport StainSolver::step(double h, const RowVectors3& nextPositions) {
@@ -392,17 +396,28 @@ StepReport StainSolver::advance(double h, const RowVectors3& nextPositions, cons
     profile_.geometryVertices = surfaceMoved ? state_.vertexCount() : 0;
   }
 
-  updateWetMask();
-  const bool anyLiquid = profile_.wetVertices > 0;
   const PhysicsSwitches& on = ctx.switches;
-  wetList_.clear();  // reserved for #V: no allocation
-  if (anyLiquid)
-    for (int i = 0; i < state_.vertexCount(); ++i)
-      if (wet_[static_cast<size_t>(i)] != 0) wetList_.push_back(i);
-  if (!backedUp_ && (anyLiquid || (on.sources && !heldRegions_.empty()))) {
-    backup_ = state_;  // the state as the step found it (no rebuild above)
-    backedUp_ = true;
+  // Held regions are topped up first, so liquid they add this step is in the
+  // band and gets this step's forces (issue 14).
+  if (on.sources && !heldRegions_.empty()) {
+    if (!backedUp_) {
+      backup_ = state_;  // the state as the step found it (no rebuild above)
+      backedUp_ = true;
+    }
+    ScopedTimer t(profile_.sources);
+    applySources(ctx, heldRegions_, geometry_.intrinsic(), state_);
+    profile_.markRan(StepTerm::Sources);
+    if (!checkStage("sources", report)) return report;
   }
+  const bool gravity = on.gravity && !ctx.gravity.isZero(0.0);
+  const bool inertia = on.linearInertia && surfaceMoved;
+  {
+    ScopedTimer t(profile_.forces);
+    const bool halfFrameRotation = on.coriolis && surfaceMoved && on.velocityAdvection &&
+                                   on.coriolisScheme == CoriolisScheme::ExactRotation && !firstStep;
+    updateWetMask(ctx, surfaceMoved, gravity, inertia, halfFrameRotation);
+  }
+  const bool anyLiquid = profile_.wetVertices > 0;
 
   // Forces are split around the velocity advection: gravity and linear
   // inertia before it, the Coriolis rotation after it (docs/transport.md).
@@ -419,32 +434,26 @@ StepReport StainSolver::advance(double h, const RowVectors3& nextPositions, cons
   // (and drives no film pressure), a zero rate transfers nothing.
   const bool coriolis = anyLiquid && on.coriolis && surfaceMoved;
   const bool frameChange = coriolis && on.velocityAdvection && on.coriolisScheme == CoriolisScheme::ExactRotation;
-  const bool gravity = on.gravity && !ctx.gravity.isZero(0.0);
-  const bool inertia = on.linearInertia && surfaceMoved;
-  if (frameChange && !firstStep) {
-    ScopedTimer t(profile_.forces);
-    applyHalfFrameRotation(ctx, geometry_.extrinsic(), wet_, state_);
-  }
   if (anyLiquid && (gravity || inertia)) {
     ScopedTimer t(profile_.forces);
     StepContext forceCtx = ctx;
     forceCtx.switches.gravity = gravity;
     forceCtx.switches.linearInertia = inertia;
     forceCtx.switches.coriolis = false;
-    applyExternalForces(forceCtx, geometry_.extrinsic(), wet_, state_);
+    applyExternalForces(forceCtx, geometry_.extrinsic(), band_.bandMask, state_);
     if (gravity) profile_.markRan(StepTerm::Gravity);
     if (inertia) profile_.markRan(StepTerm::LinearInertia);
     if (!checkStage("forces", report)) return report;
   }
   if (anyLiquid && on.filmPressure && gravity) {
     ScopedTimer t(profile_.forces);
-    applyFilmPressure(ctx, geometry_.topology(), geometry_.extrinsic(), wet_, state_);
+    applyFilmPressure(ctx, geometry_.topology(), geometry_.extrinsic(), band_.bandMask, state_);
     profile_.markRan(StepTerm::FilmPressure);
     if (!checkStage("film-pressure", report)) return report;
   }
   if (anyLiquid && on.velocityAdvection) {
     ScopedTimer t(profile_.advectVelocity);
-    advectVelocity(ctx, geometry_.topology(), geometry_.intrinsic(), wet_, velocityScratch_, state_);
+    advectVelocity(ctx, geometry_.topology(), geometry_.intrinsic(), band_.reachMask, velocityScratch_, state_);
     profile_.markRan(StepTerm::VelocityAdvection);
     if (!checkStage("advect-velocity", report)) return report;
   }
@@ -453,20 +462,20 @@ StepReport StainSolver::advance(double h, const RowVectors3& nextPositions, cons
     profile_.markRan(StepTerm::Coriolis);
     if (frameChange) {
       applyFrameVelocityChange(ctx, geometry_.extrinsic(), velocityScratch_.footVertices,
-                               velocityScratch_.footWeights, wet_, state_);
+                               velocityScratch_.footWeights, band_.reachMask, state_);
     } else {
       StepContext coriolisCtx = ctx;
       coriolisCtx.switches.gravity = false;
       coriolisCtx.switches.linearInertia = false;
-      applyExternalForces(coriolisCtx, geometry_.extrinsic(), wet_, state_);
+      applyExternalForces(coriolisCtx, geometry_.extrinsic(), band_.bandMask, state_);
     }
     if (!checkStage("coriolis", report)) return report;
   }
   if (anyLiquid && on.densityAdvection) {
     ScopedTimer t(profile_.advectDensity);
     const DensityAdvectionReport r =
-        advectDensities(ctx, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), wet_,
-                        densityScratch_, state_, &geometry_.restEdgeFrameNormals());
+        advectDensities(ctx, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), band_.wetMask,
+                        densityScratch_, state_, &geometry_.restEdgeFrameNormals(), &band_.reachMask);
     profile_.advectionSubsteps = r.substeps;
     profile_.advectionVertices = r.activeVertices;
     profile_.markRan(StepTerm::DensityAdvection);
@@ -474,7 +483,7 @@ StepReport StainSolver::advance(double h, const RowVectors3& nextPositions, cons
   }
   if (anyLiquid && (on.densityDiffusion || on.velocityDiffusion)) {
     ScopedTimer t(profile_.diffuse);
-    const DiffusionReport r = diffuse(ctx, geometry_.intrinsic(), systems_, diffusionScratch_, state_, &wet_);
+    const DiffusionReport r = diffuse(ctx, geometry_.intrinsic(), systems_, diffusionScratch_, state_, &band_.diffusionMask);
     profile_.diffusionIterations = r.densityIterations + r.velocityIterations;
     profile_.limiterCorrectedVertices = r.limiterCorrectedVertices;
     profile_.limiterMovedMass = r.limiterMovedMass;
@@ -507,17 +516,11 @@ StepReport StainSolver::advance(double h, const RowVectors3& nextPositions, cons
   const PhysicsSwitches& transfers = interactCtx.switches;
   if (anyLiquid && (transfers.absorption || transfers.adsorption || transfers.evaporation)) {
     ScopedTimer t(profile_.interact);
-    interact(interactCtx, geometry_.topology(), geometry_.intrinsic(), wet_, state_);
+    interact(interactCtx, geometry_.topology(), geometry_.intrinsic(), band_.reachMask, state_);
     if (transfers.absorption) profile_.markRan(StepTerm::Absorption);
     if (transfers.adsorption) profile_.markRan(StepTerm::Adsorption);
     if (transfers.evaporation) profile_.markRan(StepTerm::Evaporation);
     if (!checkStage("interact", report)) return report;
-  }
-  if (on.sources && !heldRegions_.empty()) {
-    ScopedTimer t(profile_.sources);
-    applySources(ctx, heldRegions_, geometry_.intrinsic(), state_);
-    profile_.markRan(StepTerm::Sources);
-    if (!checkStage("sources", report)) return report;
   }
 
   // Validated even when nothing ran (a bad value put in through

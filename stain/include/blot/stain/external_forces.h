@@ -1,6 +1,7 @@
 #pragma once
 /// Stage "forces" (paper sec. 4): tangential gravity, linear inertia −Fᵀp̈ and
-/// Coriolis −2ω×u, applied to the velocity of wet vertices.
+/// Coriolis −2ω×u, applied to the velocity on a mask (the solver passes the
+/// liquid band: wet vertices and those with extended velocities).
 #include <blot/stain/stain_state.h>
 #include <blot/stain/step_context.h>
 #include <blot/stain/surface_geometry.h>
@@ -16,7 +17,8 @@ namespace blot::stain {
 /// is not advected; after a velocity advection the solver uses
 /// applyHalfFrameRotation and applyFrameVelocityChange instead
 /// (CoriolisScheme::ExactRotation).
-/// `wet` (#V, nonzero = wet) restricts the work; pass an empty vector for all.
+/// `wet` (#V, nonzero = worked on; the solver passes the liquid band)
+/// restricts the work; pass an empty vector for all.
 void applyExternalForces(const StepContext& ctx, const ExtrinsicGeometry& geometry,
                          const std::vector<char>& wet, StainState& state);
 

@@ -7,6 +7,7 @@
 /// velocities at t are centred), then advances the stain from t to t + h.
 #include <blot/stain/density_advection.h>
 #include <blot/stain/diffusion.h>
+#include <blot/stain/liquid_band.h>
 #include <blot/stain/sources.h>
 #include <blot/stain/stain_state.h>
 #include <blot/stain/step_context.h>
@@ -101,6 +102,11 @@ class StainSolver {
   StainState& mutableState() { return state_; }
   const SurfaceGeometry& geometry() const { return geometry_; }
   const StepProfile& profile() const { return profile_; }
+  /// The liquid band of the last step (docs/transport.md): wet vertices
+  /// first, then ring by ring; the one set of vertices the step worked on.
+  /// Valid until the next step.
+  const std::vector<int>& bandVertices() const { return band_.vertices; }
+  const LiquidBand& band() const { return band_; }
   const StainSolverDef& definition() const { return def_; }
   double time() const { return time_; }
   int stepCount() const { return steps_; }
@@ -131,12 +137,15 @@ class StainSolver {
   void injectFaultForTesting(const InjectedFault& fault);
 
  private:
-  void updateWetMask();
+  /// Marks the wet set, takes the backup if the step has liquid, turns the
+  /// wet u into F^t (halfFrameRotation), then grows the liquid band and
+  /// extends u onto it (liquid_band.h); gravity/inertia: the kicks that act.
+  void updateWetMask(const StepContext& ctx, bool surfaceMoved, bool gravity, bool inertia, bool halfFrameRotation);
   /// state_ = backup_, rescaled to the present dual areas when the step being
   /// abandoned rebuilt the metric (each vertex keeps its mass).
   void restoreBackup();
   /// After `stage` (a string literal): writes an armed testing fault due now,
-  /// then checks the wet + halo vertices (and held ones after "sources") for
+  /// then checks the band vertices (and held ones after "sources") for
   /// non-finite values and negative densities. Fills `report` and restores
   /// the state when one is bad; returns false then.
   bool checkStage(const char* stage, StepReport& report);
@@ -148,7 +157,6 @@ class StainSolver {
   StainState state_, backup_;
   double backupTime_ = 0;   // time_ when backup_ was taken
   InjectedFault fault_;      // testing; stage empty when none is armed
-  std::vector<int> wetList_;  // wet + halo vertices this step (the stage checks' domain)
   bool undoable_ = false;   // the last step succeeded and undoLastStep has not run
   bool backedUp_ = false;   // backup_ holds the state this step began with
   DiffusionSystems systems_;
@@ -156,7 +164,7 @@ class StainSolver {
   VelocityAdvectionScratch velocityScratch_;
   DensityAdvectionScratch densityScratch_;
   std::vector<HeldRegion> heldRegions_;
-  std::vector<char> wet_;
+  LiquidBand band_;  // this step's band; its vertices are the stage checks' domain
   Vector areaScratch_;
   RowVectors3 initialVelocities_;
   StepProfile profile_;

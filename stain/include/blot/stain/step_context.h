@@ -91,19 +91,19 @@ enum class StepTerm : unsigned {
   RigidFrames = 1u << 1,         ///< extrinsic refresh of a known rigid motion, no fits (all #V)
   IntrinsicRebuild = 1u << 2,    ///< metric rebuilt: the strain passed the tolerance (all #V)
   Factorization = 1u << 3,       ///< diffusion systems refactorized (new metric or new h)
-  Gravity = 1u << 4,             ///< tangential gravity (wet + halo)
-  LinearInertia = 1u << 5,       ///< −Fᵀ p̈ (wet + halo)
-  Coriolis = 1u << 6,            ///< −2 ω × u (wet + halo)
-  FilmPressure = 1u << 7,        ///< −∇p_ext/ρ (wet + halo)
-  VelocityAdvection = 1u << 8,   ///< semi-Lagrangian u (wet + halo)
-  DensityAdvection = 1u << 9,    ///< upwind σ fluxes (wet + sub-step halo)
+  Gravity = 1u << 4,             ///< tangential gravity (band)
+  LinearInertia = 1u << 5,       ///< −Fᵀ p̈ (band)
+  Coriolis = 1u << 6,            ///< −2 ω × u (band; the frame change on the reach set)
+  FilmPressure = 1u << 7,        ///< −∇p_ext/ρ (band)
+  VelocityAdvection = 1u << 8,   ///< semi-Lagrangian u (the band's reach set)
+  DensityAdvection = 1u << 9,    ///< upwind σ fluxes (wet + sub-step rings, inside the reach set)
   DensityDiffusionKrylov = 1u << 10,   ///< σ_f, σ_s by CG on the liquid's Krylov support
   DensityDiffusionDirect = 1u << 11,   ///< σ_f, σ_s by the factorization (all #V)
-  VelocityDiffusionKrylov = 1u << 12,  ///< u by CG on the wet + halo vertices
+  VelocityDiffusionKrylov = 1u << 12,  ///< u by CG on the band (its outermost ring as boundary data)
   VelocityDiffusionDirect = 1u << 13,  ///< u by the factorization (all #V)
-  Absorption = 1u << 14,         ///< K_p > 0 (wet + halo)
-  Adsorption = 1u << 15,         ///< K_d > 0 (wet + halo)
-  Evaporation = 1u << 16,        ///< K_evap > 0 (wet + halo)
+  Absorption = 1u << 14,         ///< K_p > 0 (reach set)
+  Adsorption = 1u << 15,         ///< K_d > 0 (reach set)
+  Evaporation = 1u << 16,        ///< K_evap > 0 (reach set)
   Sources = 1u << 17,            ///< held regions
 };
 /// Number of StepTerm bits (bit k = 1u << k for k in [0, kStepTermCount)).
@@ -122,11 +122,16 @@ struct StepProfile {
   double limiterMovedMass = 0;     ///< kg moved by the positivity limiter
   unsigned terms = 0;              ///< StepTerm bits of the terms that ran (see describeTerms)
   int vertexCount = 0;             ///< #V of the surface
-  int haloVertices = 0;            ///< dry vertices next to wet ones, worked on with them
+  int haloVertices = 0;            ///< dry vertices next to wet ones (level 1 of the band)
+  /// Vertices of the liquid band (wet + the rings the step can reach and read,
+  /// StainSolver::bandVertices; the whole mesh with a direct velocity solve).
+  int bandVertices = 0;
+  int bandRings = 0;               ///< rings of the band beyond the wet set
+  int reachRings = 0;              ///< rings liquid and foot points can move this step (R)
   int geometryVertices = 0;        ///< vertices the extrinsic refresh recomputed (#V, 0 if the surface did not move)
   int advectionVertices = 0;       ///< vertices density advection worked on (wet + sub-step halo, or #V)
   int densityDiffusionVertices = 0;   ///< rows of the density solve (Krylov support, #V if direct)
-  int velocityDiffusionVertices = 0;  ///< rows of the velocity solve (wet + halo, #V if direct)
+  int velocityDiffusionVertices = 0;  ///< rows of the velocity solve (band less its outer ring, #V if direct)
   bool ran(StepTerm term) const { return (terms & static_cast<unsigned>(term)) != 0; }
   /// Adds another step's stage times (ms), for sums over steps.
   void addTimes(const StepProfile& other) {
