@@ -147,7 +147,9 @@ engine::PlyFrame plyFrame(const engine::Engine& e) {
                           {"absorbed_solvent", e.absorbedSolvent(), engine::PlyScalarType::Float32},
                           {"absorbed_solute", e.absorbedSolute(), engine::PlyScalarType::Float32},
                           {"adsorbed_solute", e.adsorbedSolute(), engine::PlyScalarType::Float32}};
-  for (auto& attribute : engine::velocityAttributes(e.liquidVelocities())) ply.vertexAttributes.push_back(attribute);
+  for (auto& attribute : engine::velocityAttributes(e.liquidWorldVelocities())) ply.vertexAttributes.push_back(attribute);
+  for (auto& attribute : engine::relativeVelocityAttributes(e.liquidVelocities()))
+    ply.vertexAttributes.push_back(attribute);
   ply.vertexColors = engine::vertexColorsToBytes(e.colors());
   return ply;
 }

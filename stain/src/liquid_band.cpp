@@ -89,7 +89,8 @@ void markWetVertices(double wetThreshold, const StainState& state, LiquidBand& b
     const size_t k = static_cast<size_t>(i);
     band.vertices.push_back(i);
     band.levels[k] = 0;
-    band.wetMask[k] = band.haloMask[k] = band.reachMask[k] = band.bandMask[k] = band.diffusionMask[k] = 1;
+    band.wetMask[k] = band.haloMask[k] = band.reachMask[k] = band.bandMask[k] = band.diffusionMask[k] =
+        LiquidBand::kHoldsLiquid;
   }
   band.ringEnds.push_back(static_cast<int>(band.vertices.size()));
 }

@@ -134,6 +134,7 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   densityScratch_.resize(n, topology.edgeCount());
   band_.resize(n);
   initialVelocities_ = RowVectors3::Zero(n, 3);
+  surfaceVelocityScratch_ = RowVectors3::Zero(n, 3);
 }
 
 StainSolver::~StainSolver() = default;
@@ -160,6 +161,21 @@ Complex StainSolver::velocityInCurrentFrame(int i) const {
   if (omega.rows() != state_.vertexCount() || omega(i, 2) == 0.0) return u;
   return u * std::polar(1.0, -0.5 * omega(i, 2) * systems_.factorizedStep());
 }
+
+Vector3 StainSolver::surfaceVelocity(int i) const {
+  const ExtrinsicGeometry& e = geometry_.extrinsic();
+  const double h = systems_.factorizedStep();
+  if (!started_ || !(h > 0)) return initialVelocities_.row(i).transpose();
+  return (e.nextPositions.row(i) - e.positions.row(i)).transpose() / h;
+}
+
+Vector3 StainSolver::relativeVelocity(int i) const {
+  const Matrix3& frame = geometry_.extrinsic().nextFrames[static_cast<size_t>(i)];
+  const Complex u = velocityInCurrentFrame(i);
+  return frame.col(0) * u.real() + frame.col(1) * u.imag();
+}
+
+Vector3 StainSolver::worldVelocity(int i) const { return surfaceVelocity(i) + relativeVelocity(i); }
 
 void StainSolver::restartMotion(const RowVectors3& positions, const RowVectors3& velocities) {
   // The state is kept to the bit (u stays in the frame convention the steps
@@ -260,7 +276,33 @@ bool StainSolver::checkStage(const char* stage, StepReport& report) {
 
 void StainSolver::addDrop(const DropDef& drop) {
   undoable_ = false;
-  stain::addDrop(drop, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), state_);
+  // The drop's world velocity is made relative to the surface here; u is
+  // blended in the current frames (nextFrames), so a state kept in the last
+  // step's midpoint frames is turned there and back (exact rotations).
+  const int n = state_.vertexCount();
+  surfaceVelocityScratch_.resize(n, 3);
+  for (int i = 0; i < n; ++i) surfaceVelocityScratch_.row(i) = surfaceVelocity(i).transpose();
+  ComplexVector& u = state_.velocities;
+  for (int i = 0; i < n; ++i) {
+    const Complex turned = velocityInCurrentFrame(i);
+    u[i] = turned;
+  }
+  const RowVectors3& omega = geometry_.extrinsic().vertexAngularVelocities;
+  const bool midpoint = started_ && def_.switches.coriolis && def_.switches.velocityAdvection &&
+                        def_.switches.coriolisScheme == CoriolisScheme::ExactRotation && omega.rows() == n;
+  const auto turnBack = [&] {
+    if (!midpoint) return;
+    for (int i = 0; i < n; ++i)
+      if (omega(i, 2) != 0.0) u[i] *= std::polar(1.0, 0.5 * omega(i, 2) * systems_.factorizedStep());
+  };
+  try {
+    stain::addDrop(drop, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), state_,
+                   &surfaceVelocityScratch_);
+  } catch (...) {
+    turnBack();
+    throw;
+  }
+  turnBack();
 }
 
 void StainSolver::addHeldRegion(const HeldRegion& region) {

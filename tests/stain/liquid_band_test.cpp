@@ -121,6 +121,7 @@ struct CoastRun {
   double travelError = 0;     ///< |centroid travel − v t| / (v t) at the end
   double velocitySpread = 0;  ///< max over wet vertices |u_i − v| / |v| at the end
   int bandEscapes = 0;        ///< vertices holding liquid after a step outside that step's band
+  StepProfile lastProfile;
 };
 
 /// A drop of radius 0.1 m launched at 0.5 m/s along x on a flat 1.4 m x
@@ -152,6 +153,7 @@ CoastRun coast(double viscosity, double h) {
     for (int i = 0; i < solver.state().vertexCount(); ++i)
       if (solver.state().solvent[i] > 0.0 && levels[static_cast<size_t>(i)] < 0) ++run.bandEscapes;
   }
+  run.lastProfile = solver.profile();
   const double travel = (centroid(solver) - start).dot(v.normalized());
   run.travelError = std::abs(travel / (v.norm() * steps * h) - 1.0);
   for (int i = 0; i < solver.state().vertexCount(); ++i)
@@ -182,6 +184,9 @@ TEST(LiquidBand, UniformlyMovingFilmKeepsItsVelocityUnderViscosity) {
     EXPECT_LT(run.momentumError, 1e-6);
     EXPECT_LT(run.velocitySpread, 1e-6) << "rigid translation must be in the null space of the velocity diffusion";
     EXPECT_LT(run.travelError, 0.02);
+    EXPECT_TRUE(run.lastProfile.ran(viscosity < 0.1 ? StepTerm::VelocityDiffusionKrylov
+                                                    : StepTerm::VelocityDiffusionDirect))
+        << describeTerms(run.lastProfile);
   }
 }
 
@@ -280,6 +285,43 @@ TEST(LiquidBand, HeldLiquidGetsTheStepsPush) {
               uHeld.imag(), uDrop.real(), uDrop.imag());
   EXPECT_GT(std::abs(uDrop), 0.01) << "the sheet's acceleration must push the liquid";
   EXPECT_LT(std::abs(uHeld - uDrop), 1e-12 * std::abs(uDrop) + 1e-15);
+}
+
+// ------------------------------------------------------- world velocity
+
+/// A sheet translating at 0.3 m/s along x: DropDef::velocity is the drop's
+/// world velocity (the sheet's own is subtracted), relativeVelocity one
+/// relative to the sheet; the solver reports both.
+TEST(LiquidBand, DropVelocityIsWorldAndRelativeVelocityIsToTheCloth) {
+  const TriangleMesh mesh = gridMesh(20, 10, 2.0, 1.0);
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  StainSolver solver(topology, mesh.vertexPositions,
+                     isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 1e-4), transportOnly(false));
+  const Vector3 sheet(0.3, 0.0, 0.0);
+  const RowVectors3 velocities = sheet.transpose().replicate(mesh.vertexPositions.rows(), 1);
+  solver.setInitialMotion(mesh.vertexPositions, velocities);
+  DropDef atRestInTheRoom;
+  atRestInTheRoom.centerVertex = 5 * 21 + 5;
+  atRestInTheRoom.radius = 0.01;
+  solver.addDrop(atRestInTheRoom);
+  DropDef onTheSheet = atRestInTheRoom;
+  onTheSheet.centerVertex = 5 * 21 + 15;
+  onTheSheet.velocity = sheet;
+  onTheSheet.relativeVelocity = Vector3(0.0, 0.2, 0.0);
+  solver.addDrop(onTheSheet);
+  const int a = atRestInTheRoom.centerVertex, b = onTheSheet.centerVertex;
+  EXPECT_LT(solver.worldVelocity(a).norm(), 1e-14);
+  EXPECT_LT((solver.relativeVelocity(a) + sheet).norm(), 1e-14);
+  EXPECT_LT((solver.relativeVelocity(b) - Vector3(0.0, 0.2, 0.0)).norm(), 1e-14);
+  EXPECT_LT((solver.worldVelocity(b) - Vector3(0.3, 0.2, 0.0)).norm(), 1e-14);
+  // After steps of the uniform translation (no force) the world velocities hold.
+  for (int k = 1; k <= 5; ++k) {
+    RowVectors3 p = mesh.vertexPositions;
+    p.col(0).array() += sheet.x() * k * 0.01;
+    ASSERT_EQ(solver.step(0.01, p).status, StepStatus::Ok);
+  }
+  EXPECT_LT(solver.worldVelocity(a).norm(), 1e-12);
+  EXPECT_LT((solver.worldVelocity(b) - Vector3(0.3, 0.2, 0.0)).norm(), 1e-12);
 }
 
 // ------------------------------------------------------------ the band

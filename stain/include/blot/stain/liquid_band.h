@@ -23,7 +23,10 @@ struct LiquidBand {
   std::vector<int> ringEnds;
   /// #V: level of each vertex in the band, −1 outside.
   std::vector<int> levels;
-  /// #V masks for the stages (1 inside, 0 outside):
+  /// Mask value of a vertex holding liquid (the interaction's "wet front"
+  /// test reads it); other band vertices are 1, vertices outside 0.
+  static constexpr char kHoldsLiquid = 2;
+  /// #V masks for the stages (kHoldsLiquid on the wet set, 1 elsewhere inside, 0 outside):
   std::vector<char> wetMask;        ///< level 0: holds liquid (densities are advected from here)
   std::vector<char> haloMask;       ///< levels 0..1: wet and the one-ring halo
   std::vector<char> reachMask;      ///< levels 0..reachRings: where liquid can be after this step

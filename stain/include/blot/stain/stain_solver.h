@@ -89,6 +89,8 @@ class StainSolver {
   /// step's to the Kabsch fit's rounding. The caller guarantees rigidity.
   StepReport stepRigid(double h, const RowVectors3& nextPositions, const Matrix3& rotation);
 
+  /// Adds a drop now (DropDef::velocity is its world velocity, relativeVelocity
+  /// one relative to the cloth; see sources.h).
   void addDrop(const DropDef& drop);
   void addHeldRegion(const HeldRegion& region);
 
@@ -99,6 +101,15 @@ class StainSolver {
   /// behind: this turns it the rest of the way, exp(−iω_n h/2). Everything
   /// that reads u in world coordinates (coupling, views, outputs) uses it.
   Complex velocityInCurrentFrame(int i) const;
+  /// The surface's own velocity at vertex i (m/s, world) that u is relative
+  /// to: the chord (p^{t} − p^{t−h})/h of the last step, v(0) before the first.
+  Vector3 surfaceVelocity(int i) const;
+  /// The liquid's velocity at vertex i relative to the cloth, in world axes
+  /// (m/s): F_i^{t} velocityInCurrentFrame(i), frames extrinsic().nextFrames.
+  Vector3 relativeVelocity(int i) const;
+  /// The liquid's world (inertial) velocity at vertex i (m/s):
+  /// surfaceVelocity(i) + relativeVelocity(i).
+  Vector3 worldVelocity(int i) const;
   StainState& mutableState() { return state_; }
   const SurfaceGeometry& geometry() const { return geometry_; }
   const StepProfile& profile() const { return profile_; }
@@ -167,6 +178,7 @@ class StainSolver {
   LiquidBand band_;  // this step's band; its vertices are the stage checks' domain
   Vector areaScratch_;
   RowVectors3 initialVelocities_;
+  RowVectors3 surfaceVelocityScratch_;  // addDrop: surfaceVelocity of every vertex
   StepProfile profile_;
   double time_ = 0;
   int steps_ = 0;
