@@ -28,7 +28,7 @@ namespace blot::engine {
 namespace {
 
 constexpr char kMagic[8] = {'B', 'L', 'O', 'T', 'S', 'T', 'A', 'T'};
-constexpr std::uint32_t kVersion = 1;
+constexpr std::uint32_t kVersion = 2;  // 2: drops carry relativeVelocity and velocityIsWorld
 
 class Writer {
  public:
@@ -140,6 +140,8 @@ void writeDrop(Writer& w, const stain::DropDef& d) {
   w.raw(d.velocity.data(), 3);
   w.pod(d.splashSpeed);
   w.pod(d.splashSeed);
+  w.raw(d.relativeVelocity.data(), 3);
+  w.pod<std::uint8_t>(d.velocityIsWorld ? 1 : 0);
 }
 
 stain::DropDef readDrop(Reader& r) {
@@ -152,6 +154,8 @@ stain::DropDef readDrop(Reader& r) {
   for (int c = 0; c < 3; ++c) d.velocity[c] = r.pod<double>("drop");
   d.splashSpeed = r.pod<double>("drop");
   d.splashSeed = r.pod<std::uint64_t>("drop");
+  for (int c = 0; c < 3; ++c) d.relativeVelocity[c] = r.pod<double>("drop");
+  d.velocityIsWorld = r.pod<std::uint8_t>("drop") != 0;
   return d;
 }
 

@@ -194,7 +194,7 @@ void addDrop(const DropDef& drop, const SurfaceTopology& topology, const Intrins
     const double oldSolvent = state.solvent[i];
 
     Vector3 velocity = drop.velocity + drop.relativeVelocity;  // relative to the cloth below
-    if (surfaceVelocities != nullptr) velocity -= surfaceVelocities->row(i).transpose();
+    if (surfaceVelocities != nullptr && drop.velocityIsWorld) velocity -= surfaceVelocities->row(i).transpose();
     if (splash) {
       const Matrix3& frame = frames[static_cast<size_t>(i)];
       const Vector3 offset = positions.row(i).transpose() - origin;

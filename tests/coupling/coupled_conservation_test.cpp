@@ -44,7 +44,9 @@ void runClosedSystem(RelativeMomentum relative) {
   drop.radius = 0.2;
   drop.solventMass = 0.1;
   drop.soluteMass = 0.01;
-  drop.velocity = Eigen::Vector3d(0.5, 0, 0.3);  // world, projected on the tangent plane: relative to the cloth
+  // Relative to the cloth (world axes, projected on the tangent plane).
+  drop.velocity = Eigen::Vector3d(0.5, 0, 0.3);
+  drop.velocityIsWorld = false;
   drop.splashSpeed = 0.2;
   drop.splashSeed = 7;
   surface.stain().addDrop(drop);

@@ -105,6 +105,8 @@ TEST(SceneTest, EveryCommonKeyReachesItsField) {
   EXPECT_DOUBLE_EQ(d.drops[1].drop.velocity.y(), 1.0);
   EXPECT_DOUBLE_EQ(d.drops[1].drop.relativeVelocity.x(), 0.5);
   EXPECT_TRUE(d.drops[0].drop.relativeVelocity.isZero(0.0));
+  EXPECT_FALSE(d.drops[0].drop.velocityIsWorld) << "no velocity key: the drop lands at rest on the cloth";
+  EXPECT_TRUE(d.drops[1].drop.velocityIsWorld);
   ASSERT_EQ(d.heldRegions.size(), 1u);
   EXPECT_EQ(d.heldRegions[0].vertices.size(), 3u);
   EXPECT_EQ(scene.outputs.frames, 3);

@@ -329,6 +329,12 @@ TEST(LiquidBand, DropVelocityIsWorldAndRelativeVelocityIsToTheCloth) {
   onTheSheet.velocity = sheet;
   onTheSheet.relativeVelocity = Vector3(0.0, 0.2, 0.0);
   solver.addDrop(onTheSheet);
+  DropDef withTheSheet = atRestInTheRoom;  // no world velocity: lands at rest on the sheet
+  withTheSheet.centerVertex = 2 * 21 + 10;
+  withTheSheet.velocityIsWorld = false;
+  solver.addDrop(withTheSheet);
+  EXPECT_LT(solver.relativeVelocity(withTheSheet.centerVertex).norm(), 1e-14);
+  EXPECT_LT((solver.worldVelocity(withTheSheet.centerVertex) - sheet).norm(), 1e-14);
   const int a = atRestInTheRoom.centerVertex, b = onTheSheet.centerVertex;
   EXPECT_LT(solver.worldVelocity(a).norm(), 1e-14);
   EXPECT_LT((solver.relativeVelocity(a) + sheet).norm(), 1e-14);

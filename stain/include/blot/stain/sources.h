@@ -23,6 +23,10 @@ struct DropDef {
   /// Added velocity relative to the cloth (m/s, world axes), e.g. liquid
   /// poured along a moving sleeve; projected the same way.
   Vector3 relativeVelocity = Vector3::Zero();
+  /// false: `velocity` is not a world velocity but taken relative to the
+  /// cloth like relativeVelocity (a drop given no world velocity lands and
+  /// moves with the cloth; scene drops without a "velocity" key do this).
+  bool velocityIsWorld = true;
   /// Splash: outgoing radial speed (m/s) with a random angular profile from seed.
   double splashSpeed = 0;
   std::uint64_t splashSeed = 0;
