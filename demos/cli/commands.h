@@ -11,8 +11,8 @@
 
 namespace blot::cli {
 
-/// Mean stain-stage times per step (ms), one key per stage from Geometry to
-/// Sources named by stain::stageName with '_' for '-' after `prefix`
+/// Mean stain-stage times per step (ms), one key per stain stage (Geometry to
+/// Interact) named by stain::stageName with '_' for '-' after `prefix`
 /// ("geometry", "forces", "film_pressure", "advect_velocity", "coriolis", ...).
 nlohmann::json stageTimesJson(const std::array<double, stain::kStageCount>& milliseconds, double steps,
                               const std::string& prefix);

@@ -258,7 +258,7 @@ int runRotatingCloth(const DemoOptions& options) {
   std::vector<std::string> labels;
   nlohmann::json frames = nlohmann::json::array();
   Eigen::MatrixX3d colors;
-  stain::RowVectors3 worldVelocities(vertexCount, 3);
+  stain::RowVectors3 worldVelocities(vertexCount, 3), relativeVelocities(vertexCount, 3);
   ProfileSums sums;
   const auto start = std::chrono::steady_clock::now();
   for (int frame = 0; frame < options.frames; ++frame) {
@@ -276,9 +276,8 @@ int runRotatingCloth(const DemoOptions& options) {
     const stain::StainState& s = solver.state();
     const stain::ExtrinsicGeometry& geometry = solver.geometry().extrinsic();
     for (int i = 0; i < vertexCount; ++i) {
-      const stain::Matrix3& F = geometry.nextFrames[static_cast<size_t>(i)];
-      const stain::Complex u = solver.velocityInCurrentFrame(i);
-      worldVelocities.row(i) = (F.col(0) * u.real() + F.col(1) * u.imag()).transpose();
+      worldVelocities.row(i) = solver.worldVelocity(i).transpose();
+      relativeVelocities.row(i) = solver.relativeVelocity(i).transpose();
     }
     engine::stainColors(mapping, s.solvent, s.solute, s.absorbedSolute, s.adsorbedSolute, colors);
     engine::PlyFrame ply;
@@ -290,6 +289,8 @@ int runRotatingCloth(const DemoOptions& options) {
                             {"absorbed_solute", s.absorbedSolute, engine::PlyScalarType::Float32},
                             {"adsorbed_solute", s.adsorbedSolute, engine::PlyScalarType::Float32}};
     for (auto& attribute : engine::velocityAttributes(worldVelocities)) ply.vertexAttributes.push_back(attribute);
+    for (auto& attribute : engine::relativeVelocityAttributes(relativeVelocities))
+      ply.vertexAttributes.push_back(attribute);
     ply.vertexColors = engine::vertexColorsToBytes(colors);
     const std::string plyPath = plyWriter.write(frame, ply);
     renderer.beginFrame(camera);

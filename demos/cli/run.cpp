@@ -145,7 +145,9 @@ engine::PlyFrame plyFrame(const engine::Engine& e) {
                           {"absorbed_solvent", e.absorbedSolvent(), engine::PlyScalarType::Float32},
                           {"absorbed_solute", e.absorbedSolute(), engine::PlyScalarType::Float32},
                           {"adsorbed_solute", e.adsorbedSolute(), engine::PlyScalarType::Float32}};
-  for (auto& attribute : engine::velocityAttributes(e.liquidVelocities())) ply.vertexAttributes.push_back(attribute);
+  for (auto& attribute : engine::velocityAttributes(e.liquidWorldVelocities())) ply.vertexAttributes.push_back(attribute);
+  for (auto& attribute : engine::relativeVelocityAttributes(e.liquidVelocities()))
+    ply.vertexAttributes.push_back(attribute);
   ply.vertexColors = engine::vertexColorsToBytes(e.colors());
   return ply;
 }
@@ -232,7 +234,7 @@ nlohmann::json meanTimesJson(const engine::EngineStatistics& s) {
 nlohmann::json stageTimesJson(const std::array<double, stain::kStageCount>& milliseconds, double steps,
                               const std::string& prefix) {
   nlohmann::json times = nlohmann::json::object();
-  for (int k = static_cast<int>(stain::Stage::Geometry); k <= static_cast<int>(stain::Stage::Sources); ++k) {
+  for (int k = static_cast<int>(stain::kFirstStainStage); k <= static_cast<int>(stain::kLastStainStage); ++k) {
     std::string key = prefix + stain::stageName(static_cast<stain::Stage>(k));
     std::replace(key.begin(), key.end(), '-', '_');
     times[key] = milliseconds[static_cast<size_t>(k)] / steps;

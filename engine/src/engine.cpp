@@ -70,6 +70,7 @@ void validateDrop(const stain::DropDef& d, int vertexCount) {
                                 std::to_string(vertexCount) + ") (or -1 to use centerPoint)");
   for (int c = 0; c < 3; ++c) requireFinite(d.centerPoint[c], "centerPoint");
   for (int c = 0; c < 3; ++c) requireFinite(d.velocity[c], "velocity");
+  for (int c = 0; c < 3; ++c) requireFinite(d.relativeVelocity[c], "relativeVelocity");
   if (!(d.radius > 0) || !std::isfinite(d.radius)) throw std::invalid_argument("drop: radius must be finite and > 0");
   if (!(d.solventMass >= 0) || !std::isfinite(d.solventMass))
     throw std::invalid_argument("drop: solventMass must be finite and >= 0");
@@ -156,6 +157,7 @@ Engine::Engine(const EngineDef& def) : def_(def) {
   pending_.reserve(static_cast<std::size_t>(def_.dropQueueCapacity));
   normals_.resize(n, 3);
   liquidVelocities_.resize(n, 3);
+  liquidWorldVelocities_.resize(n, 3);
   colors_.resize(n, 3);
   applyDueDrops();  // drops scheduled at t = 0 show in the first views
   publishViews();
@@ -340,8 +342,8 @@ void Engine::publishViews() {
   for (int i = 0; i < s.vertexCount(); ++i) {
     const stain::Matrix3& frame = ex.nextFrames[static_cast<std::size_t>(i)];
     normals_.row(i) = frame.col(2).transpose();
-    const stain::Complex u = surface_->stain().velocityInCurrentFrame(i);
-    liquidVelocities_.row(i) = (frame.col(0) * u.real() + frame.col(1) * u.imag()).transpose();
+    liquidVelocities_.row(i) = surface_->stain().relativeVelocity(i).transpose();
+    liquidWorldVelocities_.row(i) = surface_->stain().worldVelocity(i).transpose();
   }
   stainColors(def_.colors, s.solvent, s.solute, s.absorbedSolute, s.adsorbedSolute, colors_);
 }
@@ -356,6 +358,7 @@ const Eigen::VectorXd& Engine::absorbedSolvent() const { return surface_->stain(
 const Eigen::VectorXd& Engine::absorbedSolute() const { return surface_->stain().state().absorbedSolute; }
 const Eigen::VectorXd& Engine::adsorbedSolute() const { return surface_->stain().state().adsorbedSolute; }
 const Eigen::MatrixX3d& Engine::liquidVelocities() const { return liquidVelocities_; }
+const Eigen::MatrixX3d& Engine::liquidWorldVelocities() const { return liquidWorldVelocities_; }
 const Eigen::MatrixX3d& Engine::colors() const { return colors_; }
 double Engine::time() const { return static_cast<double>(steps_) * def_.timeStep; }
 

@@ -15,7 +15,7 @@ namespace blot::engine {
 namespace {
 
 constexpr char kMagic[8] = {'B', 'L', 'O', 'T', 'S', 'T', 'A', 'T'};
-constexpr std::uint32_t kVersion = 2;  // 2: fields in the order of the state structs' field lists
+constexpr std::uint32_t kVersion = 3;  // 2: field lists; 3: drops carry relativeVelocity and velocityIsWorld
 
 /// True for a type with a field list (a visit member).
 template <typename T, typename = void>

@@ -595,7 +595,10 @@ TimedDrop parseDrop(ObjectReader& r, const stain::TriangleMesh& mesh) {
   d.radius = r.number("radius", d.radius, positive());
   d.solventMass = r.number("solvent_mass", d.solventMass, nonNegative());
   d.soluteMass = r.number("solute_mass", d.soluteMass, nonNegative());
+  // Without a world velocity the drop lands at rest on the cloth.
+  d.velocityIsWorld = r.has("velocity");
   d.velocity = r.vector3("velocity", Eigen::Vector3d::Zero());
+  d.relativeVelocity = r.vector3("relative_velocity", Eigen::Vector3d::Zero());
   d.splashSpeed = r.number("splash_speed", 0.0, nonNegative());
   d.splashSeed = static_cast<std::uint64_t>(r.integer("splash_seed", 0, closed(0, 2e9)));
   t.time = r.number("time", 0.0, nonNegative());

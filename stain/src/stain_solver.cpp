@@ -131,8 +131,8 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   diffusionScratch_.resize(n);
   velocityScratch_.resize(n);
   densityScratch_.resize(n, topology.edgeCount());
-  wet_.assign(static_cast<size_t>(n), 0);
-  wetList_.reserve(static_cast<size_t>(n));
+  band_.resize(n);
+  surfaceVelocityScratch_ = RowVectors3::Zero(n, 3);
   initialVelocities_ = RowVectors3::Zero(n, 3);
   evaporatedMass_ = Vector::Zero(n);
 }
@@ -161,6 +161,21 @@ Complex StainSolver::velocityInCurrentFrame(int i) const {
   if (omega.rows() != state_.vertexCount() || omega(i, 2) == 0.0) return u;
   return u * std::polar(1.0, -0.5 * omega(i, 2) * systems_.factorizedStep());
 }
+
+Vector3 StainSolver::surfaceVelocity(int i) const {
+  const ExtrinsicGeometry& e = geometry_.extrinsic();
+  const double h = systems_.factorizedStep();
+  if (!started_ || !(h > 0)) return initialVelocities_.row(i).transpose();
+  return (e.nextPositions.row(i) - e.positions.row(i)).transpose() / h;
+}
+
+Vector3 StainSolver::relativeVelocity(int i) const {
+  const Matrix3& frame = geometry_.extrinsic().nextFrames[static_cast<size_t>(i)];
+  const Complex u = velocityInCurrentFrame(i);
+  return frame.col(0) * u.real() + frame.col(1) * u.imag();
+}
+
+Vector3 StainSolver::worldVelocity(int i) const { return surfaceVelocity(i) + relativeVelocity(i); }
 
 void StainSolver::restartMotion(const RowVectors3& positions, const RowVectors3& velocities) {
   // The state is kept to the bit (u stays in the frame convention the steps
@@ -204,7 +219,8 @@ void StainSolver::restoreBackup() {
 }
 
 void StainSolver::injectFaultForTesting(const InjectedFault& fault) {
-  if (fault.stage < Stage::BodyForces || fault.stage > Stage::Sources)
+  const bool checked = fault.stage == Stage::Sources || (fault.stage >= Stage::BodyForces && fault.stage <= Stage::Interact);
+  if (!checked)
     throw std::invalid_argument(std::string("injected fault: '") + stageName(fault.stage) + "' is not a stain stage");
   if (fault.vertex < 0 || fault.vertex >= state_.vertexCount())
     throw std::invalid_argument("injected fault: vertex " + std::to_string(fault.vertex) + " out of range [0, " +
@@ -259,7 +275,7 @@ bool StainSolver::checkStage(Stage stage, StepReport& report) {
     finite &= std::abs(state_.velocities[i].real()) <= kLargest && std::abs(state_.velocities[i].imag()) <= kLargest;
   };
   const bool held = stage == Stage::Sources;
-  for (int i : wetList_) scan(i);
+  for (int i : band_.vertices) scan(i);
   if (held)
     for (const HeldRegion& region : heldRegions_)
       for (int v : region.vertices) scan(v);
@@ -272,7 +288,7 @@ bool StainSolver::checkStage(Stage stage, StepReport& report) {
     return !std::isfinite(state_.velocities[i].real()) || !std::isfinite(state_.velocities[i].imag());
   };
   int vertex = -1;
-  for (int i : wetList_)
+  for (int i : band_.vertices)
     if (bad(i)) {
       vertex = i;
       break;
@@ -293,7 +309,33 @@ bool StainSolver::checkStage(Stage stage, StepReport& report) {
 
 void StainSolver::addDrop(const DropDef& drop) {
   undoable_ = false;
-  stain::addDrop(drop, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), state_);
+  // The drop's world velocity is made relative to the surface here; u is
+  // blended in the current frames (nextFrames), so a state kept in the last
+  // step's midpoint frames is turned there and back (exact rotations).
+  const int n = state_.vertexCount();
+  surfaceVelocityScratch_.resize(n, 3);
+  for (int i = 0; i < n; ++i) surfaceVelocityScratch_.row(i) = surfaceVelocity(i).transpose();
+  ComplexVector& u = state_.velocities;
+  for (int i = 0; i < n; ++i) {
+    const Complex turned = velocityInCurrentFrame(i);
+    u[i] = turned;
+  }
+  const RowVectors3& omega = geometry_.extrinsic().vertexAngularVelocities;
+  const bool midpoint = started_ && def_.switches.coriolis && def_.switches.velocityAdvection &&
+                        def_.switches.coriolisScheme == CoriolisScheme::ExactRotation && omega.rows() == n;
+  const auto turnBack = [&] {
+    if (!midpoint) return;
+    for (int i = 0; i < n; ++i)
+      if (omega(i, 2) != 0.0) u[i] *= std::polar(1.0, 0.5 * omega(i, 2) * systems_.factorizedStep());
+  };
+  try {
+    stain::addDrop(drop, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), state_,
+                   &surfaceVelocityScratch_);
+  } catch (...) {
+    turnBack();
+    throw;
+  }
+  turnBack();
 }
 
 void StainSolver::addHeldRegion(const HeldRegion& region) {
@@ -306,31 +348,35 @@ void StainSolver::addHeldRegion(const HeldRegion& region) {
   heldRegions_.push_back(region);
 }
 
-void StainSolver::updateWetMask() {
-  // Wet: holds any liquid; the halo (one ring around) is wet too, since
-  // advection and diffusion move liquid into it this step.
-  const SurfaceTopology& topo = geometry_.topology();
-  const double threshold = def_.liquid.wetThreshold;
-  const int n = state_.vertexCount();
-  int wetCount = 0, haloCount = 0;
-  for (int i = 0; i < n; ++i) {
-    const bool holds = state_.solvent[i] > threshold || state_.absorbedSolvent[i] > threshold ||
-                       state_.solute[i] > threshold;
-    wet_[static_cast<size_t>(i)] = holds ? 2 : 0;
+void StainSolver::prepareBand() {
+  // The wet set, then the band around it with u extended onto it
+  // (liquid_band.h). A whole-mesh direct velocity solve reads u everywhere,
+  // so then the band (and the extension) covers the mesh.
+  markWetVertices(def_.liquid.wetThreshold, state_, band_);
+  if (band_.wetCount() == 0) {
+    profile_.wetVertices = profile_.haloVertices = profile_.bandVertices = 0;
+    return;
   }
-  for (int i = 0; i < n; ++i) {
-    if (wet_[static_cast<size_t>(i)] != 2) continue;
-    ++wetCount;
-    for (int m = topo.ringOffsets()[static_cast<size_t>(i)]; m < topo.ringOffsets()[static_cast<size_t>(i) + 1]; ++m) {
-      char& w = wet_[static_cast<size_t>(topo.ringNeighbors()[static_cast<size_t>(m)])];
-      if (w == 0) {
-        w = 1;
-        ++haloCount;
-      }
-    }
-  }
-  profile_.wetVertices = wetCount;
-  profile_.haloVertices = haloCount;
+  keepBackup();
+  const PhysicsSwitches& on = ctx_.switches;
+  // u of the wet vertices into F^t first (the discrete frame change), so the
+  // extension reads and writes one frame convention.
+  const bool frameChange = on.coriolis && on.velocityAdvection && on.coriolisScheme == CoriolisScheme::ExactRotation;
+  if (frameChange && !firstStep_) applyHalfFrameRotation(ctx_, geometry_.extrinsic(), band_.wetMask, state_);
+  LiquidBandInputs inputs;
+  inputs.h = ctx_.h;
+  inputs.gravity = on.gravity ? ctx_.gravity : Vector3::Zero();
+  inputs.useAccelerations = on.linearInertia;
+  inputs.surfaceMoved = surfaceMoved_;
+  const bool directVelocitySolve = on.velocityDiffusion && !systems_.vectorIterative();
+  inputs.extraRings = directVelocitySolve ? state_.vertexCount() : 0;
+  growLiquidBand(inputs, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), band_, state_);
+  profile_.wetVertices = band_.wetCount();
+  profile_.haloVertices = band_.haloCount;
+  profile_.bandVertices = band_.size();
+  profile_.bandRings = band_.rings;
+  profile_.reachRings = band_.reachRings;
+  profile_.markRan(Stage::LiquidBand);
 }
 
 StepReport StainSolver::step(double h, const RowVectors3& nextPositions) {
@@ -343,10 +389,10 @@ StepReport StainSolver::stepRigid(double h, const RowVectors3& nextPositions, co
   return report.ok() ? advanceStages() : report;
 }
 
-PhysicsSwitches StainSolver::activeTerms(bool surfaceMoved) const {
+PhysicsSwitches StainSolver::activeTerms(bool surfaceMoved, bool anyLiquid) const {
   const PhysicsSwitches& on = def_.switches;
   const LiquidParameters& liquid = def_.liquid;
-  const bool any = profile_.wetVertices > 0;
+  const bool any = anyLiquid;
   PhysicsSwitches active = on;
   // A zero coefficient is a term switched off: zero gravity adds nothing (and
   // drives no film pressure), a zero rate transfers nothing.
@@ -443,14 +489,10 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
   }
   profile_.geometryVertices = surfaceMoved ? state_.vertexCount() : 0;
   profile_.markRan(Stage::Geometry);
-
-  updateWetMask();
-  wetList_.clear();  // reserved for #V: no allocation
-  if (profile_.wetVertices > 0)
-    for (int i = 0; i < state_.vertexCount(); ++i)
-      if (wet_[static_cast<size_t>(i)] != 0) wetList_.push_back(i);
-  ctx_ = makeStepContext(h, def_.gravity, activeTerms(surfaceMoved), def_.liquid);
-  if (ctx_.switches.sources || profile_.wetVertices > 0) keepBackup();  // the state as the step found it
+  surfaceMoved_ = surfaceMoved;
+  // The terms as if liquid is there; the band (advanceStages) switches the
+  // liquid's terms off when there is none.
+  ctx_ = makeStepContext(h, def_.gravity, activeTerms(surfaceMoved, true), def_.liquid);
   inStep_ = true;
   return report;
 }
@@ -463,14 +505,27 @@ StepReport StainSolver::advanceStages() {
     return report;
   }
   ScopedTimer total(profile_.total);
+  // Held regions are topped up first, so liquid they add this step is in the
+  // band and gets this step's forces.
+  if (!runStage(Stage::Sources, ctx_.switches.sources, report, [&] {
+        keepBackup();
+        applySources(ctx_, heldRegions_, geometry_.intrinsic(), state_);
+        markTerms(StepTerm::Sources);
+      }))
+    return report;
+  {
+    ScopedTimer t(profile_.milliseconds[static_cast<size_t>(Stage::LiquidBand)]);
+    prepareBand();
+  }
+  if (band_.wetCount() == 0) ctx_.switches = activeTerms(surfaceMoved_, false);  // nothing to act on
   const StepContext& ctx = ctx_;
   const PhysicsSwitches& on = ctx.switches;  // the terms this step runs (activeTerms)
   const SurfaceTopology& topology = geometry_.topology();
   const IntrinsicGeometry& intrinsic = geometry_.intrinsic();
   const ExtrinsicGeometry& extrinsic = geometry_.extrinsic();
   // The Coriolis term is the discrete frame change (docs/transport.md): half
-  // the frame increment first, the frame velocity along the backtrack and the
-  // other half after the velocity advection.
+  // the frame increment in prepareBand, the frame velocity along the
+  // backtrack and the other half after the velocity advection.
   const bool frameChange = on.coriolis && on.velocityAdvection && on.coriolisScheme == CoriolisScheme::ExactRotation;
   if (evaporationWritten_) {  // the coupling reads it after every step
     evaporatedMass_.setZero();
@@ -478,18 +533,18 @@ StepReport StainSolver::advanceStages() {
   }
 
   // clang-format off
-  if (!runStage(Stage::Coriolis, frameChange && !firstStep_, report, [&] { applyHalfFrameRotation(ctx, extrinsic, wet_, state_); }) ||
-      !runStage(Stage::BodyForces, on.gravity || on.linearInertia, report, [&] { applyBodyForces(ctx, extrinsic, wet_, state_); markTerms(StepTerm::Gravity, on.gravity, StepTerm::LinearInertia, on.linearInertia); }) ||
-      !runStage(Stage::FilmPressure, on.filmPressure, report, [&] { applyFilmPressure(ctx, topology, extrinsic, wet_, state_); markTerms(StepTerm::FilmPressure); }) ||
-      !runStage(Stage::AdvectVelocity, on.velocityAdvection, report, [&] { advectVelocity(ctx, topology, intrinsic, wet_, velocityScratch_, state_); markTerms(StepTerm::VelocityAdvection); }) ||
+  const std::vector<char>& band = band_.bandMask;    // forces act here, u is defined here
+  const std::vector<char>& reach = band_.reachMask;  // where liquid can be after this step
+  if (!runStage(Stage::BodyForces, on.gravity || on.linearInertia, report, [&] { applyBodyForces(ctx, extrinsic, band, state_); markTerms(StepTerm::Gravity, on.gravity, StepTerm::LinearInertia, on.linearInertia); }) ||
+      !runStage(Stage::FilmPressure, on.filmPressure, report, [&] { applyFilmPressure(ctx, topology, extrinsic, band, state_); markTerms(StepTerm::FilmPressure); }) ||
+      !runStage(Stage::AdvectVelocity, on.velocityAdvection, report, [&] { advectVelocity(ctx, topology, intrinsic, reach, velocityScratch_, state_); markTerms(StepTerm::VelocityAdvection); }) ||
       !runStage(Stage::Coriolis, on.coriolis, report, [&] { markTerms(StepTerm::Coriolis);
-                                                            frameChange ? applyFrameVelocityChange(ctx, extrinsic, velocityScratch_.footVertices, velocityScratch_.footWeights, wet_, state_)
-                                                                        : applyCoriolis(ctx, extrinsic, wet_, state_); }) ||
-      !runStage(Stage::AdvectDensity, on.densityAdvection, report, [&] { recordAdvection(advectDensities(ctx, topology, intrinsic, extrinsic, wet_, densityScratch_, state_, &geometry_.restEdgeFrameNormals())); }) ||
-      !runStage(Stage::Diffuse, on.densityDiffusion || on.velocityDiffusion, report, [&] { return recordDiffusion(diffuse(ctx, intrinsic, systems_, diffusionScratch_, state_, &wet_)); }) ||
-      !runStage(Stage::Interact, on.absorption || on.adsorption || on.evaporation, report, [&] { interact(ctx, topology, intrinsic, wet_, state_, &evaporatedMass_); evaporationWritten_ = on.evaporation;
-                                                                                                   markTerms(StepTerm::Absorption, on.absorption, StepTerm::Adsorption, on.adsorption, StepTerm::Evaporation, on.evaporation); }) ||
-      !runStage(Stage::Sources, on.sources, report, [&] { applySources(ctx, heldRegions_, intrinsic, state_); markTerms(StepTerm::Sources); }))
+                                                            frameChange ? applyFrameVelocityChange(ctx, extrinsic, velocityScratch_.footVertices, velocityScratch_.footWeights, reach, state_)
+                                                                        : applyCoriolis(ctx, extrinsic, band, state_); }) ||
+      !runStage(Stage::AdvectDensity, on.densityAdvection, report, [&] { recordAdvection(advectDensities(ctx, topology, intrinsic, extrinsic, band_.wetMask, densityScratch_, state_, &geometry_.restEdgeFrameNormals(), &reach)); }) ||
+      !runStage(Stage::Diffuse, on.densityDiffusion || on.velocityDiffusion, report, [&] { return recordDiffusion(diffuse(ctx, intrinsic, systems_, diffusionScratch_, state_, &band_.diffusionMask)); }) ||
+      !runStage(Stage::Interact, on.absorption || on.adsorption || on.evaporation, report, [&] { interact(ctx, topology, intrinsic, reach, state_, &evaporatedMass_); evaporationWritten_ = on.evaporation;
+                                                                                                   markTerms(StepTerm::Absorption, on.absorption, StepTerm::Adsorption, on.adsorption, StepTerm::Evaporation, on.evaporation); }))
     return report;
   // clang-format on
   return finishStep();

@@ -9,8 +9,8 @@ namespace blot::stain {
 namespace {
 
 constexpr const char* kStageNames[kStageCount] = {
-    "guard",     "drops",          "cloth",    "geometry", "forces",  "film-pressure", "advect-velocity",
-    "coriolis",  "advect-density", "diffuse",  "interact", "sources", "coupling",      "validate"};
+    "guard",    "drops",           "cloth",    "geometry",       "sources", "liquid-band", "forces",  "film-pressure",
+    "advect-velocity", "coriolis", "advect-density", "diffuse", "interact", "validate",    "coupling"};
 
 }  // namespace
 
@@ -54,7 +54,7 @@ Stage stageOf(StepTerm term) {
 
 double StepProfile::stainTime() const {
   double sum = 0;
-  for (int k = static_cast<int>(Stage::Geometry); k <= static_cast<int>(Stage::Sources); ++k)
+  for (int k = static_cast<int>(kFirstStainStage); k <= static_cast<int>(kLastStainStage); ++k)
     sum += milliseconds[static_cast<size_t>(k)];
   return sum;
 }

@@ -45,7 +45,9 @@ void runClosedSystem(RelativeMomentum relative) {
   drop.radius = 0.2;
   drop.solventMass = 0.1;
   drop.soluteMass = 0.01;
-  drop.velocity = Eigen::Vector3d(0.5, 0, 0.3);  // world, projected on the tangent plane: relative to the cloth
+  // Relative to the cloth (world axes, projected on the tangent plane).
+  drop.velocity = Eigen::Vector3d(0.5, 0, 0.3);
+  drop.velocityIsWorld = false;
   drop.splashSpeed = 0.2;
   drop.splashSeed = 7;
   surface.stain().addDrop(drop);
@@ -82,8 +84,10 @@ void runClosedSystem(RelativeMomentum relative) {
   // Bullet's float steps; measured values in docs/coupling.md. The free film
   // pushes the cloth harder (its relative momentum goes through the cloth),
   // so Bullet's rounding adds up to more: 1.7e-3 since the discrete frame
-  // change (Coriolis) moves the film more freely, against 3.6e-4 dragged.
-  EXPECT_LT(drift, relative == RelativeMomentum::Free ? 3e-3 : 1e-3);
+  // change (Coriolis) moves the film more freely, against 3.6e-4 dragged;
+  // since the liquid band (issue 14) the front keeps the film's velocity and
+  // both push harder: measured 2.9e-3 free, 1.0e-3 dragged.
+  EXPECT_LT(drift, relative == RelativeMomentum::Free ? 5e-3 : 2e-3);
   EXPECT_EQ(surface.evaporatedMomentum(), Eigen::Vector3d::Zero());
   // The liquid is on the nodes: Bullet's masses are the cloth's plus the liquid's.
   EXPECT_EQ(cloth.nodeMasses(), cloth.lumpedMasses() + surface.liquidNodeMasses());

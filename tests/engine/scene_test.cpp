@@ -64,7 +64,7 @@ TEST(SceneTest, EveryCommonKeyReachesItsField) {
     "gravity": [0, 0, -9.81],
     "coupling": "two-way", "time_step": 0.005, "max_steps_per_call": 4,
     "drops": [{"vertex": 5, "radius": 0.1, "solvent_mass": 0.01, "solute_mass": 0.002, "time": 0.5},
-              {"point": [0, 0, 1], "velocity": [0, 1, 0]}],
+              {"point": [0, 0, 1], "velocity": [0, 1, 0], "relative_velocity": [0.5, 0, 0]}],
     "held_regions": [{"vertices": [1, 2, 3], "solvent_density": 2}],
     "display": {"pigment": "ink"},
     "outputs": {"frames": 3, "steps_per_frame": 2, "ply_every": 0, "directory": "out/x",
@@ -103,6 +103,10 @@ TEST(SceneTest, EveryCommonKeyReachesItsField) {
   EXPECT_DOUBLE_EQ(d.drops[0].time, 0.5);
   EXPECT_EQ(d.drops[1].drop.centerVertex, -1);
   EXPECT_DOUBLE_EQ(d.drops[1].drop.velocity.y(), 1.0);
+  EXPECT_DOUBLE_EQ(d.drops[1].drop.relativeVelocity.x(), 0.5);
+  EXPECT_TRUE(d.drops[0].drop.relativeVelocity.isZero(0.0));
+  EXPECT_FALSE(d.drops[0].drop.velocityIsWorld) << "no velocity key: the drop lands at rest on the cloth";
+  EXPECT_TRUE(d.drops[1].drop.velocityIsWorld);
   ASSERT_EQ(d.heldRegions.size(), 1u);
   EXPECT_EQ(d.heldRegions[0].vertices.size(), 3u);
   EXPECT_EQ(scene.outputs.frames, 3);

@@ -186,6 +186,13 @@ std::vector<PlyVertexAttribute> velocityAttributes(const stain::RowVectors3& ver
           PlyVertexAttribute{"vz", vertexVelocities.col(2), type}};
 }
 
+std::vector<PlyVertexAttribute> relativeVelocityAttributes(const stain::RowVectors3& vertexVelocities,
+                                                           PlyScalarType type) {
+  return {PlyVertexAttribute{"rel_vx", vertexVelocities.col(0), type},
+          PlyVertexAttribute{"rel_vy", vertexVelocities.col(1), type},
+          PlyVertexAttribute{"rel_vz", vertexVelocities.col(2), type}};
+}
+
 VertexColors8 vertexColorsToBytes(const Eigen::MatrixX3d& vertexColors) {
   VertexColors8 bytes(vertexColors.rows(), 3);
   for (Eigen::Index i = 0; i < vertexColors.rows(); ++i) {

@@ -47,7 +47,11 @@
 //    in index order, deterministic) and every pass runs over it; edges from
 //    its outermost ring outwards are closed (both sides see speed 0), which
 //    changes nothing the liquid could reach. When the wet set covers half the
-//    mesh, all vertices are active and the sweep is skipped.
+//    mesh, all vertices are active and the sweep is skipped. Given the liquid
+//    band's reach set (StainSolver), the rings stop at its edge: liquid then
+//    cannot enter a vertex whose velocity this step did not advect; the band
+//    is sized so that the physical displacement h|u| stays inside it, and
+//    what the clip removes is the far upwind tail (docs/transport.md).
 //  - Speeds per ring entry, not per edge: vertex i computes
 //    ½(U_i + U_j)·(p_j − p_i) w_ij for its own ring, and j computes the same
 //    expression with i and j swapped, which is bit for bit its negative
@@ -77,16 +81,17 @@ constexpr int kMinParallelVertices = 4096;
 // predictor cannot learn). Exact: x + |x| = 2x or 0, and halving is exact.
 inline double positivePart(double x) { return 0.5 * (x + std::abs(x)); }
 
-// Appends to `active` every unmarked neighbour of active[from, to), marking it.
+// Appends to `active` every unmarked neighbour of active[from, to) inside
+// `reach` (all when null), marking it.
 void addNextRing(const SurfaceTopology& topology, int from, int to, std::vector<int>& active,
-                 std::vector<char>& marks) {
+                 std::vector<char>& marks, const std::vector<char>* reach) {
   const std::vector<int>& offsets = topology.ringOffsets();
   const std::vector<int>& neighbors = topology.ringNeighbors();
   for (int k = from; k < to; ++k) {
     const int i = active[static_cast<size_t>(k)];
     for (int m = offsets[static_cast<size_t>(i)]; m < offsets[static_cast<size_t>(i) + 1]; ++m) {
       const int j = neighbors[static_cast<size_t>(m)];
-      if (!marks[static_cast<size_t>(j)]) {
+      if (!marks[static_cast<size_t>(j)] && (reach == nullptr || (*reach)[static_cast<size_t>(j)])) {
         marks[static_cast<size_t>(j)] = 1;
         active.push_back(j);
       }
@@ -127,7 +132,8 @@ void DensityAdvectionScratch::resize(int vertexCount, int edgeCount) {
 DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopology& topology,
                                        const IntrinsicGeometry& intrinsic, const ExtrinsicGeometry& extrinsic,
                                        const std::vector<char>& wet, DensityAdvectionScratch& scratch,
-                                       StainState& state, const EdgeFrameNormals* restEdgeFrameNormals) {
+                                       StainState& state, const EdgeFrameNormals* restEdgeFrameNormals,
+                                       const std::vector<char>* reach) {
   const int n = topology.vertexCount();
   const int edgeCount = topology.edgeCount();
   if (static_cast<int>(scratch.activeMarks.size()) != n || scratch.massSolvent.size() != n ||
@@ -148,7 +154,9 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
   if (!wet.empty()) {
     for (int i = 0; i < n; ++i) wetCount += wet[static_cast<size_t>(i)] ? 1 : 0;
   }
-  const bool everything = wet.empty() || 2 * wetCount >= n;
+  // With a reach set the rings are built even for a large wet set: liquid
+  // must not leave the band (its outer rings hold no advected velocity).
+  const bool everything = wet.empty() || (reach == nullptr && 2 * wetCount >= n);
   active.clear();
   if (everything) {
     for (int i = 0; i < n; ++i) active.push_back(i);
@@ -162,7 +170,7 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
     }
   }
   const int wetEnd = static_cast<int>(active.size());
-  if (!everything) addNextRing(topology, 0, wetEnd, active, marks);
+  if (!everything) addNextRing(topology, 0, wetEnd, active, marks, reach);
   const int firstRingEnd = static_cast<int>(active.size());
 
   // U_i = F_i u_i (world) and p_i, row-major, on active[from, to).
@@ -263,7 +271,7 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
   if (!everything) {
     int ringBegin = wetEnd, ringEnd = firstRingEnd;
     for (int ring = 2; ring <= substeps && ringEnd > ringBegin; ++ring) {
-      addNextRing(topology, ringBegin, ringEnd, active, marks);
+      addNextRing(topology, ringBegin, ringEnd, active, marks, reach);
       ringBegin = ringEnd;
       ringEnd = static_cast<int>(active.size());
     }

@@ -88,11 +88,15 @@
 //    tests/stain/krylov_diffusion_test.cpp is 9e-9 after 20 steps, far below
 //    any discretization error). Rejected: iterating to 1e-13 (~2x the
 //    iterations and more rings for a change nobody can measure).
-//  - Velocity: u matters only where there is liquid. Given the step's wet
-//    mask, the connection system is solved on the wet and halo vertices only,
-//    the dry vertices' u entering as fixed (Dirichlet) values and left as
-//    they are; without a mask (tests), like the densities, on the Krylov
-//    support.
+//  - Velocity: u matters only where there is liquid. Given a mask (the
+//    solver passes the liquid band less its outermost ring), the connection
+//    system is solved on the masked vertices only, the u of their unmasked
+//    neighbours entering as fixed (Dirichlet) values and left as they are.
+//    The solver extends the liquid's velocity onto the band first, so that
+//    boundary data is the liquid's own velocity, not a dry vertex's zero
+//    (which pinned the wet front to rest and acted as friction, issue 14): a
+//    uniformly moving film is in the null space and keeps its velocity.
+//    Without a mask (tests), like the densities, on the Krylov support.
 //  - After a CG solve the limiter visits only the active list (the only
 //    vertices that can be negative), in its order.
 #include <blot/stain/stages/diffusion.h>

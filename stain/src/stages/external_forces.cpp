@@ -48,7 +48,10 @@
 //    the kick by sinc²(ωh/2), which damps; with the exact one the split step
 //    reached ×14 instead of ×4.8 after 20 steps (whole disc wet, ωh = 2), and
 //    the frame change would no longer conserve V (×3.0).
-//  - Only wet vertices are touched (DESIGN.md: a dry vertex needs no work).
+//  - Only the liquid band is touched (the mask the solver passes; DESIGN.md:
+//    a dry vertex needs no work only if no liquid can reach it this step).
+//    The band's extended velocities get the same kick as the liquid, so a
+//    vertex the liquid reaches late already moves with it (issue 14).
 //    The loop is per vertex with independent outputs: OpenMP, deterministic.
 #include <blot/stain/stages/external_forces.h>
 

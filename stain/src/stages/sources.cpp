@@ -17,8 +17,10 @@
 //    Distances are Euclidean in that shape (the header's "rest shape" is not
 //    part of the geometry cache; for an inelastic cloth the two agree up to the
 //    bending of the drop's footprint).
-//  - Velocity: world velocity v (drop.velocity plus the splash field) projected
-//    into the tangent frame, u = v·x + i v·y (the normal part is lost: the
+//  - Velocity: the drop's velocity relative to the cloth, v = drop.velocity
+//    (world) − the cloth's velocity at the vertex + drop.relativeVelocity +
+//    the splash field, projected into the tangent frame, u = v·x + i v·y
+//    (u is relative to the cloth; the normal part is lost: the
 //    liquid stays on the surface), blended with the old velocity weighted by
 //    free solvent: u ← (σ_f u + Δσ_f u_drop) / (σ_f + Δσ_f), i.e. liquid momentum
 //    is conserved.
@@ -90,6 +92,7 @@ void validate(const DropDef& drop, int vertexCount) {
   requireNonNegative(drop.solventMass, "solventMass");
   requireNonNegative(drop.soluteMass, "soluteMass");
   for (int c = 0; c < 3; ++c) requireFinite(drop.velocity[c], "velocity");
+  for (int c = 0; c < 3; ++c) requireFinite(drop.relativeVelocity[c], "relativeVelocity");
   requireNonNegative(drop.splashSpeed, "splashSpeed");
 }
 
@@ -116,7 +119,7 @@ struct SplashProfile {
 }  // namespace
 
 void addDrop(const DropDef& drop, const SurfaceTopology& topology, const IntrinsicGeometry& intrinsic,
-             const ExtrinsicGeometry& extrinsic, StainState& state) {
+             const ExtrinsicGeometry& extrinsic, StainState& state, const RowVectors3* surfaceVelocities) {
   const int n = topology.vertexCount();
   validate(drop, n);
   if (state.vertexCount() != n || intrinsic.vertexDualAreas.size() != n) {
@@ -128,6 +131,9 @@ void addDrop(const DropDef& drop, const SurfaceTopology& topology, const Intrins
   const std::vector<Matrix3>& frames = useNext ? extrinsic.nextFrames : extrinsic.frames;
   if (positions.rows() != n || static_cast<int>(frames.size()) != n) {
     throw std::invalid_argument("addDrop: extrinsic geometry has no positions/frames for this mesh");
+  }
+  if (surfaceVelocities != nullptr && surfaceVelocities->rows() != n) {
+    throw std::invalid_argument("addDrop: surface velocities must have one row per vertex");
   }
   const Vector& areas = intrinsic.vertexDualAreas;
 
@@ -187,7 +193,8 @@ void addDrop(const DropDef& drop, const SurfaceTopology& topology, const Intrins
     const double addedSolvent = drop.solventMass * share;
     const double oldSolvent = state.solvent[i];
 
-    Vector3 velocity = drop.velocity;
+    Vector3 velocity = drop.velocity + drop.relativeVelocity;  // relative to the cloth below
+    if (surfaceVelocities != nullptr && drop.velocityIsWorld) velocity -= surfaceVelocities->row(i).transpose();
     if (splash) {
       const Matrix3& frame = frames[static_cast<size_t>(i)];
       const Vector3 offset = positions.row(i).transpose() - origin;

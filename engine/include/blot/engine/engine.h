@@ -190,7 +190,11 @@ class Engine {
   const Eigen::VectorXd& absorbedSolvent() const;  ///< σ_p (kg/m²)
   const Eigen::VectorXd& absorbedSolute() const;   ///< σ_s,p (kg/m²)
   const Eigen::VectorXd& adsorbedSolute() const;   ///< σ_s,a (kg/m²)
-  const Eigen::MatrixX3d& liquidVelocities() const;  ///< tangential liquid velocity, world frame (m/s)
+  /// Liquid velocity relative to the cloth, tangential, in world axes (m/s).
+  const Eigen::MatrixX3d& liquidVelocities() const;
+  /// Liquid velocity in the world (inertial) frame: the cloth's velocity plus
+  /// liquidVelocities() (m/s).
+  const Eigen::MatrixX3d& liquidWorldVelocities() const;
   const Eigen::MatrixX3d& colors() const;      ///< display colour in [0, 1] (Beer–Lambert, stain_color.h)
 
   double time() const;                 ///< simulated time (s)
@@ -233,7 +237,7 @@ class Engine {
   std::int64_t steps_ = 0;
   std::uint64_t meshFingerprint_ = 0;
   // Views (preallocated, rewritten by publishViews).
-  Eigen::MatrixX3d normals_, liquidVelocities_, colors_;
+  Eigen::MatrixX3d normals_, liquidVelocities_, liquidWorldVelocities_, colors_;
   // Statistics.
   double droppedTime_ = 0, wallSeconds_ = 0;
   int dropsApplied_ = 0, intrinsicRefreshes_ = 0;

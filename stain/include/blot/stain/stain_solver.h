@@ -7,6 +7,7 @@
 /// velocities at t are centred), then advances the stain from t to t + h.
 #include <blot/stain/stages/density_advection.h>
 #include <blot/stain/stages/diffusion.h>
+#include <blot/stain/stages/liquid_band.h>
 #include <blot/stain/stages/sources.h>
 #include <blot/stain/stain_state.h>
 #include <blot/stain/step_context.h>
@@ -105,6 +106,8 @@ class StainSolver {
   /// m and m/s (restartMotion). A step that never began changes nothing.
   void abandonStep(const RowVectors3& positions, const RowVectors3& velocities);
 
+  /// Adds a drop now (DropDef::velocity is its world velocity, relativeVelocity
+  /// one relative to the cloth; see sources.h).
   void addDrop(const DropDef& drop);
   void addHeldRegion(const HeldRegion& region);
 
@@ -115,6 +118,20 @@ class StainSolver {
   /// behind: this turns it the rest of the way, exp(−iω_n h/2). Everything
   /// that reads u in world coordinates (coupling, views, outputs) uses it.
   Complex velocityInCurrentFrame(int i) const;
+  /// The surface's own velocity at vertex i (m/s, world) that u is relative
+  /// to: the chord (p^{t} − p^{t−h})/h of the last step, v(0) before the first.
+  Vector3 surfaceVelocity(int i) const;
+  /// The liquid's velocity at vertex i relative to the cloth, in world axes
+  /// (m/s): F_i^{t} velocityInCurrentFrame(i), frames extrinsic().nextFrames.
+  Vector3 relativeVelocity(int i) const;
+  /// The liquid's world (inertial) velocity at vertex i (m/s):
+  /// surfaceVelocity(i) + relativeVelocity(i).
+  Vector3 worldVelocity(int i) const;
+  /// The liquid band of the last step (docs/transport.md): wet vertices
+  /// first, then ring by ring; the one set of vertices the step worked on.
+  /// Valid until the next step.
+  const std::vector<int>& bandVertices() const { return band_.vertices; }
+  const LiquidBand& band() const { return band_; }
   StainState& mutableState() { return state_; }
   const SurfaceGeometry& geometry() const { return geometry_; }
   const StepProfile& profile() const { return profile_; }
@@ -146,10 +163,13 @@ class StainSolver {
   void injectFaultForTesting(const InjectedFault& fault);
 
  private:
-  void updateWetMask();
+  /// Stage LiquidBand: marks the wet set, takes the backup if the step has
+  /// liquid, turns the wet u into F^t (the first half of the discrete frame
+  /// change), then grows the liquid band and extends u onto it (liquid_band.h).
+  void prepareBand();
   /// The terms this step runs: def_'s switches, less those with nothing to
   /// act on (no liquid, a surface that did not move, a zero coefficient).
-  PhysicsSwitches activeTerms(bool surfaceMoved) const;
+  PhysicsSwitches activeTerms(bool surfaceMoved, bool anyLiquid) const;
   /// Copies the state into backup_ before the step's first change to it.
   void keepBackup();
   /// state_ = backup_, rescaled to the present dual areas when the step being
@@ -162,7 +182,7 @@ class StainSolver {
   template <class Work>
   bool runStage(Stage stage, bool active, StepReport& report, Work&& work);
   /// After `stage`: writes an armed testing fault due now, then checks the
-  /// wet + halo vertices (and held ones after Sources) for non-finite values
+  /// band's vertices (and held ones after Sources) for non-finite values
   /// and negative densities. Fills `report` and restores the state when one
   /// is bad; returns false then.
   bool checkStage(Stage stage, StepReport& report);
@@ -182,7 +202,6 @@ class StainSolver {
   double backupTime_ = 0;   // time_ when backup_ was taken
   InjectedFault fault_;      // testing; armed when set
   StepContext ctx_;          // this step's constants and active terms (refreshGeometry)
-  std::vector<int> wetList_;  // wet + halo vertices this step (the stage checks' domain)
   bool undoable_ = false;   // the last step succeeded and undoLastStep has not run
   bool backedUp_ = false;   // backup_ holds the state this step began with
   bool inStep_ = false;     // refreshGeometry succeeded and the step has not finished
@@ -192,7 +211,9 @@ class StainSolver {
   VelocityAdvectionScratch velocityScratch_;
   DensityAdvectionScratch densityScratch_;
   std::vector<HeldRegion> heldRegions_;
-  std::vector<char> wet_;
+  LiquidBand band_;  // this step's band; its vertices are the stage checks' domain
+  RowVectors3 surfaceVelocityScratch_;  // addDrop: surfaceVelocity of every vertex
+  bool surfaceMoved_ = false;           // this step's surface moved (refreshGeometry)
   Vector areaScratch_;
   Vector evaporatedMass_;  // #V kg, the last step's per-vertex evaporation
   bool evaporationWritten_ = false;  // evaporatedMass_ holds nonzero values

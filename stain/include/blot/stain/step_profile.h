@@ -11,12 +11,15 @@ namespace blot::stain {
 /// times and "ran" bits, StepReport::stage and InjectedFault::stage.
 /// Guard and Validate are the checks before and after the work; Drops, Cloth
 /// and Coupling belong to the coupled step (coupling/, engine/), the others to
-/// the stain step (StainSolver).
+/// the stain step (StainSolver), which checks its output after each of Sources,
+/// BodyForces … Interact (those can carry an InjectedFault).
 enum class Stage : int {
   Guard,           ///< arguments checked before anything changes
   Drops,           ///< drops queued since the last step are added
   Cloth,           ///< the cloth (any SurfaceMotion) advances to t + h
   Geometry,        ///< extrinsic refresh; intrinsic rebuild and refactorization when the metric changed
+  Sources,         ///< held regions, topped up first so new liquid gets this step's forces
+  LiquidBand,      ///< the wet set, the band around it and u extended onto it
   BodyForces,      ///< tangential gravity and linear inertia −Fᵀp̈
   FilmPressure,    ///< −∇p_ext/ρ of the film's hydrostatic pressure
   AdvectVelocity,  ///< semi-Lagrangian u
@@ -24,11 +27,13 @@ enum class Stage : int {
   AdvectDensity,   ///< upwind σ fluxes
   Diffuse,         ///< implicit diffusion of σ_f, σ_s and u
   Interact,        ///< absorption, adsorption, evaporation
-  Sources,         ///< held regions
+  Validate,        ///< every value finite and no negative density after the stain step
   Coupling,        ///< liquid mass and momentum exchanged with the cloth
-  Validate,        ///< every value finite and no negative density after the step
 };
-inline constexpr int kStageCount = 14;
+inline constexpr int kStageCount = 15;
+/// The stain step's stages (StainSolver), Geometry through Interact.
+inline constexpr Stage kFirstStainStage = Stage::Geometry;
+inline constexpr Stage kLastStainStage = Stage::Interact;
 
 /// The stage's name in reports, fault injection and profile JSON ("guard",
 /// "cloth", "forces", "film-pressure", "advect-velocity", ...).
@@ -47,19 +52,19 @@ enum class StepTerm : unsigned {
   RigidFrames = 1u << 1,         ///< Geometry: a known rigid motion, no fits (all #V)
   IntrinsicRebuild = 1u << 2,    ///< Geometry: metric rebuilt, the strain passed the tolerance (all #V)
   Factorization = 1u << 3,       ///< Geometry: diffusion systems refactorized (new metric or new h)
-  Gravity = 1u << 4,             ///< BodyForces: tangential gravity (wet + halo)
-  LinearInertia = 1u << 5,       ///< BodyForces: −Fᵀ p̈ (wet + halo)
-  Coriolis = 1u << 6,            ///< Coriolis: −2 ω × u (wet + halo)
-  FilmPressure = 1u << 7,        ///< FilmPressure: −∇p_ext/ρ (wet + halo)
-  VelocityAdvection = 1u << 8,   ///< AdvectVelocity: semi-Lagrangian u (wet + halo)
-  DensityAdvection = 1u << 9,    ///< AdvectDensity: upwind σ fluxes (wet + sub-step halo)
+  Gravity = 1u << 4,             ///< BodyForces: tangential gravity (band)
+  LinearInertia = 1u << 5,       ///< BodyForces: −Fᵀ p̈ (band)
+  Coriolis = 1u << 6,            ///< Coriolis: −2 ω × u (band; the frame change on the reach set)
+  FilmPressure = 1u << 7,        ///< FilmPressure: −∇p_ext/ρ (band)
+  VelocityAdvection = 1u << 8,   ///< AdvectVelocity: semi-Lagrangian u (the band's reach set)
+  DensityAdvection = 1u << 9,    ///< AdvectDensity: upwind σ fluxes (wet + sub-step rings, inside the reach set)
   DensityDiffusionKrylov = 1u << 10,   ///< Diffuse: σ_f, σ_s by CG on the liquid's Krylov support
   DensityDiffusionDirect = 1u << 11,   ///< Diffuse: σ_f, σ_s by the factorization (all #V)
-  VelocityDiffusionKrylov = 1u << 12,  ///< Diffuse: u by CG on the wet + halo vertices
+  VelocityDiffusionKrylov = 1u << 12,  ///< Diffuse: u by CG on the band (its outermost ring as boundary data)
   VelocityDiffusionDirect = 1u << 13,  ///< Diffuse: u by the factorization (all #V)
-  Absorption = 1u << 14,         ///< Interact: K_p > 0 (wet + halo)
-  Adsorption = 1u << 15,         ///< Interact: K_d > 0 (wet + halo)
-  Evaporation = 1u << 16,        ///< Interact: K_evap > 0 (wet + halo)
+  Absorption = 1u << 14,         ///< Interact: K_p > 0 (reach set)
+  Adsorption = 1u << 15,         ///< Interact: K_d > 0 (reach set)
+  Evaporation = 1u << 16,        ///< Interact: K_evap > 0 (reach set)
   Sources = 1u << 17,            ///< Sources: held regions
 };
 /// Number of StepTerm bits (bit k = 1u << k for k in [0, kStepTermCount)).
@@ -84,18 +89,23 @@ struct StepProfile {
   int limiterCorrectedVertices = 0;  ///< vertices whose negative density the limiter fixed
   double limiterMovedMass = 0;     ///< kg moved by the positivity limiter
   int vertexCount = 0;             ///< #V of the surface
-  int haloVertices = 0;            ///< dry vertices next to wet ones, worked on with them
+  int haloVertices = 0;            ///< dry vertices next to wet ones (level 1 of the band)
+  /// Vertices of the liquid band (wet + the rings the step can reach and read,
+  /// StainSolver::bandVertices; the whole mesh with a direct velocity solve).
+  int bandVertices = 0;
+  int bandRings = 0;               ///< rings of the band beyond the wet set
+  int reachRings = 0;              ///< rings liquid and foot points can move this step (R)
   int geometryVertices = 0;        ///< vertices the extrinsic refresh recomputed (#V, 0 if the surface did not move)
   int advectionVertices = 0;       ///< vertices density advection worked on (wet + sub-step halo, or #V)
   int densityDiffusionVertices = 0;   ///< rows of the density solve (Krylov support, #V if direct)
-  int velocityDiffusionVertices = 0;  ///< rows of the velocity solve (wet + halo, #V if direct)
+  int velocityDiffusionVertices = 0;  ///< rows of the velocity solve (band less its outer ring, #V if direct)
 
   double time(Stage stage) const { return milliseconds[static_cast<size_t>(stage)]; }
   bool ran(Stage stage) const { return (stagesRan & (1u << static_cast<unsigned>(stage))) != 0; }
   bool ran(StepTerm term) const { return (terms & static_cast<unsigned>(term)) != 0; }
   void markRan(Stage stage) { stagesRan |= 1u << static_cast<unsigned>(stage); }
   void markRan(StepTerm term) { terms |= static_cast<unsigned>(term); }
-  /// The stain stages' time (ms): Geometry through Sources.
+  /// The stain stages' time (ms): kFirstStainStage through kLastStainStage.
   double stainTime() const;
   /// Adds another step's stage times (ms), for sums over steps.
   void addTimes(const StepProfile& other) {
@@ -128,8 +138,8 @@ struct StepReport {
 /// stage check, the rollback, the report). Never set it in production.
 struct InjectedFault {
   /// Stage after which the NaN is written: Cloth (an impulse that blows up a
-  /// Bullet cloth) and Coupling (CoupledSurface), or a stain stage from
-  /// BodyForces to Sources.
+  /// Bullet cloth) and Coupling (CoupledSurface), or a checked stain stage
+  /// (Sources, BodyForces … Interact).
   Stage stage = Stage::Guard;
   int step = 1;    ///< 1-based number of the step it fires in; it fires once
   int vertex = 0;  ///< where (the solvent density there; a node impulse for Cloth)

@@ -49,9 +49,14 @@ struct PlyWriteOptions {
   std::string comment;
 };
 
-/// The three attributes "vx", "vy", "vz" from a #V by 3 velocity array (m/s).
+/// The three attributes "vx", "vy", "vz" from a #V by 3 velocity array (m/s):
+/// the engine writes the liquid's world velocity under these names.
 std::vector<PlyVertexAttribute> velocityAttributes(const stain::RowVectors3& vertexVelocities,
                                                    PlyScalarType type = PlyScalarType::Float32);
+/// The three attributes "rel_vx", "rel_vy", "rel_vz" (m/s): the engine writes
+/// the liquid's velocity relative to the cloth (world axes) under these names.
+std::vector<PlyVertexAttribute> relativeVelocityAttributes(const stain::RowVectors3& vertexVelocities,
+                                                           PlyScalarType type = PlyScalarType::Float32);
 
 /// Converts colours in [0, 1] (#V by 3, clamped; non-finite becomes 0) to bytes,
 /// rounding to nearest.

@@ -63,10 +63,14 @@ struct DensityAdvectionReport {
 /// move further in n sub-steps); densities outside it are left untouched.
 /// restEdgeFrameNormals (SurfaceGeometry::restEdgeFrameNormals, optional): used
 /// instead of the positions' dual normals and frames when extrinsic.rigid.
+/// reach (optional, #V, nonzero = inside): the rings stop at its edge, so no
+/// mass enters a vertex outside it (the liquid band's reach set; mass stays
+/// exact, edges leaving it are closed).
 DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopology& topology,
                                        const IntrinsicGeometry& intrinsic,
                                        const ExtrinsicGeometry& extrinsic, const std::vector<char>& wet,
                                        DensityAdvectionScratch& scratch, StainState& state,
-                                       const EdgeFrameNormals* restEdgeFrameNormals = nullptr);
+                                       const EdgeFrameNormals* restEdgeFrameNormals = nullptr,
+                                       const std::vector<char>* reach = nullptr);
 
 }  // namespace blot::stain

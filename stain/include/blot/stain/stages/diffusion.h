@@ -135,10 +135,13 @@ struct DiffusionReport {
 /// per iteration, so iteration k works on the liquid and its k-ring halo only,
 /// and the result is the CG iterate of the whole-mesh system (nothing is
 /// truncated). Solvent and solute share each pass over the matrix.
-/// `wet` (optional, #V, 0 = dry, as StainSolver's wet mask): the velocity is
-/// then diffused only on the vertices marked wet or halo, with the velocities
-/// of dry vertices as fixed boundary values (u matters only where there is
-/// liquid); without it the velocity solve covers the mesh like the densities'.
+/// `wet` (optional, #V, 0 = outside; StainSolver passes the liquid band less
+/// its outermost ring, LiquidBand::diffusionMask): the velocity is then
+/// diffused by CG only on the marked vertices, with the velocities of their
+/// unmarked neighbours (the band's extended values) as fixed boundary values
+/// (u matters only where there is liquid); without it the velocity solve
+/// covers the mesh like the densities'. A direct velocity solve always covers
+/// the mesh (the solver then extends u onto the whole mesh).
 DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometry,
                         const DiffusionSystems& systems, DiffusionScratch& scratch, StainState& state,
                         const std::vector<char>* wet = nullptr);

@@ -1,6 +1,7 @@
 #pragma once
 /// Stages BodyForces and Coriolis (paper sec. 4): tangential gravity, linear
-/// inertia −Fᵀp̈ and Coriolis −2ω×u, applied to the velocity of wet vertices.
+/// inertia −Fᵀp̈ and Coriolis −2ω×u, applied to the velocity on a mask (the
+/// solver passes the liquid band: wet vertices and those with extended velocities).
 #include <blot/stain/stain_state.h>
 #include <blot/stain/step_context.h>
 #include <blot/stain/geometry/surface_geometry.h>
@@ -11,7 +12,8 @@ namespace blot::stain {
 /// Stage BodyForces: u_i += h · tangential part, in frame F_i^t, of (g − p̈_i),
 /// each term as ctx.switches has it on (gravity, linearInertia). Forward Euler
 /// is exact here: the forcing does not depend on u.
-/// `wet` (#V, nonzero = wet) restricts the work; pass an empty vector for all.
+/// `wet` (#V, nonzero = worked on; the solver passes the liquid band)
+/// restricts the work; pass an empty vector for all.
 void applyBodyForces(const StepContext& ctx, const ExtrinsicGeometry& geometry, const std::vector<char>& wet,
                      StainState& state);
 

@@ -16,8 +16,17 @@ struct DropDef {
   double radius = 0.05;          ///< m, Euclidean distance in the newest positions (t + h), not across folds
   double solventMass = 1e-3;     ///< kg spread over the drop
   double soluteMass = 1e-4;      ///< kg spread over the drop
-  /// Initial velocity in the world frame (m/s), projected into each vertex frame.
+  /// Initial velocity in the world (inertial) frame (m/s): the liquid's
+  /// velocity relative to the cloth is this minus the cloth's own velocity at
+  /// each vertex, projected into the vertex frame (the normal part is lost).
   Vector3 velocity = Vector3::Zero();
+  /// Added velocity relative to the cloth (m/s, world axes), e.g. liquid
+  /// poured along a moving sleeve; projected the same way.
+  Vector3 relativeVelocity = Vector3::Zero();
+  /// false: `velocity` is not a world velocity but taken relative to the
+  /// cloth like relativeVelocity (a drop given no world velocity lands and
+  /// moves with the cloth; scene drops without a "velocity" key do this).
+  bool velocityIsWorld = true;
   /// Splash: outgoing radial speed (m/s) with a random angular profile from seed.
   double splashSpeed = 0;
   std::uint64_t splashSeed = 0;
@@ -28,8 +37,12 @@ struct DropDef {
 /// state.addedSolvent / addedSolute. Velocity: mass-weighted blend of the old
 /// velocity and the drop's. Throws std::invalid_argument naming the field for
 /// bad values (negative mass, radius ≤ 0, vertex out of range, non-finite).
+/// surfaceVelocities (optional, #V by 3, m/s, world): the cloth's velocity
+/// at each vertex that drop.velocity is made relative to (StainSolver passes
+/// it; without it the cloth is taken at rest).
 void addDrop(const DropDef& drop, const SurfaceTopology& topology, const IntrinsicGeometry& intrinsic,
-             const ExtrinsicGeometry& extrinsic, StainState& state);
+             const ExtrinsicGeometry& extrinsic, StainState& state,
+             const RowVectors3* surfaceVelocities = nullptr);
 
 /// A region held at fixed densities: each step its vertices are set to
 /// max(σ, held σ); the added mass is recorded.

@@ -65,8 +65,9 @@ struct VelocityAdvectionReport {
 /// where it meets the boundary and the velocity is interpolated there, so the
 /// foot point never leaves the mesh (free slip: nothing is reflected or
 /// zeroed; a uniform field stays uniform up to the boundary). Walks longer
-/// than 1000 triangles stop where they are. Only wet vertices (`wet` nonzero,
-/// or all when empty) are advected; dry ones keep u. Reads state.velocities,
+/// than 1000 triangles stop where they are. Only vertices marked in `wet`
+/// (nonzero, or all when empty; the solver passes the liquid band's reach
+/// set) are advected; the others keep u. Reads state.velocities,
 /// writes them back.
 VelocityAdvectionReport advectVelocity(const StepContext& ctx, const SurfaceTopology& topology,
                                        const IntrinsicGeometry& geometry, const std::vector<char>& wet,

@@ -1,0 +1,103 @@
+#pragma once
+/// The liquid band (DESIGN.md, docs/transport.md "The liquid band"): the one
+/// set of vertices a stain step works on. Level 0 is the wet set (vertices
+/// holding liquid); level k the k-th ring around it. The band reaches as far
+/// as the step's velocity advection can look (foot points of the vertices
+/// liquid can reach), and on it the velocity is defined everywhere: outside
+/// the wet set it is extended from the wet side, so no stage ever reads a
+/// dry vertex's stale u as "liquid at rest".
+#include <blot/stain/stain_state.h>
+#include <blot/stain/geometry/surface_geometry.h>
+
+#include <vector>
+
+namespace blot::stain {
+
+/// The band of one step and its scratch, sized once (LiquidBand::resize);
+/// buildLiquidBand refills it without allocating.
+struct LiquidBand {
+  /// Band vertices, wet ones first (index order), then ring by ring (each
+  /// ring in discovery order: deterministic).
+  std::vector<int> vertices;
+  /// ringEnds[k]: end of level k in `vertices` (level 0 = wet); size rings + 1.
+  std::vector<int> ringEnds;
+  /// #V: level of each vertex in the band, −1 outside.
+  std::vector<int> levels;
+  /// Mask value of a vertex holding liquid (the interaction's "wet front"
+  /// test reads it); other band vertices are 1, vertices outside 0.
+  static constexpr char kHoldsLiquid = 2;
+  /// #V masks for the stages (kHoldsLiquid on the wet set, 1 elsewhere inside, 0 outside):
+  std::vector<char> wetMask;        ///< level 0: holds liquid (densities are advected from here)
+  std::vector<char> haloMask;       ///< levels 0..1: wet and the one-ring halo
+  std::vector<char> reachMask;      ///< levels 0..reachRings: where liquid can be after this step
+  std::vector<char> bandMask;       ///< every level: forces act here, u is defined here
+  std::vector<char> diffusionMask;  ///< every level but the outermost (velocity CG rows; the
+                                    ///< outermost ring is their boundary data)
+  int rings = 0;       ///< levels beyond the wet set (outermost level)
+  int reachRings = 0;  ///< rings liquid and foot points can move this step, R = ceil(h U / ℓ_min) + 1
+  int haloCount = 0;   ///< vertices at level 1
+  double speedBound = 0;  ///< U (m/s): bound on |u| over the band after this step's forces
+  /// #V extension weights: liquid mass A(σ_f + σ_s) on wet vertices, and on
+  /// an extended vertex the mean weight of the neighbours it was built from.
+  Vector weights;
+  /// Per ring entry (SurfaceTopology::ringNeighbors) of vertex i, neighbour j:
+  /// exp(iθ_ij), carrying j's frame into i's (eq. 6). Duplicates
+  /// VelocityAdvectionScratch::ringTransports on purpose: the band is built
+  /// before the advection and must not depend on its scratch.
+  ComplexVector ringTransports;
+  double minEdgeLength = 0;  ///< ℓ_min over the mesh (m), intrinsic
+  int preparedRebuildCount = -1;  ///< IntrinsicGeometry::rebuildCount of the tables (−1: never)
+
+  /// Sizes everything for the mesh (allocates: call at build time).
+  void resize(int vertexCount);
+  /// Level-0 count (vertices holding liquid).
+  int wetCount() const { return ringEnds.empty() ? 0 : ringEnds[0]; }
+  int size() const { return static_cast<int>(vertices.size()); }
+};
+
+/// What decides the band of a step.
+struct LiquidBandInputs {
+  double h = 0.01;  ///< time step (s)
+  Vector3 gravity = Vector3::Zero();  ///< world gravity acting this step (m/s²; zero when switched off)
+  bool useAccelerations = false;      ///< linear inertia acts this step (p̈ enters the speed bound)
+  /// Frame velocities enter the extension (the surface moved): the extension
+  /// then carries the liquid's world velocity, see extendBandVelocities.
+  bool surfaceMoved = false;
+  /// Extra rings beyond 2R (e.g. INT_MAX/2 to cover the whole connected mesh,
+  /// when the velocity diffusion is a whole-mesh direct solve).
+  int extraRings = 0;
+};
+
+/// Level 0 of the band: the vertices holding liquid (σ_f, σ_s or σ_p above
+/// wetThreshold), in index order. Resets the previous band (O(previous band)
+/// for the masks, O(#V) for the scan). Call after the sources of the step.
+void markWetVertices(double wetThreshold, const StainState& state, LiquidBand& band);
+
+/// Grows the band marked by markWetVertices ring by ring and extends the
+/// velocity onto it: state.velocities on band vertices outside the wet set
+/// are overwritten; wet ones and vertices outside the band are untouched.
+///
+/// Radius: R = ceil(h U / ℓ_min) + 1 rings with U = max |u| over the band plus
+/// h max |tangential part of g − p̈| (the speed after this step's kick; extended values included,
+/// which on a moving surface can exceed the wet ones by the frame velocity's
+/// change). A foot point of a vertex is at most h U away, so within R rings
+/// (the +1 is the triangle that contains it), and liquid is moved at most
+/// R rings by the density advection (clipped to reachMask). The band holds
+/// 2R rings (+ extraRings): the reach set, and the rings its foot points can
+/// read. Rings are added until the count satisfies the bound computed with
+/// the vertices already in it (U is updated ring by ring).
+///
+/// Extension (breadth-first, level by level): vertex i at level k gets
+///   u_i = Σ_j w_j (e^{iθ_ij} u_j + P_i (v_j − v_i)) / Σ_j w_j
+/// over its neighbours j at levels < k, w_j the weights above, e^{iθ_ij} the
+/// connection's transport from j's frame into i's, v the surface velocity of
+/// the last step (p^t − p^{t−h})/h and P_i the projection on i's tangent axes
+/// (F_i^t): the liquid's world velocity V = v + F u is extended, its part
+/// relative to the cloth carried by the connection. On a static surface the
+/// second term vanishes. state.velocities are read in F^t (after the half
+/// frame rotation of the discrete frame change).
+void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topology,
+                    const IntrinsicGeometry& intrinsic, const ExtrinsicGeometry& extrinsic, LiquidBand& band,
+                    StainState& state);
+
+}  // namespace blot::stain

@@ -1,0 +1,387 @@
+// The liquid band (issue 14): liquid keeps its momentum at the wet front.
+// A drop on a frictionless incline accelerates at g sin α, a drop launched
+// sideways coasts at its speed (with and without viscosity), liquid at rest
+// in the inertial frame on a rotating disc stays at rest, held regions get
+// the step's push, and liquid never leaves the band of its step.
+#include <blot/stain/geometry/mesh_primitives.h>
+#include <blot/stain/stain_solver.h>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <vector>
+
+namespace blot::stain {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+/// Everything off but gravity, inertia, Coriolis and the advections (and the
+/// diffusions when asked): the motion of the liquid alone.
+StainSolverDef transportOnly(bool velocityDiffusion) {
+  StainSolverDef def;
+  def.switches.densityDiffusion = false;
+  def.switches.velocityDiffusion = velocityDiffusion;
+  def.switches.absorption = def.switches.adsorption = def.switches.evaporation = false;
+  return def;
+}
+
+/// Σ m_i x_i / Σ m_i over the free solvent, at the positions the state belongs to (m).
+Vector3 centroid(const StainSolver& solver) {
+  const Vector m = solver.state().solvent.cwiseProduct(solver.geometry().intrinsic().vertexDualAreas);
+  return Vector3((solver.geometry().extrinsic().nextPositions.transpose() * m) / m.sum());
+}
+
+/// F_i u_i (m/s, world) at the state's time: u in world axes.
+Vector3 relativeWorld(const StainSolver& solver, int i) {
+  const Matrix3& F = solver.geometry().extrinsic().nextFrames[static_cast<size_t>(i)];
+  const Complex u = solver.velocityInCurrentFrame(i);
+  return F.col(0) * u.real() + F.col(1) * u.imag();
+}
+
+/// Σ m_i V_i (kg m/s), V_i = chord velocity of the surface + F_i u_i, the
+/// liquid's world velocity at the state's time.
+Vector3 momentum(const StainSolver& solver) {
+  const ExtrinsicGeometry& ex = solver.geometry().extrinsic();
+  const Vector& a = solver.geometry().intrinsic().vertexDualAreas;
+  const double h = solver.stepCount() > 0 ? solver.time() / solver.stepCount() : 1.0;
+  Vector3 p = Vector3::Zero();
+  for (int i = 0; i < solver.state().vertexCount(); ++i) {
+    const double m = a[i] * solver.state().solvent[i];
+    if (m == 0.0) continue;
+    const Matrix3& F = ex.nextFrames[static_cast<size_t>(i)];
+    const Complex u = solver.velocityInCurrentFrame(i);
+    Vector3 v = F.col(0) * u.real() + F.col(1) * u.imag();
+    if (solver.stepCount() > 0) v += (ex.nextPositions.row(i) - ex.positions.row(i)).transpose() / h;
+    p += m * v;
+  }
+  return p;
+}
+
+// ---------------------------------------------------------------- incline
+
+/// Centroid acceleration along the slope of a drop on a frictionless plane
+/// tilted by 30° (grid of n x n cells over 1 m x 1 m), from a least-squares
+/// quadratic fit of the centroid's distance along the slope over T = 0.25 s.
+double inclineAcceleration(int cells, double h) {
+  const double alpha = kPi / 6;
+  TriangleMesh mesh = gridMesh(cells, cells, 1.0, 1.0);
+  // Tilt about the x axis: y runs down the slope (−z as y grows).
+  const Eigen::Matrix3d tilt = Eigen::AngleAxisd(-alpha, Vector3::UnitX()).toRotationMatrix();
+  mesh.vertexPositions = mesh.vertexPositions * tilt.transpose();
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  StainSolver solver(topology, mesh.vertexPositions,
+                     isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 1e-4), transportOnly(false));
+  DropDef drop;
+  drop.centerPoint = tilt * Vector3(0.5, 0.2, 0.0);
+  drop.radius = 0.1;
+  drop.solventMass = 0.01;
+  drop.soluteMass = 0.0;
+  solver.addDrop(drop);
+  const Vector3 down = tilt * Vector3::UnitY();  // unit, along the slope
+  const Vector3 start = centroid(solver);
+  const int steps = static_cast<int>(std::lround(0.25 / h));
+  // Fit s(t) = c0 + c1 t + ½ a t² (normal equations on 1, t, t²/2).
+  Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
+  Vector3 rhs = Vector3::Zero();
+  for (int k = 0; k <= steps; ++k) {
+    if (k > 0) {
+      const StepReport r = solver.step(h, mesh.vertexPositions);
+      EXPECT_EQ(r.status, StepStatus::Ok) << r.message;
+    }
+    const double t = k * h, s = (centroid(solver) - start).dot(down);
+    const Vector3 basis(1.0, t, 0.5 * t * t);
+    normal += basis * basis.transpose();
+    rhs += basis * s;
+  }
+  return normal.ldlt().solve(rhs)[2];
+}
+
+TEST(LiquidBand, DropOnAFrictionlessInclineAcceleratesAtGSinAlpha) {
+  const double expected = 9.8 * std::sin(kPi / 6);
+  for (const double h : {0.01, 0.005}) {
+    double previous = 1.0;
+    for (const int cells : {20, 40, 80}) {
+      const double error = std::abs(inclineAcceleration(cells, h) / expected - 1.0);
+      std::printf("incline 30 deg, %d x %d cells, h %g: |a / (g sin a) - 1| = %.3e\n", cells, cells, h, error);
+      EXPECT_LT(error, 0.01) << cells << " cells, h " << h;
+      // Exact up to rounding: the band moves with the liquid, so the front
+      // has the bulk's velocity and the fit sees a uniform acceleration.
+      EXPECT_LT(error, std::max(1e-9, 1.5 * previous)) << "does not converge";
+      previous = std::max(error, 1e-12);
+    }
+  }
+}
+
+// --------------------------------------------------------------- coasting
+
+struct CoastRun {
+  double momentumError = 0;   ///< max over steps |P(t) − P(0)| / |P(0)|
+  double travelError = 0;     ///< |centroid travel − v t| / (v t) at the end
+  double velocitySpread = 0;  ///< max over wet vertices |u_i − v| / |v| at the end
+  int bandEscapes = 0;        ///< vertices holding liquid after a step outside that step's band
+  StepProfile lastProfile;
+};
+
+/// A drop of radius 0.1 m launched at 0.5 m/s along x on a flat 1.4 m x
+/// 0.6 m sheet (gravity normal to it: no force), for 0.8 s: it travels
+/// 0.4 m, four radii.
+CoastRun coast(double viscosity, double h) {
+  const TriangleMesh mesh = gridMesh(70, 30, 1.4, 0.6);
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  StainSolver solver(topology, mesh.vertexPositions,
+                     isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, viscosity),
+                     transportOnly(viscosity > 0));
+  const Vector3 v(0.5, 0.0, 0.0);
+  DropDef drop;
+  drop.centerPoint = Vector3(0.4, 0.3, 0.0);
+  drop.radius = 0.1;
+  drop.solventMass = 0.01;
+  drop.soluteMass = 0.0;
+  drop.velocity = v;
+  solver.addDrop(drop);
+  const Vector3 start = centroid(solver);
+  const Vector3 p0 = momentum(solver);
+  const int steps = static_cast<int>(std::lround(0.8 / h));
+  CoastRun run;
+  for (int k = 1; k <= steps; ++k) {
+    const StepReport r = solver.step(h, mesh.vertexPositions);
+    EXPECT_EQ(r.status, StepStatus::Ok) << r.message;
+    run.momentumError = std::max(run.momentumError, (momentum(solver) - p0).norm() / p0.norm());
+    const std::vector<int>& levels = solver.band().levels;
+    for (int i = 0; i < solver.state().vertexCount(); ++i)
+      if (solver.state().solvent[i] > 0.0 && levels[static_cast<size_t>(i)] < 0) ++run.bandEscapes;
+  }
+  run.lastProfile = solver.profile();
+  const double travel = (centroid(solver) - start).dot(v.normalized());
+  run.travelError = std::abs(travel / (v.norm() * steps * h) - 1.0);
+  for (int i = 0; i < solver.state().vertexCount(); ++i)
+    if (solver.state().solvent[i] > solver.definition().liquid.wetThreshold)
+      run.velocitySpread =
+          std::max(run.velocitySpread, (relativeWorld(solver, i) - v).norm() / v.norm());
+  return run;
+}
+
+TEST(LiquidBand, DropCoastsWithItsMomentum) {
+  for (const double h : {0.01, 0.04}) {  // Courant h v / ℓ = 0.25 and 1
+    const CoastRun run = coast(0.0, h);
+    std::printf("coasting drop, h %g: momentum error %.3e, travel error %.3e, velocity spread %.3e, escapes %d\n",
+                h, run.momentumError, run.travelError, run.velocitySpread, run.bandEscapes);
+    EXPECT_LT(run.momentumError, 0.01);
+    EXPECT_LT(run.travelError, 0.02);
+    EXPECT_EQ(run.bandEscapes, 0) << "liquid left the band of its step";
+  }
+}
+
+TEST(LiquidBand, UniformlyMovingFilmKeepsItsVelocityUnderViscosity) {
+  // 1e-2 m²/s: h ν / ℓ² = 0.25, the velocity solve by CG on the band;
+  // 1 m²/s: 25, the direct whole-mesh solve (the band then covers the mesh).
+  for (const double viscosity : {1e-2, 1.0}) {
+    const CoastRun run = coast(viscosity, 0.01);
+    std::printf("coasting film, viscosity %g: momentum error %.3e, travel error %.3e, velocity spread %.3e\n",
+                viscosity, run.momentumError, run.travelError, run.velocitySpread);
+    EXPECT_LT(run.momentumError, 1e-6);
+    EXPECT_LT(run.velocitySpread, 1e-6) << "rigid translation must be in the null space of the velocity diffusion";
+    EXPECT_LT(run.travelError, 0.02);
+    EXPECT_TRUE(run.lastProfile.ran(viscosity < 0.1 ? StepTerm::VelocityDiffusionKrylov
+                                                    : StepTerm::VelocityDiffusionDirect))
+        << describeTerms(run.lastProfile);
+  }
+}
+
+// ---------------------------------------------------------- rotating disc
+
+struct DiscRun {
+  /// max over steps |P/M − v₀| / max(|v₀|, ω r₀): the mass-weighted world
+  /// velocity's change, in units of the larger of the liquid's world speed
+  /// and its relative speed at the start.
+  double worldVelocityDrift = 0;
+  double centroidDrift = 0;  ///< |centroid(T) − centroid(0) − v₀ T| / r₀
+};
+
+/// Paper Fig. 5 over a quarter turn: a drop of radius 0.12 m at r₀ = 0.5 m
+/// released with world velocity v₀ (at rest: v₀ = 0) on a disc (radius 1 m)
+/// turning at 2 rad/s; its world velocity must stay v₀ and its centroid
+/// follow the straight line x₀ + v₀ t.
+DiscRun discAtRest(int rings, double h, const Vector3& v0 = Vector3::Zero()) {
+  const double omega = 2.0, r0 = 0.5;
+  const TriangleMesh mesh = discMesh(rings, 1.0);
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  StainSolver solver(topology, mesh.vertexPositions,
+                     isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 1e-4), transportOnly(false));
+  const int n = static_cast<int>(mesh.vertexPositions.rows());
+  const Vector3 w(0, 0, omega);
+  RowVectors3 velocities(n, 3);
+  for (int i = 0; i < n; ++i) velocities.row(i) = w.cross(Vector3(mesh.vertexPositions.row(i))).transpose();
+  solver.setInitialMotion(mesh.vertexPositions, velocities);
+  DropDef drop;
+  drop.centerPoint = Vector3(r0, 0, 0);
+  drop.radius = 0.12;
+  drop.solventMass = 0.01;
+  drop.soluteMass = 0.0;
+  solver.addDrop(drop);
+  StainState& s = solver.mutableState();
+  for (int i = 0; i < n; ++i) {
+    const Vector3 rel = v0 - w.cross(Vector3(mesh.vertexPositions.row(i)));
+    const Matrix3& F = solver.geometry().extrinsic().frames[static_cast<size_t>(i)];
+    s.velocities[i] = Complex(F.col(0).dot(rel), F.col(1).dot(rel));
+  }
+  const Vector3 start = centroid(solver);
+  const double mass = solver.massBudget().freeSolvent;
+  DiscRun run;
+  const int steps = static_cast<int>(std::lround(0.5 * kPi / omega / h));
+  for (int k = 1; k <= steps; ++k) {
+    const Matrix3 R = Eigen::AngleAxisd(omega * k * h, Vector3::UnitZ()).toRotationMatrix();
+    const StepReport r = solver.stepRigid(h, mesh.vertexPositions * R.transpose(), R);
+    EXPECT_EQ(r.status, StepStatus::Ok) << r.message;
+    run.worldVelocityDrift = std::max(run.worldVelocityDrift,
+                                      (momentum(solver) / mass - v0).norm() / std::max(v0.norm(), omega * r0));
+  }
+  run.centroidDrift = (centroid(solver) - start - v0 * (steps * h)).norm() / r0;
+  return run;
+}
+
+TEST(LiquidBand, LiquidAtRestOnARotatingDiscStaysAtRest) {
+  double previous = 1.0;
+  for (const int rings : {16, 32, 48}) {
+    const DiscRun run = discAtRest(rings, 0.01);
+    std::printf("rotating disc, %d rings, quarter turn: world velocity drift %.3e (omega r0), centroid drift %.3e r0\n",
+                rings, run.worldVelocityDrift, run.centroidDrift);
+    EXPECT_LT(run.worldVelocityDrift, 0.01);
+    EXPECT_LT(run.centroidDrift, previous) << "the centroid error must fall under refinement";
+    previous = run.centroidDrift;
+  }
+}
+
+TEST(LiquidBand, LiquidMovingStraightOverARotatingDiscKeepsItsWorldVelocity) {
+  // The moving case of docs/accuracy.md (c): v₀ = (−0.2, 0.2) m/s.
+  const Vector3 v0(-0.2, 0.2, 0.0);
+  double previous = 1.0;
+  for (const int rings : {16, 32, 48}) {
+    const DiscRun run = discAtRest(rings, 0.01, v0);
+    std::printf("rotating disc, %d rings, quarter turn, v0 = (-0.2, 0.2): world velocity drift %.3e, centroid "
+                "error %.3e r0\n",
+                rings, run.worldVelocityDrift, run.centroidDrift);
+    EXPECT_LT(run.worldVelocityDrift, 0.01);
+    EXPECT_LT(run.centroidDrift, previous) << "the centroid error must fall under refinement";
+    previous = run.centroidDrift;
+  }
+}
+
+// ---------------------------------------------------------------- sources
+
+/// A sheet accelerating in its plane at 1 m/s² along x: a held region (one
+/// vertex, filled in the first step) and a drop placed before the first step
+/// must get the same relative velocity: the held liquid gets every step's
+/// push, the first one included (density advection off: the liquid stays
+/// where it was put, so the region is topped up once).
+TEST(LiquidBand, HeldLiquidGetsTheStepsPush) {
+  const TriangleMesh mesh = gridMesh(20, 10, 2.0, 1.0);
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  StainSolverDef def = transportOnly(false);
+  def.switches.densityAdvection = false;
+  StainSolver solver(topology, mesh.vertexPositions,
+                     isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 1e-4), def);
+  const int held = 5 * 21 + 15, dropped = 5 * 21 + 5;
+  HeldRegion region;
+  region.vertices = {held};
+  region.solventDensity = 1.0;
+  solver.addHeldRegion(region);
+  DropDef drop;
+  drop.centerVertex = dropped;
+  drop.radius = 0.01;  // below the edge length: all on the centre vertex
+  drop.solventMass = 0.01;
+  drop.soluteMass = 0.0;
+  solver.addDrop(drop);
+  const double a = 1.0, h = 0.01;
+  for (int k = 1; k <= 4; ++k) {
+    RowVectors3 p = mesh.vertexPositions;
+    p.col(0).array() += 0.5 * a * (k * h) * (k * h);
+    ASSERT_EQ(solver.step(h, p).status, StepStatus::Ok);
+  }
+  const Complex uHeld = solver.state().velocities[held], uDrop = solver.state().velocities[dropped];
+  std::printf("accelerating sheet, 4 steps: held u = (%.6f, %.6f), drop u = (%.6f, %.6f) m/s\n", uHeld.real(),
+              uHeld.imag(), uDrop.real(), uDrop.imag());
+  EXPECT_GT(std::abs(uDrop), 0.01) << "the sheet's acceleration must push the liquid";
+  EXPECT_LT(std::abs(uHeld - uDrop), 1e-12 * std::abs(uDrop) + 1e-15);
+}
+
+// ------------------------------------------------------- world velocity
+
+/// A sheet translating at 0.3 m/s along x: DropDef::velocity is the drop's
+/// world velocity (the sheet's own is subtracted), relativeVelocity one
+/// relative to the sheet; the solver reports both.
+TEST(LiquidBand, DropVelocityIsWorldAndRelativeVelocityIsToTheCloth) {
+  const TriangleMesh mesh = gridMesh(20, 10, 2.0, 1.0);
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  StainSolver solver(topology, mesh.vertexPositions,
+                     isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 1e-4), transportOnly(false));
+  const Vector3 sheet(0.3, 0.0, 0.0);
+  const RowVectors3 velocities = sheet.transpose().replicate(mesh.vertexPositions.rows(), 1);
+  solver.setInitialMotion(mesh.vertexPositions, velocities);
+  DropDef atRestInTheRoom;
+  atRestInTheRoom.centerVertex = 5 * 21 + 5;
+  atRestInTheRoom.radius = 0.01;
+  solver.addDrop(atRestInTheRoom);
+  DropDef onTheSheet = atRestInTheRoom;
+  onTheSheet.centerVertex = 5 * 21 + 15;
+  onTheSheet.velocity = sheet;
+  onTheSheet.relativeVelocity = Vector3(0.0, 0.2, 0.0);
+  solver.addDrop(onTheSheet);
+  DropDef withTheSheet = atRestInTheRoom;  // no world velocity: lands at rest on the sheet
+  withTheSheet.centerVertex = 2 * 21 + 10;
+  withTheSheet.velocityIsWorld = false;
+  solver.addDrop(withTheSheet);
+  EXPECT_LT(solver.relativeVelocity(withTheSheet.centerVertex).norm(), 1e-14);
+  EXPECT_LT((solver.worldVelocity(withTheSheet.centerVertex) - sheet).norm(), 1e-14);
+  const int a = atRestInTheRoom.centerVertex, b = onTheSheet.centerVertex;
+  EXPECT_LT(solver.worldVelocity(a).norm(), 1e-14);
+  EXPECT_LT((solver.relativeVelocity(a) + sheet).norm(), 1e-14);
+  EXPECT_LT((solver.relativeVelocity(b) - Vector3(0.0, 0.2, 0.0)).norm(), 1e-14);
+  EXPECT_LT((solver.worldVelocity(b) - Vector3(0.3, 0.2, 0.0)).norm(), 1e-14);
+  // After steps of the uniform translation (no force) the world velocities hold.
+  for (int k = 1; k <= 5; ++k) {
+    RowVectors3 p = mesh.vertexPositions;
+    p.col(0).array() += sheet.x() * k * 0.01;
+    ASSERT_EQ(solver.step(0.01, p).status, StepStatus::Ok);
+  }
+  EXPECT_LT(solver.worldVelocity(a).norm(), 1e-12);
+  EXPECT_LT((solver.worldVelocity(b) - Vector3(0.3, 0.2, 0.0)).norm(), 1e-12);
+}
+
+// ------------------------------------------------------------ the band
+
+TEST(LiquidBand, BandIsWetFirstThenRingByRingAndCountedInTheProfile) {
+  const TriangleMesh mesh = gridMesh(30, 30, 1.0, 1.0);
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  StainSolver solver(topology, mesh.vertexPositions,
+                     isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 1e-4), transportOnly(false));
+  DropDef drop;
+  drop.centerPoint = Vector3(0.5, 0.5, 0);
+  drop.radius = 0.1;
+  drop.velocity = Vector3(1.0, 0.0, 0.0);
+  solver.addDrop(drop);
+  ASSERT_EQ(solver.step(0.05, mesh.vertexPositions).status, StepStatus::Ok);
+  const LiquidBand& band = solver.band();
+  const StepProfile& p = solver.profile();
+  const std::vector<int>& vertices = solver.bandVertices();
+  EXPECT_EQ(p.bandVertices, static_cast<int>(vertices.size()));
+  EXPECT_EQ(p.bandRings, band.rings);
+  // |u| = 1 m/s, h = 0.05 s, ℓ_min = 1/30 m: R = ceil(1.5) + 1 = 3, band 2R.
+  EXPECT_EQ(p.reachRings, 3);
+  EXPECT_EQ(p.bandRings, 6);
+  ASSERT_GT(p.wetVertices, 0);
+  int level = 0;
+  for (size_t k = 0; k < vertices.size(); ++k) {
+    const int l = band.levels[static_cast<size_t>(vertices[k])];
+    EXPECT_GE(l, level) << "levels must not decrease along bandVertices";
+    level = l;
+    if (static_cast<int>(k) < p.wetVertices) EXPECT_EQ(l, 0);
+  }
+  // Extended velocities: the drop's uniform velocity, carried unchanged on a flat sheet.
+  for (const int i : vertices) EXPECT_LT((relativeWorld(solver, i) - Vector3(1, 0, 0)).norm(), 1e-12) << i;
+}
+
+}  // namespace
+}  // namespace blot::stain
