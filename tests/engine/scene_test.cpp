@@ -132,6 +132,22 @@ TEST(SceneTest, FabricPatchesWithTensorAndPreset) {
   EXPECT_EQ(scene.engine.fabricPatches[1].faces.size(), 200u);
 }
 
+// A pattern whose homogenization bounds do not meet (here a fixed K = 1, far
+// too coarse for the twill's corners) is refused at load time, naming the
+// patch, unless the scene accepts the looser tensor explicitly.
+TEST(SceneTest, UnconvergedHomogenizationIsRefusedUnlessAccepted) {
+  const std::string coarse = R"("fabric": {"subdivisions": 1, "patches": [{"preset": "twill-2-1", "faces": "all"}]})";
+  const std::string message = errorOf(withExtra(coarse));
+  EXPECT_NE(message.find("fabric.patches[0].preset"), std::string::npos) << message;
+  EXPECT_NE(message.find("did not converge"), std::string::npos) << message;
+  EXPECT_NE(message.find("accept_unconverged"), std::string::npos) << message;
+  const std::string accepted =
+      R"("fabric": {"subdivisions": 1, "accept_unconverged": true, "patches": [{"preset": "twill-2-1", "faces": "all"}]})";
+  EXPECT_EQ(errorOf(withExtra(accepted)), "");
+  // The default (refine until the bounds meet) converges for every preset.
+  EXPECT_EQ(errorOf(withExtra(R"("fabric": {"patches": [{"preset": "twill-2-1", "faces": "all"}]})")), "");
+}
+
 TEST(SceneTest, FileMeshResolvesAgainstTheSceneFolder) {
   const std::filesystem::path dir = std::filesystem::temp_directory_path() / "blot_scene_test";
   std::filesystem::create_directories(dir / "meshes");
