@@ -1,44 +1,6 @@
 // Periodic homogenization of a weave tile (paper sec. 2, eqs. 1-2).
 //
-// Design note.
-//  - Equations: for i = x, y find the periodic corrector f_i with
-//    ∇·S(∇f_i + e_i) = 0 on the torus Ω (the tile with opposite sides glued),
-//    then S_eff e_i = (1/|Ω|) ∫ S(e_i + ∇f_i) (eq. 1: the mean flux of the
-//    cell problem whose mean gradient is e_i).
-//  - Discretization: P1 elements on a torus mesh of the tile with unit cells,
-//    each cell K x K squares, each square split into two triangles along
-//    alternating diagonals (the gridMesh "union jack"): with an even number of
-//    squares per side the mesh maps to itself under 90° rotations and axis
-//    reflections, so a symmetric pattern gets an exactly symmetric discrete
-//    S_eff, and a 90°-rotated tile an exactly swapped one. Cell interfaces lie
-//    on mesh lines, so a laminate (whose exact corrector is piecewise linear
-//    across the layers) is reproduced exactly at any K.
-//    Per triangle everything is written with the shared element kernel
-//    triangleStiffness (K_T = A ∇φᵀ S ∇φ): the load of problem i is
-//    −K_T x_i (x_i the corner coordinates, since ∇x_i = e_i) and the mean flux
-//    is Σ_T x_jᵀ K_T (x_i + f_i), so no gradient code is duplicated here.
-//  - Constraint: the periodic stiffness is singular with the constants as its
-//    null space (the torus is connected) and each load sums to zero, so the
-//    system is consistent. We pin one vertex (identity row and column, zero
-//    load): the pinned system is SPD for CHOLMOD, keeps the sparsity, and its
-//    solution solves the singular system exactly (the dropped equation is the
-//    negated sum of the others). The corrector is then shifted to zero mean;
-//    S_eff depends only on ∇f_i, so the shift is cosmetic.
-//    Rejected: a dense rank-one term 11ᵀ (destroys sparsity); a Lagrange
-//    multiplier (saddle point, not SPD, so no Cholesky); regularising with εM
-//    (changes the answer by O(ε)).
-//  - Bounds: the discrete S_eff is an energy minimum over a subspace of the
-//    periodic H¹ functions, so it bounds the exact one from above (Loewner).
-//    The complementary principle, η·S_eff⁻¹η = min ⟨q·S⁻¹q⟩ over periodic
-//    divergence-free q with ⟨q⟩ = η, becomes in 2-D (q = J(Jᵀη + ∇ψ)) the
-//    same cell problem for T = JᵀS⁻¹J = S/det S, so the same P1 solver bounds
-//    T_eff from above and S_eff = T_eff/det T_eff from below. Derivation,
-//    tests and rates: docs/patterns.md.
-//  - Refinement (kAutoSubdivisions): graded meshes (homogenization_mesh.cpp),
-//    deepened toward the lattice corners while the energy left unresolved
-//    inside the innermost rings, extrapolated from its ring-by-ring decay, is
-//    a large part of the gap, widened otherwise, until the gap meets the
-//    tolerance or the next mesh would exceed the unknown budget.
+// Design note: docs/design-notes.md, "stain/src/fabric/homogenization.cpp".
 #include <blot/stain/fabric/homogenization.h>
 
 #include <blot/stain/geometry/operators.h>

@@ -1,69 +1,7 @@
 // Stage "advect density": finite-volume upwind advection of free solvent and
 // solute (paper sec. 3.1).
 //
-// Design note.
-//  - Equation: ∂σ/∂t + ∇·(σu) = 0 for σ_f and σ_s. Cell i is vertex i's dual
-//    region (area A_i, the lumped mass); the flux through the dual edge
-//    between cells i and j is F_ij = σ↑ (u_ij · N_ij), with
-//    u_ij = ½(F_i u_i + F_j u_j) in 3D (frames at t), σ↑ the upwind density and
-//    N_ij the integrated unit normal of the dual edge between the cells.
-//    The cells are the barycentric ones (A_i = one third of the one-ring area,
-//    the lumped mass every other stage uses), so the dual edge runs from the
-//    edge midpoint to the centroid of each adjacent face and N_ij = Σ_T
-//    (c_T − m_ij) × n_T, oriented from i to j. The paper writes the flux as
-//    (u_ij · e_ij) w_ij with cotan weights, which is the same N_ij for the
-//    circumcentric (Voronoi) cells. With barycentric areas that mix moves a
-//    uniform flow at the wrong speed wherever the two cells differ (measured:
-//    the rotating-disc blob of paper Fig. 5 ran 3 % ahead, an error that does
-//    not shrink with refinement); with N_ij the cell boundary closes
-//    (Σ_j N_ij = 0 at interior vertices), a uniform flow is exact, and no
-//    weight can be negative, so obtuse triangles need no clamp.
-//  - Work in masses m_i = A_i σ_i: each edge's flux is one number that leaves
-//    one cell and enters the other, so Σ m is conserved to rounding.
-//  - Boundary: fluxes cross only dual edges, and every dual edge lies inside
-//    the surface, so nothing crosses the mesh boundary (no transfer) without
-//    any special case. A boundary edge's dual edge (midpoint to circumcentre of
-//    its one face) separates two boundary cells inside the surface; it carries
-//    flux along the boundary. Zeroing boundary edges, as first planned, would
-//    stop liquid from sliding along the boundary (against free slip) and is
-//    not needed for conservation.
-//  - Positivity and sub-steps: over a sub-step τ vertex i loses the fraction
-//    f_i = τ outflow_i / A_i of its mass (outflow_i = Σ of the speeds of its
-//    outgoing edges). n = ceil(max over wet vertices of h outflow_i / A_i)
-//    sub-steps make f_i ≤ 1. A vertex whose f_i would still exceed 1 (the cap
-//    ctx.maxAdvectionSubsteps was hit, or a dry vertex that received mass in
-//    an earlier sub-step) gives exactly what it holds: f_i = 1, split over its
-//    outgoing edges in proportion to their speeds. The update is written as
-//    m_i ← (1 − f_i) m_i + Σ_j s_ji m_j with every term ≥ 0, so no density can
-//    go negative even by rounding. Velocities are fixed during the stage, so
-//    the shares (1 − f_i, s_ji) are computed once per step and a sub-step is
-//    one fixed-weight gather over the one-rings (both species in one sweep:
-//    the second costs little once the shares are in cache).
-//    Rejected: a global CFL-limited time step (the engine's h is fixed), and
-//    clamping negative densities (not mass-conserving, hides the error).
-//  - Work restricted to the wet region: liquid moves at most one ring per
-//    sub-step, so with n sub-steps only the wet vertices and their n-ring halo
-//    can change. That set is built ring by ring (a serial breadth-first sweep
-//    in index order, deterministic) and every pass runs over it; edges from
-//    its outermost ring outwards are closed (both sides see speed 0), which
-//    changes nothing the liquid could reach. When the wet set covers half the
-//    mesh, all vertices are active and the sweep is skipped. Given the liquid
-//    band's reach set (StainSolver), the rings stop at its edge: liquid then
-//    cannot enter a vertex whose velocity this step did not advect; the band
-//    is sized so that the physical displacement h|u| stays inside it, and
-//    what the clip removes is the far upwind tail (docs/transport.md).
-//  - Speeds per ring entry, not per edge: vertex i computes
-//    ½(U_i + U_j)·(p_j − p_i) w_ij for its own ring, and j computes the same
-//    expression with i and j swapped, which is bit for bit its negative
-//    (a + b = b + a and x − y = −(y − x) in IEEE arithmetic). So every pass is a
-//    per-vertex gather over contiguous ring entries: no scatter, no atomics,
-//    OpenMP-deterministic. The Courant maximum is a max-reduction (exact).
-//  - Rigid motion (ExtrinsicGeometry::rigid): frames R F̄ and dual normals
-//    R N̄, so ½(F_i u_i + F_j u_j)·N_ij = ½(u_i·F̄_iᵀN̄_ij + u_j·F̄_jᵀN̄_ij), with
-//    the two 2D projections per edge computed once from the rest shape
-//    (SurfaceGeometry::restEdgeFrameNormals): a ring entry costs 8 products
-//    instead of two face normals and the 3D velocities (the per-entry normals
-//    were ~2/3 of this stage). Equal to the general path up to rounding.
+// Design note: docs/design-notes.md, "stain/src/stages/density_advection.cpp".
 #include <blot/stain/stages/density_advection.h>
 
 #include <algorithm>

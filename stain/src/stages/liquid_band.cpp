@@ -1,35 +1,7 @@
 // The liquid band: the wet set, the rings the step can reach, and the
 // velocity extended onto them (docs/transport.md, "The liquid band").
 //
-// Design note.
-//  - Why: a dry vertex's u is not the velocity of liquid at rest, it is no
-//    velocity at all. Where liquid can arrive this step (density fluxes use
-//    ½(U_i + U_j) on the edges of the front, the semi-Lagrangian backtrack of
-//    a front vertex starts from its own u and reads u at its foot point, the
-//    velocity diffusion couples the front to its neighbours), a stale or zero
-//    u acts as drag: a drop on a frictionless incline fell 4–5 % slower than
-//    g sin α and a coasting drop lost most of its momentum (issue 14).
-//    Free-surface solvers extend the velocity a few cells into the air each
-//    step (Adalsteinsson & Sethian 1999; Bridson ch. "extrapolation").
-//  - Extension: breadth-first, level by level; a vertex reads only strictly
-//    lower levels, so the result does not depend on the order inside a ring
-//    (deterministic, and the same on any thread count: the sweep is serial).
-//    Weights: the liquid mass of wet neighbours (the bulk's velocity counts
-//    more than a front vertex that holds a trace), then on each ring the mean
-//    weight of the vertices it was built from. Rejected: closest-wet only
-//    (one neighbour): it copies one front vertex's value along a ray, which
-//    is noisier and order-dependent on ties. What is extended is the world
-//    velocity V = v + F u (v the surface's velocity), its relative part
-//    carried by the connection's transport e^{iθ_ij} and the frame velocity's
-//    difference projected on i's tangent plane: liquid at rest in an inertial
-//    frame on a rotating disc (u = −ω × r, not parallel) is then extended
-//    exactly, where transporting u alone would be off by ω ℓ per ring.
-//  - Radius: see growLiquidBand in the header. The speed bound includes the
-//    extended values and this step's kick h |g − p̈|, updated as rings are
-//    added, so the band grows until it covers what the step can reach with
-//    the velocities it will have.
-//  - Cost: O(band ring entries) per step plus the O(#V) wet scan; the
-//    unit-complex transports are tabulated once per intrinsic rebuild.
+// Design note: docs/design-notes.md, "stain/src/stages/liquid_band.cpp".
 #include <blot/stain/stages/liquid_band.h>
 
 #include <algorithm>

@@ -1,40 +1,7 @@
 // Initial conditions and sources: drops (with "splash" velocity fields) and
 // regions held at fixed densities (paper sec. 6, Figs. 6 and 9).
 //
-// Design note.
-//  - Drop shape: a smooth compact bump w(d) = (1 − (d/R)²)², C¹ at the rim, over
-//    the vertices within distance R of the centre that are reached from the
-//    centre vertex through such vertices (a breadth-first walk over mesh edges,
-//    so a drop on a folded cloth does not jump to the layer underneath, which a
-//    plain distance test would do). Δσ_i = m w_i / Σ_k A_k w_k, so Σ A_i Δσ_i = m
-//    to rounding whatever the mesh. A radius smaller than the nearest edge puts
-//    the whole drop on the centre vertex.
-//  - Time level: a drop is added between steps, when the state belongs to the
-//    newest positions (t + h of the last refresh: the stain follows the cloth
-//    one step behind). So distances use extrinsic.nextPositions and velocities
-//    are projected into extrinsic.nextFrames, which the next refresh shifts into
-//    `positions`/`frames`; before the first step all three levels coincide.
-//    Distances are Euclidean in that shape (the header's "rest shape" is not
-//    part of the geometry cache; for an inelastic cloth the two agree up to the
-//    bending of the drop's footprint).
-//  - Velocity: the drop's velocity relative to the cloth, v = drop.velocity
-//    (world) − the cloth's velocity at the vertex + drop.relativeVelocity +
-//    the splash field, projected into the tangent frame, u = v·x + i v·y
-//    (u is relative to the cloth; the normal part is lost: the
-//    liquid stays on the surface), blended with the old velocity weighted by
-//    free solvent: u ← (σ_f u + Δσ_f u_drop) / (σ_f + Δσ_f), i.e. liquid momentum
-//    is conserved.
-//  - Splash: an outgoing field v = s (d/R)(1 + m(φ)) d̂ with d̂ the in-plane
-//    direction away from the centre, φ the angle around the centre in the centre
-//    vertex's frame, and m(φ) = Σ_{k=1..5} a_k cos(kφ + φ_k), a_k ∈ [0, 0.4/k),
-//    φ_k ∈ [0, 2π) from std::mt19937_64(splashSeed) owned by the call. Σ 0.4/k <
-//    0.92, so the speed stays positive (outgoing everywhere) and the field is zero
-//    at the centre (continuous). Doubles are made from the raw 64-bit output
-//    (top 53 bits), not std::uniform_real_distribution, whose algorithm differs
-//    between standard libraries: the same seed gives the same splash anywhere.
-//  - Held regions: each step σ ← max(σ, σ_held) on the region's vertices; the
-//    added fluid arrives at rest, so u is scaled by σ_f,old/σ_f,new (momentum
-//    conserved). The added mass (× dual area) is recorded.
+// Design note: docs/design-notes.md, "stain/src/stages/sources.cpp".
 #include <blot/stain/stages/sources.h>
 
 #include <algorithm>

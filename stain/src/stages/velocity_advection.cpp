@@ -1,64 +1,7 @@
 // Stage "advect velocity": semi-Lagrangian advection of the tangent velocity
 // in the flattened one-ring, with the triangle-strip walk (paper sec. 3.1).
 //
-// Design note.
-//  - Equation: ∂u/∂t + ∇_u u = 0 (covariant), solved semi-Lagrangian:
-//    u_i(t+h) = u(t) at the foot point x_i − h u_i, transported back to i.
-//  - Plane of vertex i: its geodesic polar map. Neighbour j sits at
-//    P_j = ℓ_ij exp(iα_ij); u_i in frame F_i is already in these coordinates
-//    (x_i is the reference edge, α = 0), so the backtrack is the straight ray
-//    t ↦ t D, D = −h u_i, t ∈ [0, 1]. The sector α_m ≤ arg D < α_{m+1} gives
-//    the ring triangle (i, j_m, j_{m+1}); if the foot lies in it, the paper's
-//    formula applies, with eq. 6's transports:
-//    u_i ← λ_i u_i + λ_m e^{iθ_{i,j_m}} u_{j_m} + λ_{m+1} e^{iθ_{i,j_{m+1}}} u_{j_{m+1}}.
-//  - Strip walk: otherwise the ray leaves through the far edge (j_m, j_{m+1}).
-//    The face on the other side (twin half-edge) is unfolded into the same
-//    plane: its apex is placed from the two known corners by the face's own
-//    shape, c = a + (b − a)(ℓ_ca/ℓ_ab)e^{iγ_a} (a similarity, so it fits the
-//    ring's edge even where the polar map rescaled the ring's angles). The
-//    ray continues straight; in each face it leaves through the edge whose
-//    endpoints lie on opposite sides of the ray (only the apex side must be
-//    tested: the entry edge's endpoints are known to be left/right), until
-//    the remaining length is used (foot inside), the boundary is met, or 1000
-//    triangles were crossed. Every branch interpolates inside a real triangle,
-//    so the foot never leaves the mesh.
-//  - Transport of a strip vertex v (corner k of the final face g) into frame
-//    i, composed as vertex frame -> face frame (faceTransportAngles φ(g,k))
-//    -> plane (the unfolded face's x-axis, corner 0 -> 1, has direction
-//    e^{iψ_g} in the plane: the unfolding is the hinge map, i.e. the discrete
-//    Levi-Civita transport across each crossed edge) -> frame i (one constant
-//    rotation per walk, e^{iκ}). κ anchors the strip to the ring: it is chosen
-//    so the two vertices of the crossed ring edge get (the mean of) their
-//    ring transports e^{iθ}. So T_v = e^{iκ} e^{iψ_g} e^{iφ(g,k)}: one complex
-//    product per vertex, no path bookkeeping, and it is the same map for every
-//    vertex of a face, so interpolation inside a face is consistent. On a flat
-//    mesh (polar maps unscaled) every piece is exact and κ = 0: a parallel
-//    (uniform) field stays uniform to rounding, and a linear field is
-//    reproduced exactly at any Courant number (tested). Rejected: composing
-//    θ along a chain of edges from i to each far vertex: needs a path per
-//    vertex, and two vertices of one face could get transports through
-//    different paths (different holonomy), so the interpolant of a parallel
-//    field would not be parallel.
-//  - Boundary (free slip): the backtrack stops where the ray meets a boundary
-//    edge and takes the value interpolated there (a boundary vertex whose ray
-//    points out of its fan keeps u_i). Nothing is reflected or zeroed here, so
-//    a uniform field stays uniform at the boundary too. Rejected: sliding the
-//    rest of the ray along the boundary, which needs a second walk along
-//    boundary loops for an effect limited to the one-ring of the boundary.
-//  - Bounds: the barycentric weights are clamped to ≥ 0 (only rounding makes
-//    them negative) and renormalised, and transports are unit complex numbers,
-//    so |u_i(t+h)| ≤ max |u(t)|: no new extrema at any Courant number.
-//  - Foot stencil: each walk also records the foot point as (at most) three
-//    vertices and the convex weights it interpolated with (before the
-//    transports), kept in the scratch for the Coriolis stage, which
-//    interpolates the surface's own velocity there (external_forces.h).
-//  - Cost: unit-complex tables (ring points, ring transports, apex ratios,
-//    face rotations) are built from the intrinsic tier once per rebuild, so a
-//    step needs no trigonometry: the sector is found with cross products (a
-//    few per wet vertex), then a few complex products per crossed triangle.
-//    Vertices are independent (each writes its own entry of
-//    scratch.advected): OpenMP over vertices, deterministic; counters are
-//    integer reductions (exact, order-free).
+// Design note: docs/design-notes.md, "stain/src/stages/velocity_advection.cpp".
 #include <blot/stain/stages/velocity_advection.h>
 
 #include <cmath>
