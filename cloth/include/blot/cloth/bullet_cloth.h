@@ -329,7 +329,7 @@ class BulletCloth final : public SurfaceMotion {
 
  private:
   friend struct BulletClothTesting;
-  struct Bullet;  // the Bullet objects, defined in bullet_cloth.cpp
+  struct Bullet;  // the Bullet objects, defined in cloth/src/bullet_cloth_impl.h
   void applyLiquidLoads();
   void movePins(double targetTime, double substep);
   void enforceTethers(double substep);
