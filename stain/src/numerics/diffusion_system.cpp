@@ -1,0 +1,142 @@
+// Assembly of the diffusion systems M + hL (refilled in place) and
+// DiffusionSystems::releaseFactors / factorize (design note: stages/diffusion.cpp).
+#include "numerics/diffusion_system.h"
+
+#include <algorithm>
+
+#include "numerics/krylov_solver.h"
+
+namespace blot::stain {
+using namespace diffusion_internal;
+namespace {
+
+// Refills `system` = M + h L in place. `system`'s pattern must contain L's
+// and the diagonal; entries of `system` that L lacks get only the mass.
+// Returns false if L has an entry `system` lacks (its pattern changed).
+template <typename Scalar>
+bool fillSystem(const Eigen::SparseMatrix<Scalar>& stiffness, const Vector& dualAreas, double h,
+                Eigen::SparseMatrix<Scalar>& system) {
+  if (system.rows() != stiffness.rows() || system.cols() != stiffness.cols() || !system.isCompressed()) {
+    return false;
+  }
+  const int n = static_cast<int>(system.cols());
+  const int* sOuter = system.outerIndexPtr();
+  const int* sInner = system.innerIndexPtr();
+  Scalar* sValues = system.valuePtr();
+  const int* lOuter = stiffness.outerIndexPtr();
+  const int* lInner = stiffness.innerIndexPtr();
+  const int* lNonZeros = stiffness.isCompressed() ? nullptr : stiffness.innerNonZeroPtr();
+  const Scalar* lValues = stiffness.valuePtr();
+  for (int j = 0; j < n; ++j) {
+    int q = lOuter[j];
+    const int qEnd = lNonZeros ? lOuter[j] + lNonZeros[j] : lOuter[j + 1];
+    bool hasDiagonal = false;
+    for (int p = sOuter[j]; p < sOuter[j + 1]; ++p) {
+      const int row = sInner[p];
+      Scalar value(0);
+      if (q < qEnd && lInner[q] == row) {
+        value = h * lValues[q];
+        ++q;
+      } else if (q < qEnd && lInner[q] < row) {
+        return false;  // L has an entry the system lacks.
+      }
+      if (row == j) {
+        value += Scalar(dualAreas[j]);
+        hasDiagonal = true;
+      }
+      sValues[p] = value;
+    }
+    if (q != qEnd || !hasDiagonal) return false;
+  }
+  return true;
+}
+
+// Builds the pattern of M + h L (L's pattern plus the diagonal) and fills it.
+template <typename Scalar>
+void buildSystem(const Eigen::SparseMatrix<Scalar>& stiffness, const Vector& dualAreas, double h,
+                 Eigen::SparseMatrix<Scalar>& system) {
+  Eigen::SparseMatrix<Scalar> diagonal(stiffness.rows(), stiffness.cols());
+  diagonal.setIdentity();
+  system = stiffness + diagonal;  // union pattern, explicit zeros kept
+  system.makeCompressed();
+  fillSystem(stiffness, dualAreas, h, system);
+}
+
+template <typename A, typename B>
+bool samePattern(const Eigen::SparseMatrix<A>& a, const Eigen::SparseMatrix<B>& b) {
+  if (a.rows() != b.rows() || a.cols() != b.cols() || a.nonZeros() != b.nonZeros()) return false;
+  if (!a.isCompressed() || !b.isCompressed()) return false;
+  return std::equal(a.outerIndexPtr(), a.outerIndexPtr() + a.cols() + 1, b.outerIndexPtr()) &&
+         std::equal(a.innerIndexPtr(), a.innerIndexPtr() + a.nonZeros(), b.innerIndexPtr());
+}
+
+}  // namespace
+
+DiffusionSystems::DiffusionSystems() = default;
+
+void DiffusionSystems::releaseFactors() {
+  scalar_.releaseFactor();
+  vector_.releaseFactor();
+  h_ = 0;  // diffuse() refuses to run until the systems are factorized again
+}
+
+SolverStatus DiffusionSystems::factorize(const IntrinsicGeometry& geometry, double h) {
+  const Vector& areas = geometry.vertexDualAreas;
+  const SparseMatrix& scalarStiffness = geometry.densityStiffness;
+  const ComplexSparseMatrix& vectorStiffness = geometry.velocityStiffness;
+  if (scalarStiffness.rows() != areas.size() || scalarStiffness.cols() != areas.size()) {
+    return SolverStatus::SizeMismatch;
+  }
+  h_ = h;
+  ++factorizations_;
+
+  bool scalarPatternChanged = false;
+  if (!fillSystem(scalarStiffness, areas, h, scalarSystem_)) {
+    buildSystem(scalarStiffness, areas, h, scalarSystem_);
+    scalarPatternChanged = true;
+  }
+  if (scalarPatternChanged || !scalar_.isAnalyzed()) {
+    const SolverStatus status = scalar_.analyzePattern(scalarSystem_);
+    if (status != SolverStatus::Ok) return status;
+  }
+  const SolverStatus scalarStatus = scalar_.factorize(scalarSystem_);
+
+  // The connection system: absent (0 x 0) when the geometry has no velocity
+  // operator; then velocity diffusion reports NotAnalyzed.
+  SolverStatus vectorStatus = SolverStatus::Ok;
+  if (vectorStiffness.rows() != 0) {
+    if (vectorStiffness.rows() != areas.size() || vectorStiffness.cols() != areas.size()) {
+      return SolverStatus::SizeMismatch;
+    }
+    bool vectorPatternChanged = false;
+    if (!fillSystem(vectorStiffness, areas, h, vectorSystem_)) {
+      buildSystem(vectorStiffness, areas, h, vectorSystem_);
+      vectorPatternChanged = true;
+    }
+    if (vectorPatternChanged || scalarPatternChanged || !vector_.isAnalyzed()) {
+      // Same pattern as the scalar system (both are P1 one-ring operators):
+      // copy its ordering and symbolic factor instead of analysing again.
+      const SolverStatus status = samePattern(vectorSystem_, scalarSystem_)
+                                      ? vector_.shareAnalysisFrom(scalar_)
+                                      : vector_.analyzePattern(vectorSystem_);
+      if (status != SolverStatus::Ok) return status;
+    }
+    vectorStatus = vector_.factorize(vectorSystem_);
+  }
+  // Method per system from its conditioning (see the design note).
+  const auto iterative = [&](double ratio) {
+    return choice_ == DiffusionSolverChoice::Iterative ||
+           (choice_ == DiffusionSolverChoice::Auto && ratio <= kIterativeStiffnessRatio);
+  };
+  scalarRatio_ = inverseDiagonal(scalarSystem_, areas, scalarInverseDiagonal_);
+  scalarIterative_ = iterative(scalarRatio_);
+  if (vectorStiffness.rows() != 0) {
+    vectorRatio_ = inverseDiagonal(vectorSystem_, areas, vectorInverseDiagonal_);
+    vectorIterative_ = iterative(vectorRatio_);
+  } else {
+    vectorIterative_ = false;
+  }
+  return scalarStatus != SolverStatus::Ok ? scalarStatus : vectorStatus;
+}
+
+}  // namespace blot::stain
