@@ -377,7 +377,9 @@ TEST(LiquidBand, BandIsWetFirstThenRingByRingAndCountedInTheProfile) {
     const int l = band.levels[static_cast<size_t>(vertices[k])];
     EXPECT_GE(l, level) << "levels must not decrease along bandVertices";
     level = l;
-    if (static_cast<int>(k) < p.wetVertices) EXPECT_EQ(l, 0);
+    if (static_cast<int>(k) < p.wetVertices) {
+      EXPECT_EQ(l, 0);
+    }
   }
   // Extended velocities: the drop's uniform velocity, carried unchanged on a flat sheet.
   for (const int i : vertices) EXPECT_LT((relativeWorld(solver, i) - Vector3(1, 0, 0)).norm(), 1e-12) << i;
