@@ -1,6 +1,7 @@
 #pragma once
 /// Subcommands of the `blot` command line. Each registers itself on the app and
 /// sets `exitCode` when it runs; errors go to stderr with a non-zero exit code.
+#include <blot/engine/engine.h>
 #include <blot/stain/step_profile.h>
 
 #include <CLI/CLI.hpp>
@@ -16,6 +17,10 @@ namespace blot::cli {
 /// ("geometry", "forces", "film_pressure", "advect_velocity", "coriolis", ...).
 nlohmann::json stageTimesJson(const std::array<double, stain::kStageCount>& milliseconds, double steps,
                               const std::string& prefix);
+/// Mean milliseconds per internal step since the engine was built: the stain
+/// stages ("stain_geometry", ... as stageTimesJson) and "cloth", "stain",
+/// "coupling", "total".
+nlohmann::json meanTimesJson(const engine::EngineStatistics& statistics);
 
 void registerMeshInfoCommand(CLI::App& app, int& exitCode);
 void registerDemoCommand(CLI::App& app, int& exitCode);

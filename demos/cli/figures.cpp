@@ -20,8 +20,7 @@
 #include "commands.h"
 
 #include <blot/engine/engine.h>
-#include <blot/engine/image.h>
-#include <blot/engine/renderer.h>
+#include <blot/engine/frame_writer.h>
 #include <blot/engine/scene.h>
 
 #include <nlohmann/json.hpp>
@@ -65,29 +64,24 @@ Eigen::Vector3d weightedCentre(const engine::Engine& e, const Eigen::VectorXd& w
   return (x.transpose() * m) / total;
 }
 
-engine::Image renderPanel(const engine::Engine& e, int width, int height, const Eigen::Vector3d& view,
-                          engine::Projection projection, const std::vector<stain::RowVectors3>& paths,
-                          const std::vector<engine::Color>& pathColors) {
-  engine::RenderSettings settings;
-  settings.width = width;
-  settings.height = height;
-  settings.supersampling = 3;
-  settings.background = {0.9, 0.91, 0.94};
-  const Eigen::Vector3d up = std::abs(view.normalized().z()) < 0.9 ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitY();
-  engine::Renderer renderer(settings);
-  renderer.beginFrame(engine::framePoints(e.positions(), view, double(width) / height, projection, up));
-  renderer.drawMesh(e.positions(), e.faces(), e.colors());
-  for (std::size_t i = 0; i < paths.size(); ++i) {
-    if (paths[i].rows() < 2) continue;
-    engine::LineStyle style;
-    style.color = pathColors[i];
-    style.width = 2.5;
-    style.depthTest = false;
-    renderer.drawPolyline(paths[i], style);
-    style.width = 7.0;
-    renderer.drawPoints(paths[i].bottomRows(1), style);
-  }
-  return renderer.finishFrame();
+/// The scene's preview of `e` at width x width pixels, with `paths` drawn on top.
+engine::Image renderPanel(const engine::Engine& e, int width, const engine::ScenePreview& scenePreview,
+                          const std::vector<stain::RowVectors3>& paths, const std::vector<engine::Color>& pathColors) {
+  engine::ScenePreview preview = scenePreview;
+  preview.width = preview.height = width;
+  preview.supersampling = 3;
+  return engine::renderPreview(e, preview, engine::PreviewShape::Current, [&](engine::Renderer& renderer) {
+    for (std::size_t i = 0; i < paths.size(); ++i) {
+      if (paths[i].rows() < 2) continue;
+      engine::LineStyle style;
+      style.color = pathColors[i];
+      style.width = 2.5;
+      style.depthTest = false;
+      renderer.drawPolyline(paths[i], style);
+      style.width = 7.0;
+      renderer.drawPoints(paths[i].bottomRows(1), style);
+    }
+  });
 }
 
 /// Default base scenes are relative to the working directory: the repository root, like `blot demo`'s mesh.
@@ -147,8 +141,7 @@ int runFig5(const FigureOptions& o) {
                        {"free_particle_m", {ball(frames, 0), ball(frames, 1), ball(frames, 2)}},
                        {"distance_to_free_particle_m", miss},
                        {"free_particle_travel_m", travelled}});
-    panels.push_back(renderPanel(e, o.width, o.width, base.outputs.preview.viewDirection,
-                                 base.outputs.preview.projection, {ball, path}, {ballColor, pathColor}));
+    panels.push_back(renderPanel(e, o.width, base.outputs.preview, {ball, path}, {ballColor, pathColor}));
     char label[96];
     std::snprintf(label, sizeof label, "%s, miss %.3f m", v.label, miss);
     labels.emplace_back(label);
@@ -209,8 +202,7 @@ int runParameterGrid(const FigureOptions& o) {
       const double peak = solute.maxCoeff();
       const double stained = double((solute.array() > 0.05 * peak).count()) / double(solute.size());
       cells.push_back({{"rate", rate}, {"capacity", cap}, {"stained_vertex_fraction", stained}, {"peak_solute", peak}});
-      panels.push_back(renderPanel(e, o.width, o.width, base.outputs.preview.viewDirection,
-                                   base.outputs.preview.projection, {}, {}));
+      panels.push_back(renderPanel(e, o.width, base.outputs.preview, {}, {}));
       char label[64];
       std::snprintf(label, sizeof label, absorption ? "Kp %.2g  sat %.2g" : "Kd %.2g  Ad %.2g", rate, cap);
       labels.emplace_back(label);

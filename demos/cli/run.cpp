@@ -16,9 +16,7 @@
 #include "commands.h"
 
 #include <blot/engine/engine.h>
-#include <blot/engine/image.h>
-#include <blot/engine/ply_frame_writer.h>
-#include <blot/engine/renderer.h>
+#include <blot/engine/frame_writer.h>
 #include <blot/engine/scene.h>
 #include <blot/stain/io/atomic_file.h>
 
@@ -135,23 +133,6 @@ Checkpoint readCheckpoint(const std::filesystem::path& directory) {
   return c;
 }
 
-/// Per-vertex attributes of one frame (DESIGN.md "Outputs"), densities in kg/m², velocity in m/s.
-engine::PlyFrame plyFrame(const engine::Engine& e) {
-  engine::PlyFrame ply;
-  ply.vertexPositions = e.positions();
-  ply.faces = e.faces();
-  ply.vertexAttributes = {{"solvent", e.solvent(), engine::PlyScalarType::Float32},
-                          {"solute", e.solute(), engine::PlyScalarType::Float32},
-                          {"absorbed_solvent", e.absorbedSolvent(), engine::PlyScalarType::Float32},
-                          {"absorbed_solute", e.absorbedSolute(), engine::PlyScalarType::Float32},
-                          {"adsorbed_solute", e.adsorbedSolute(), engine::PlyScalarType::Float32}};
-  for (auto& attribute : engine::velocityAttributes(e.liquidWorldVelocities())) ply.vertexAttributes.push_back(attribute);
-  for (auto& attribute : engine::relativeVelocityAttributes(e.liquidVelocities()))
-    ply.vertexAttributes.push_back(attribute);
-  ply.vertexColors = engine::vertexColorsToBytes(e.colors());
-  return ply;
-}
-
 class Progress {
  public:
   Progress(int total, bool quiet) : total_(total), quiet_(quiet), terminal_(isatty(fileno(stderr)) != 0) {}
@@ -179,13 +160,6 @@ class Progress {
   int total_;
   bool quiet_, terminal_;
 };
-
-nlohmann::json massBudgetJson(const stain::MassBudget& b) {
-  return {{"solvent", {{"added", b.addedSolvent}, {"free", b.freeSolvent}, {"absorbed", b.absorbedSolvent},
-                       {"evaporated", b.evaporatedSolvent}, {"relative_error", b.solventError()}}},
-          {"solute", {{"added", b.addedSolute}, {"free", b.freeSolute}, {"absorbed", b.absorbedSolute},
-                      {"adsorbed", b.adsorbedSolute}, {"relative_error", b.soluteError()}}}};
-}
 
 /// Which physics terms the run had on and could use (a static surface has no
 /// inertia; two-way coupling only with a Bullet cloth).
@@ -218,17 +192,6 @@ nlohmann::json termStepsJson(const engine::EngineStatistics& s) {
   return ran;
 }
 
-nlohmann::json meanTimesJson(const engine::EngineStatistics& s) {
-  const double n = s.steps > 0 ? static_cast<double>(s.steps) : 1.0;
-  const engine::PhaseTotals& t = s.totals;
-  nlohmann::json times = stageTimesJson(t.stageMilliseconds, n, "stain_");
-  times["cloth"] = t.cloth / n;
-  times["stain"] = t.stain / n;
-  times["coupling"] = t.coupling / n;
-  times["total"] = t.total / n;
-  return times;
-}
-
 }  // namespace
 
 nlohmann::json stageTimesJson(const std::array<double, stain::kStageCount>& milliseconds, double steps,
@@ -239,6 +202,17 @@ nlohmann::json stageTimesJson(const std::array<double, stain::kStageCount>& mill
     std::replace(key.begin(), key.end(), '-', '_');
     times[key] = milliseconds[static_cast<size_t>(k)] / steps;
   }
+  return times;
+}
+
+nlohmann::json meanTimesJson(const engine::EngineStatistics& s) {
+  const double n = s.steps > 0 ? static_cast<double>(s.steps) : 1.0;
+  const engine::PhaseTotals& t = s.totals;
+  nlohmann::json times = stageTimesJson(t.stageMilliseconds, n, "stain_");
+  times["cloth"] = t.cloth / n;
+  times["stain"] = t.stain / n;
+  times["coupling"] = t.coupling / n;
+  times["total"] = t.total / n;
   return times;
 }
 
@@ -275,16 +249,18 @@ int runScene(const RunOptions& options) {
       return 1;
     }
   }
-  std::filesystem::create_directories(directory);
-  engine::PlyWriteOptions plyOptions;
-  plyOptions.format = scene.outputs.plyFormat;
-  plyOptions.comment = "blot run " + options.scenePath;
-  const engine::PlyFrameWriter writer(directory, scene.name, plyOptions);
+  engine::FrameWriterOptions outputs;
+  outputs.directory = directory;
+  outputs.name = scene.name;
+  outputs.ply.format = scene.outputs.plyFormat;
+  outputs.ply.comment = "blot run " + options.scenePath;
+  outputs.preview = scene.outputs.preview;
+  const engine::FrameWriter writer(*engine, outputs);
 
   nlohmann::json plyPaths = nlohmann::json::array();
   std::string lastGood = "(none)";
   const auto writeFrame = [&](int frame) {
-    lastGood = writer.write(frame, plyFrame(*engine));
+    lastGood = writer.writePly(frame);
     plyPaths.push_back(lastGood);
   };
   const int every = scene.outputs.plyEvery;
@@ -303,7 +279,7 @@ int runScene(const RunOptions& options) {
       firstFrame = c.frame + 1;
       checkpointState = c.stateFile;
       for (int frame = 0; frame <= c.frame; ++frame)  // frames already on disk
-        if (every > 0 && (frame % every == 0)) plyPaths.push_back(lastGood = writer.framePath(frame));
+        if (every > 0 && (frame % every == 0)) plyPaths.push_back(lastGood = writer.plyPath(frame));
       std::cerr << "blot run: resuming after frame " << c.frame << " from " << c.stateFile << "\n";
     } catch (const std::exception& e) {
       std::cerr << "blot run: error: cannot resume in " << directory << ": " << e.what() << "\n";
@@ -357,30 +333,8 @@ int runScene(const RunOptions& options) {
 
   std::string previewPath, restPreviewPath;
   if (scene.outputs.preview.enabled) {
-    const engine::ScenePreview& p = scene.outputs.preview;
-    engine::RenderSettings settings;
-    settings.width = p.width;
-    settings.height = p.height;
-    settings.supersampling = p.supersampling;
-    settings.background = {0.9, 0.91, 0.94};
-    const Eigen::Vector3d view = p.viewDirection.normalized();
-    const Eigen::Vector3d up = p.up.norm() > 0                 ? p.up.normalized()
-                               : std::abs(view.z()) < 0.9 ? Eigen::Vector3d::UnitZ()
-                                                          : Eigen::Vector3d::UnitY();
-    engine::Renderer renderer(settings);
-    // The same colours on any vertex positions: the current shape, or the
-    // rest shape (where the stain is read as it will look on the flat cloth).
-    const auto render = [&](const auto& positions, const std::string& path) {
-      renderer.beginFrame(engine::framePoints(positions, view, double(p.width) / p.height, p.projection, up));
-      renderer.drawMesh(positions, engine->faces(), engine->colors());
-      engine::writePng(renderer.finishFrame(), path);
-    };
-    previewPath = (std::filesystem::path(directory) / (scene.name + ".png")).string();
-    render(engine->positions(), previewPath);
-    if (p.restShape) {
-      restPreviewPath = (std::filesystem::path(directory) / (scene.name + "_rest.png")).string();
-      render(engine->definition().mesh.vertexPositions, restPreviewPath);
-    }
+    previewPath = writer.writePreview(engine::PreviewShape::Current);
+    if (scene.outputs.preview.restShape) restPreviewPath = writer.writePreview(engine::PreviewShape::Rest);
   }
 
   const engine::EngineStatistics s = engine->statistics();
@@ -408,7 +362,7 @@ int runScene(const RunOptions& options) {
       {"terms", termsJson(d)},
       {"terms_ran_steps", termStepsJson(s)},
       {"last_step_terms", stain::describeTerms(s.lastProfile)},
-      {"mass_budget_kg", massBudgetJson(s.massBudget)},
+      {"mass_budget_kg", engine::massBudgetJson(s.massBudget)},
       {"outputs", {{"directory", directory}, {"ply", plyPaths}, {"preview", previewPath}, {"preview_rest_shape", restPreviewPath}, {"summary", summaryPath}}}};
   const std::string summaryText = summary.dump(2) + "\n";
   stain::writeFileAtomically(summaryPath, summaryText.data(), summaryText.size());  // every write checked
