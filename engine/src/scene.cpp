@@ -76,7 +76,8 @@ Range indices(int lo, int hi) { return {double(lo), double(hi), false, true}; }
 
 class Context {
  public:
-  Context(std::string source, std::filesystem::path base) : source_(std::move(source)), base_(std::move(base)) {}
+  Context(std::string source, std::filesystem::path base, const SceneLoadOptions& options)
+      : source_(std::move(source)), base_(std::move(base)), options_(options) {}
   [[noreturn]] void fail(const std::string& path, const std::string& what) const {
     throw SceneError(source_ + ": " + (path.empty() ? std::string("(top level)") : path) + ": " + what);
   }
@@ -85,10 +86,18 @@ class Context {
     return p.is_absolute() ? p.string() : (base_ / p).lexically_normal().string();
   }
   const std::string& source() const { return source_; }
+  const SceneLoadOptions& options() const { return options_; }
+  /// Vertex and face indices name other elements on a re-meshed patch: refused.
+  void refuseIndexUnderOverride(const std::string& path, const char* instead) const {
+    if (options_.patchResolution > 0)
+      fail(path, std::string("an index cannot be used with a patch resolution override (it would name another "
+                             "element of the new grid); give ") + instead);
+  }
 
  private:
   std::string source_;
   std::filesystem::path base_;
+  SceneLoadOptions options_;
 };
 
 double numberValue(const Context& ctx, const json& v, const std::string& path, const Range& range) {
@@ -231,6 +240,8 @@ stain::TriangleMesh parseMesh(ObjectReader& r, std::string& description) {
                                    std::to_string(count));
   stain::TriangleMesh mesh;
   const Context& ctx = r.context();
+  if (ctx.options().patchResolution > 0 && !r.has("patch"))
+    ctx.fail(r.path(), "a patch resolution override needs a \"patch\" mesh");
   if (const json* file = r.find("file")) {
     if (!file->is_string()) ctx.fail(r.path("file"), "expected a path string, got " + describe(*file));
     const std::string path = ctx.resolve(file->get<std::string>());
@@ -254,6 +265,10 @@ stain::TriangleMesh parseMesh(ObjectReader& r, std::string& description) {
     const int plane = p.choice("plane", 0, {"xy", "xz", "yz"});
     const Eigen::Vector3d center = p.vector3("center", Eigen::Vector3d::Zero());
     p.finish();
+    if (const int across = ctx.options().patchResolution; across > 0) {
+      resolution[1] = std::max(1.0, std::round(resolution[1] * across / resolution[0]));
+      resolution[0] = across;
+    }
     const int nx = int(resolution[0]), ny = int(resolution[1]);
     mesh = stain::gridMesh(nx, ny, size[0], size[1]);
     placePatch(mesh, plane, center, size[0], size[1]);
@@ -299,7 +314,10 @@ int vertexOrPoint(ObjectReader& r, const stain::TriangleMesh& mesh, bool require
   const int n = static_cast<int>(mesh.vertexPositions.rows());
   const bool hasVertex = r.has("vertex"), hasPoint = r.has("point");
   if (hasVertex && hasPoint) r.context().fail(r.path("point"), "give either \"vertex\" or \"point\", not both");
-  if (hasVertex) return r.integer("vertex", -1, indices(0, n));
+  if (hasVertex) {
+    r.context().refuseIndexUnderOverride(r.path("vertex"), "\"point\"");
+    return r.integer("vertex", -1, indices(0, n));
+  }
   if (hasPoint) {
     const Eigen::Vector3d p = r.vector3("point", Eigen::Vector3d::Zero());
     Eigen::Index best = 0;
@@ -470,6 +488,7 @@ void parseFabric(ObjectReader& r, const stain::TriangleMesh& mesh, EngineDef& de
       patch.faces = stain::facesWithLabel(mesh.faceLabels, label);
       if (patch.faces.empty()) ctx.fail(l.path("label"), "no face has label " + std::to_string(label));
     } else if (faces->is_array()) {
+      ctx.refuseIndexUnderOverride(p.path("faces"), "\"all\"");
       for (std::size_t k = 0; k < faces->size(); ++k)
         patch.faces.push_back(integerValue(ctx, (*faces)[k], indexPath(p.path("faces"), k), indices(0, faceCount)));
     } else {
@@ -528,6 +547,7 @@ void parseFabric(ObjectReader& r, const stain::TriangleMesh& mesh, EngineDef& de
       for (std::size_t k = 0; k < list.size(); ++k) {
         ObjectReader c(ctx, list[k], indexPath(p.path("weft_constraints"), k));
         stain::WeftConstraint w;
+        ctx.refuseIndexUnderOverride(c.path("face"), "\"weft\"");
         w.face = c.integer("face", -1, indices(0, faceCount));
         if (!c.has("face")) ctx.fail(c.path("face"), "required key is missing");
         w.direction = c.vector3("direction", Eigen::Vector3d::UnitX());
@@ -613,6 +633,7 @@ stain::HeldRegion parseHeldRegion(ObjectReader& r, const stain::TriangleMesh& me
   if (hasList == hasBall)
     r.context().fail(r.path("vertices"), "expected exactly one of \"vertices\" (indices) or \"center\" with \"radius\"");
   if (hasList) {
+    r.context().refuseIndexUnderOverride(r.path("vertices"), "\"center\" and \"radius\"");
     const json& list = r.array("vertices");
     for (std::size_t k = 0; k < list.size(); ++k)
       h.vertices.push_back(integerValue(r.context(), list[k], indexPath(r.path("vertices"), k), indices(0, n)));
@@ -668,8 +689,13 @@ const char* motionSourceName(MotionSource source) {
   return "?";
 }
 
-SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, const std::string& baseDirectory) {
-  const Context ctx(sourceName, baseDirectory.empty() ? std::filesystem::path(".") : std::filesystem::path(baseDirectory));
+SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, const std::string& baseDirectory,
+                    const SceneLoadOptions& options) {
+  if (options.patchResolution < 0 || options.patchResolution > 2000)
+    throw SceneError(sourceName + ": patch resolution override: expected an integer in [1, 2000] (or 0: none), got " +
+                     std::to_string(options.patchResolution));
+  const Context ctx(sourceName, baseDirectory.empty() ? std::filesystem::path(".") : std::filesystem::path(baseDirectory),
+                    options);
   json root;
   try {
     root = json::parse(jsonText);
@@ -751,12 +777,12 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
   return scene;
 }
 
-SceneDef loadScene(const std::string& path) {
+SceneDef loadScene(const std::string& path, const SceneLoadOptions& options) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw SceneError(path + ": cannot open the scene file");
   std::ostringstream text;
   text << in.rdbuf();
-  return parseScene(text.str(), path, std::filesystem::path(path).parent_path().string());
+  return parseScene(text.str(), path, std::filesystem::path(path).parent_path().string(), options);
 }
 
 EngineDef engineDef(const SceneDef& scene) { return scene.engine; }

@@ -245,6 +245,39 @@ INSTANTIATE_TEST_SUITE_P(
       return name;
     });
 
+// The loader's patch resolution override (benchmarks, regression runs): the
+// quads across the width are replaced and the height keeps the aspect ratio;
+// points still land, indices (which would name other elements) are refused.
+TEST(SceneTest, PatchResolutionOverrideRemeshesThePatchAndRefusesIndices) {
+  SceneLoadOptions options;
+  options.patchResolution = 20;
+  const SceneDef wide = parseScene(
+      R"({"mesh": {"patch": {"size": [2, 1], "resolution": [10, 5]}}, "cloth": {"source": "static"},
+          "drops": [{"point": [0.5, 0, 0]}]})",
+      "scene.json", ".", options);
+  EXPECT_EQ(wide.engine.mesh.vertexPositions.rows(), 21 * 11);  // 20 x 10 quads
+  EXPECT_EQ(wide.engine.drops.size(), 1u);
+  const auto error = [&](const std::string& json) {
+    try {
+      parseScene(json, "scene.json", ".", options);
+    } catch (const SceneError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_NE(error(withExtra(R"("drops": [{"vertex": 3}])")).find("scene.json: drops[0].vertex: an index cannot be used "
+                                                                 "with a patch resolution override"),
+            std::string::npos);
+  EXPECT_NE(error(withExtra(R"("held_regions": [{"vertices": [1], "solvent_density": 1}])"))
+                .find("held_regions[0].vertices: an index cannot be used"),
+            std::string::npos);
+  EXPECT_NE(error(R"({"mesh": {"icosphere": {"level": 1}}, "cloth": {"source": "static"}})")
+                .find("scene.json: mesh: a patch resolution override needs a \"patch\" mesh"),
+            std::string::npos);
+  options.patchResolution = -1;
+  EXPECT_NE(error(kMinimal).find("expected an integer in [1, 2000] (or 0: none), got -1"), std::string::npos);
+}
+
 TEST(SceneTest, InvalidJsonNamesTheSource) {
   const std::string message = errorOf("{\"mesh\": ");
   EXPECT_EQ(message.rfind("scene.json: invalid JSON", 0), 0u) << message;

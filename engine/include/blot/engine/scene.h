@@ -63,12 +63,23 @@ struct SceneDef {
   SceneOutputs outputs;
 };
 
+/// What a loader may change in a scene as it reads it.
+struct SceneLoadOptions {
+  /// > 0: a "patch" mesh gets this many quads across its width, the height
+  /// keeping the aspect ratio (round(ny · r / nx), at least 1), e.g. to run a
+  /// scene at another size in a benchmark or a regression test. Other meshes
+  /// are refused, and so are vertex or face indices (drops, pins, held
+  /// regions, fabric faces), which would name other elements of the new grid;
+  /// points, "all" and radii work at any resolution.
+  int patchResolution = 0;
+};
+
 /// Parses scene JSON. `baseDirectory` resolves relative paths (mesh files,
 /// sequences, patterns); `sourceName` prefixes every error message.
 SceneDef parseScene(const std::string& jsonText, const std::string& sourceName,
-                    const std::string& baseDirectory = ".");
+                    const std::string& baseDirectory = ".", const SceneLoadOptions& options = {});
 /// Reads and parses a scene file (relative paths resolve against its folder).
-SceneDef loadScene(const std::string& path);
+SceneDef loadScene(const std::string& path, const SceneLoadOptions& options = {});
 /// The engine definition of a scene (a copy of scene.engine).
 EngineDef engineDef(const SceneDef& scene);
 
