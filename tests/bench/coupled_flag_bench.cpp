@@ -17,7 +17,7 @@
 
 #include <chrono>
 
-#include "../coupling/coupled_flag_fixture.h"
+#include "flag_fixture.h"
 
 namespace blot::coupling {
 namespace {

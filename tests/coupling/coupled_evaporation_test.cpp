@@ -14,7 +14,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "coupled_flag_fixture.h"
+#include "flag_fixture.h"
 
 namespace blot::coupling {
 namespace {

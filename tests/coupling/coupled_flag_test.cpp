@@ -11,7 +11,7 @@
 #include <cmath>
 #include <cstdio>
 
-#include "coupled_flag_fixture.h"
+#include "flag_fixture.h"
 
 namespace blot::coupling {
 namespace {

@@ -10,7 +10,7 @@
 #include <string>
 
 #include "allocation_counter.h"  // counts malloc/calloc/realloc while gCountAllocations is set
-#include "coupled_flag_fixture.h"
+#include "flag_fixture.h"
 
 namespace blot::coupling {
 namespace {
