@@ -4,7 +4,7 @@
 // ClothDef; a state of the wrong shape is refused naming the field.
 #include <blot/cloth/bullet_cloth.h>
 
-#include "cloth_test_defs.h"
+#include "flag_fixture.h"
 
 #include <gtest/gtest.h>
 
@@ -73,7 +73,7 @@ void checkRoundTrip(const ClothDef& def, int warmup) {
 }
 
 TEST(BulletClothState, RestoreRepeatsTheRunBitForBitWithoutColliders) {
-  ClothDef def = fixtures::hangingFlag(24);
+  ClothDef def = test::hangingFlag(24);
   def.pins[0].motion.amplitude = Eigen::Vector3d(0, 0.1, 0);  // waving: pins move, moments vary
   def.pins[0].motion.frequency = 1.0;
   def.pins[1].motion.releaseTime = 1.2;                       // released between capture and the end
@@ -83,14 +83,14 @@ TEST(BulletClothState, RestoreRepeatsTheRunBitForBitWithoutColliders) {
 }
 
 TEST(BulletClothState, RestoreRepeatsTheRunBitForBitWithColliders) {
-  ClothDef def = fixtures::flatSheet(24, 0.5);
+  ClothDef def = test::flatSheet(24, 0.5);
   def.colliders = {ClothCollider::plane(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ()),
                    ClothCollider::sphere(Eigen::Vector3d(0.5, 0.5, 0.1), 0.25)};
   checkRoundTrip(def, 40);  // at frame 40 the sheet lies on the sphere and is reaching the ground
 }
 
 TEST(BulletClothState, WrongShapesAreRefusedNamingTheField) {
-  BulletCloth cloth(fixtures::hangingFlag(6));
+  BulletCloth cloth(test::hangingFlag(6));
   BulletClothState state = cloth.captureState();
   state.velocities.resize(3, 3);
   try {

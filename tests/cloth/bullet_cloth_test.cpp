@@ -8,7 +8,7 @@
 
 #include "bullet_cloth_testing.h"
 
-#include "cloth_test_defs.h"
+#include "flag_fixture.h"
 
 #include <blot/stain/io/mesh_io.h>
 #include <blot/stain/geometry/mesh_primitives.h>
@@ -26,11 +26,8 @@ namespace {
 constexpr double kFrame = 1.0 / 60;
 constexpr double kGravity = 9.8;
 
-using fixtures::describe;
-using fixtures::flatSheet;
-using fixtures::hangingFlag;
-using fixtures::topLeft;
-using fixtures::topRight;
+using test::flatSheet;
+using test::hangingFlag;
 
 double totalEnergy(const BulletCloth& cloth) { return cloth.kineticEnergy() + cloth.gravitationalEnergy(); }
 
@@ -54,7 +51,7 @@ void expectSameMeshInBullet(const BulletCloth& cloth, const stain::TriangleMesh&
 
 TEST(BulletCloth, NodesFacesAndLinksKeepMeshIndices) {
   const stain::TriangleMesh gridMesh = test::jitteredGridMesh(16, 12, 1.5, 1.0, 0.2, 20240611);
-  ClothDef grid = describe(gridMesh);
+  ClothDef grid = test::describeCloth(gridMesh);
   grid.pins = {ClothPin{5, {}}};
   {
     SCOPED_TRACE("jittered grid");
@@ -62,14 +59,14 @@ TEST(BulletCloth, NodesFacesAndLinksKeepMeshIndices) {
   }
   const stain::TriangleMesh camelMesh = stain::loadMesh(test::externalMesh("camel.off"));
   SCOPED_TRACE("camel.off");
-  const BulletCloth cloth(describe(camelMesh));
+  const BulletCloth cloth(test::describeCloth(camelMesh));
   expectSameMeshInBullet(cloth, camelMesh);
   EXPECT_EQ(cloth.vertexCount(), 9770);
 }
 
 TEST(BulletCloth, LumpedMassesFollowVertexAreas) {
   const stain::TriangleMesh mesh = test::jitteredGridMesh(10, 8, 1.0, 0.8, 0.2, 7);
-  ClothDef def = describe(mesh);
+  ClothDef def = test::describeCloth(mesh);
   def.totalMass = 0.3;
   def.pins = {ClothPin{0, {}}};
   const BulletCloth cloth(def);
@@ -228,7 +225,7 @@ TEST(BulletCloth, AnimatedPinsFollowTheirTrajectories) {
   def.pins[0].motion.phase = 0.3;
   def.pins[1].motion.velocity = Eigen::Vector3d(-0.2, 0, 0);
   BulletCloth cloth(def);
-  const double restNeighbourY = cloth.positions()(topLeft(cells) - (cells + 1), 1);
+  const double restNeighbourY = cloth.positions()(test::flagTopLeft(cells) - (cells + 1), 1);
   double maxNeighbourY = 0;
   for (int frame = 1; frame <= 120; ++frame) {
     cloth.advance(kFrame);
@@ -238,9 +235,9 @@ TEST(BulletCloth, AnimatedPinsFollowTheirTrajectories) {
       EXPECT_LT((cloth.positions().row(pin.vertex).transpose() - target).norm(), 1e-5) << "frame " << frame;
       EXPECT_EQ(cloth.velocities().row(pin.vertex).transpose(), pin.motion.velocityAt(cloth.time()));
     }
-    maxNeighbourY = std::max(maxNeighbourY, std::abs(cloth.positions()(topLeft(cells) - (cells + 1), 1)));
+    maxNeighbourY = std::max(maxNeighbourY, std::abs(cloth.positions()(test::flagTopLeft(cells) - (cells + 1), 1)));
   }
-  EXPECT_NEAR(cloth.positions()(topRight(cells), 0), 1.0 - 0.2 * 2.0, 1e-5);
+  EXPECT_NEAR(cloth.positions()(test::flagTopRight(cells), 0), 1.0 - 0.2 * 2.0, 1e-5);
   // The cloth follows the waving corner: the vertex below it swings too.
   EXPECT_GT(maxNeighbourY - restNeighbourY, 0.03);
   EXPECT_TRUE(cloth.isHealthy());
@@ -252,14 +249,14 @@ TEST(BulletCloth, ReleasedPinsDropTheCloth) {
   for (ClothPin& pin : def.pins) pin.motion.releaseTime = 0.5;
   BulletCloth cloth(def);
   for (int frame = 1; frame <= 30; ++frame) cloth.advance(kFrame);  // t = 0.5 s
-  EXPECT_TRUE(cloth.isPinned(topLeft(cells)));
-  EXPECT_NEAR(cloth.positions()(topLeft(cells), 2), 1.0, 1e-6);
+  EXPECT_TRUE(cloth.isPinned(test::flagTopLeft(cells)));
+  EXPECT_NEAR(cloth.positions()(test::flagTopLeft(cells), 2), 1.0, 1e-6);
   for (int frame = 1; frame <= 30; ++frame) cloth.advance(kFrame);  // t = 1 s
-  EXPECT_FALSE(cloth.isPinned(topLeft(cells)));
-  EXPECT_GT(BulletClothTesting::inverseMasses(cloth)[topLeft(cells)], 0);
+  EXPECT_FALSE(cloth.isPinned(test::flagTopLeft(cells)));
+  EXPECT_GT(BulletClothTesting::inverseMasses(cloth)[test::flagTopLeft(cells)], 0);
   // Free fall for 0.5 s: ½ g t² = 1.23 m (a little less with damping).
-  EXPECT_LT(cloth.positions()(topLeft(cells), 2), 1.0 - 1.1);
-  EXPECT_LT(cloth.positions()(topRight(cells), 2), 1.0 - 1.1);
+  EXPECT_LT(cloth.positions()(test::flagTopLeft(cells), 2), 1.0 - 1.1);
+  EXPECT_LT(cloth.positions()(test::flagTopRight(cells), 2), 1.0 - 1.1);
 }
 
 TEST(BulletCloth, GravityIsSetInBothPlacesAndDrivesFreeFall) {
@@ -389,7 +386,7 @@ TEST(BulletCloth, RunsAreDeterministic) {
 // int overflow past 46K). A 140K build would need ~78 GB that way; ours is
 // O(n) and keeps every index. The build time is in tests/bench (no timed tests).
 TEST(BulletCloth, BuildsA140KVertexGridWithIndicesPreserved) {
-  const ClothDef def = describe(stain::gridMesh(373, 373, 2.0, 2.0));
+  const ClothDef def = test::describeCloth(stain::gridMesh(373, 373, 2.0, 2.0));
   const BulletCloth cloth(def);
   EXPECT_EQ(cloth.vertexCount(), 139876);
   EXPECT_EQ(BulletClothTesting::bodyFaces(cloth), def.faces);

@@ -1,8 +1,10 @@
 #pragma once
-// A square flag for the coupling tests and the coupled-flag benchmark: a
-// gridMesh of cells × cells squares, side 1 m, in the vertical xz-plane with
-// its top edge at z = 1, optionally pinned at its two top corners, as a
-// BulletCloth with the default (stable) settings, plus the stain pieces.
+// The flag every cloth and coupling test (and the coupled-flag benchmark)
+// hangs: a gridMesh of cells × cells squares, side 1 m, in the vertical
+// xz-plane with its top edge at z = 1, optionally pinned at its two top
+// corners, as a BulletCloth with the default (stable) settings; the mesh
+// arrays come through coupling::describeClothMesh, the way the engine builds
+// them. CoupledFlag adds the stain pieces.
 #include <blot/cloth/bullet_cloth.h>
 #include <blot/coupling/coupled_surface.h>
 #include <blot/stain/geometry/mesh_primitives.h>
@@ -13,6 +15,43 @@
 
 namespace blot::test {
 
+/// Top corners and centre vertex of the cells × cells flag.
+inline int flagTopLeft(int cells) { return cells * (cells + 1); }
+inline int flagTopRight(int cells) { return cells * (cells + 1) + cells; }
+inline int flagCenter(int cells) { return (cells / 2) * (cells + 1) + cells / 2; }
+
+/// The flag's rest mesh ((cells + 1)² vertices), in the xz-plane.
+inline stain::TriangleMesh flagMesh(int cells) {
+  stain::TriangleMesh mesh = stain::gridMesh(cells, cells, 1.0, 1.0);
+  for (int i = 0; i < mesh.vertexPositions.rows(); ++i) {
+    const double x = mesh.vertexPositions(i, 0), y = mesh.vertexPositions(i, 1);
+    mesh.vertexPositions.row(i) << x, 0, y;
+  }
+  return mesh;
+}
+
+/// A ClothDef with the default settings on `mesh`.
+inline cloth::ClothDef describeCloth(const stain::TriangleMesh& mesh) {
+  cloth::ClothDef def;
+  const stain::SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  coupling::describeClothMesh(mesh, topology, def);
+  return def;
+}
+
+/// The flag as a bare cloth, pinned at its two top corners.
+inline cloth::ClothDef hangingFlag(int cells) {
+  cloth::ClothDef def = describeCloth(flagMesh(cells));
+  def.pins = {cloth::ClothPin{flagTopLeft(cells), {}}, cloth::ClothPin{flagTopRight(cells), {}}};
+  return def;
+}
+
+/// A 1 m square lying flat at height z, no pins.
+inline cloth::ClothDef flatSheet(int cells, double z) {
+  stain::TriangleMesh mesh = stain::gridMesh(cells, cells, 1.0, 1.0);
+  mesh.vertexPositions.col(2).setConstant(z);
+  return describeCloth(mesh);
+}
+
 struct CoupledFlag {
   stain::TriangleMesh mesh;
   std::unique_ptr<stain::SurfaceTopology> topology;
@@ -20,9 +59,9 @@ struct CoupledFlag {
   stain::FabricField fabric;
   stain::StainSolverDef stain;
   int cells = 0;
-  int topLeft() const { return cells * (cells + 1); }
-  int topRight() const { return cells * (cells + 1) + cells; }
-  int center() const { return (cells / 2) * (cells + 1) + cells / 2; }
+  int topLeft() const { return flagTopLeft(cells); }
+  int topRight() const { return flagTopRight(cells); }
+  int center() const { return flagCenter(cells); }
 };
 
 /// cells × cells flag ((cells + 1)² vertices); pinned at the two top corners
@@ -30,11 +69,7 @@ struct CoupledFlag {
 inline CoupledFlag makeCoupledFlag(int cells, bool pinned) {
   CoupledFlag flag;
   flag.cells = cells;
-  flag.mesh = stain::gridMesh(cells, cells, 1.0, 1.0);
-  for (int i = 0; i < flag.mesh.vertexPositions.rows(); ++i) {
-    const double x = flag.mesh.vertexPositions(i, 0), y = flag.mesh.vertexPositions(i, 1);
-    flag.mesh.vertexPositions.row(i) << x, 0, y;
-  }
+  flag.mesh = flagMesh(cells);
   flag.topology = std::make_unique<stain::SurfaceTopology>(flag.mesh.faces,
                                                            static_cast<int>(flag.mesh.vertexPositions.rows()));
   coupling::describeClothMesh(flag.mesh, *flag.topology, flag.cloth);
