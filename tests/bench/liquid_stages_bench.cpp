@@ -18,7 +18,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include "../stain/liquid_test_support.h"
+#include "stain_fixture.h"
 
 namespace blot::stain {
 namespace {

@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "geometry_test_support.h"
-#include "liquid_test_support.h"
+#include "stain_fixture.h"
 
 // ---------------------------------------------------------------------------
 // Counting allocator for this test binary: every malloc-family call (operator

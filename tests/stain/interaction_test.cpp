@@ -13,7 +13,7 @@
 #include <random>
 #include <vector>
 
-#include "liquid_test_support.h"
+#include "stain_fixture.h"
 
 namespace blot::stain {
 namespace {

@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "liquid_test_support.h"
+#include "stain_fixture.h"
 
 namespace blot::stain {
 namespace {

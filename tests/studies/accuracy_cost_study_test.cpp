@@ -29,7 +29,7 @@
 #include <string>
 #include <vector>
 
-#include "../stain/liquid_test_support.h"
+#include "stain_fixture.h"
 #include "study_runs.h"
 #include "study_support.h"
 

@@ -14,7 +14,7 @@
 #include <cmath>
 #include <cstdio>
 
-#include "../stain/liquid_test_support.h"
+#include "stain_fixture.h"
 
 namespace blot::stain {
 namespace {

@@ -27,7 +27,7 @@
 #include <cstdio>
 #include <string>
 
-#include "../stain/liquid_test_support.h"
+#include "stain_fixture.h"
 #include "study_runs.h"
 #include "study_support.h"
 

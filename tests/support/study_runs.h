@@ -20,7 +20,7 @@
 #include <string>
 #include <vector>
 
-#include "../stain/liquid_test_support.h"
+#include "stain_fixture.h"
 #include "study_support.h"
 
 namespace blot::test {
