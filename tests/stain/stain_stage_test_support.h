@@ -1,13 +1,14 @@
 #pragma once
-// Shared by the stage tests (forces, advection): the intrinsic and extrinsic
-// tiers of a static mesh as SurfaceGeometry builds them, a zero state, and
-// frame <-> world conversions.
+// Shared by the stage tests (forces, advection): the stain fixture's tiers
+// (tests/support/stain_fixture.h) of a static mesh with the whole geometry
+// pipeline beside them, and frame <-> world conversions.
 #include <blot/stain/stain_state.h>
 #include <blot/stain/geometry/surface_geometry.h>
 
 #include <utility>
 
 #include "geometry_test_support.h"
+#include "stain_fixture.h"
 
 namespace blot::stain::testing {
 
@@ -17,12 +18,11 @@ struct StageGeometry {
   ExtrinsicGeometry extrinsic;
 
   explicit StageGeometry(TriangleMesh mesh) : geometry(std::move(mesh)) {
-    // The tiers as the solver builds them on the rest shape (the stage tests
-    // use no stiffness, so any fabric will do).
-    const SurfaceGeometry built(geometry.topology, geometry.mesh.vertexPositions,
-                                isotropicFabricField(geometry.topology.faceCount(), 1.0, 1.0));
-    intrinsic = built.intrinsic();
-    extrinsic = built.extrinsic();
+    // The stage tests use no stiffness, so any fabric will do.
+    StaticTiers tiers = staticTiers(geometry.topology, geometry.mesh.vertexPositions,
+                                    isotropicFabricField(geometry.topology.faceCount(), 1.0, 1.0));
+    intrinsic = std::move(tiers.intrinsic);
+    extrinsic = std::move(tiers.extrinsic);
   }
   const SurfaceTopology& topology() const { return geometry.topology; }
   int vertexCount() const { return geometry.vertexCount(); }
@@ -39,18 +39,6 @@ struct StageGeometry {
     return f.col(0) * u.real() + f.col(1) * u.imag();
   }
 };
-
-/// Every field zero, for `n` vertices.
-inline StainState zeroState(int n) {
-  StainState state;
-  state.velocities = ComplexVector::Zero(n);
-  state.solvent = Vector::Zero(n);
-  state.solute = Vector::Zero(n);
-  state.absorbedSolvent = Vector::Zero(n);
-  state.absorbedSolute = Vector::Zero(n);
-  state.adsorbedSolute = Vector::Zero(n);
-  return state;
-}
 
 /// Smallest edge length of a mesh (m).
 inline double shortestEdge(const StageGeometry& g) { return g.intrinsic.edgeLengths.minCoeff(); }

@@ -2,7 +2,7 @@
 // convergence tests in tests/stain/diffusion_test.cpp, and a table of how far
 // the raw implicit solve undershoots below zero under strong anisotropy.
 //
-// Problem (GaussianProblem in liquid_test_support.h): unit-mass Gaussian of
+// Problem (GaussianProblem in tests/support/stain_fixture.h): unit-mass Gaussian of
 // standard deviation 0.06 in [0,1]², constant tensor eigenvalues (1, 0.1) m²/s
 // with the weft at 30° to the grid, run to T = 9e-4 s; the exact solution is the
 // Gaussian of covariance Σ0 + 2DT.

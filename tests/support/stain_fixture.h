@@ -1,7 +1,9 @@
 #pragma once
-// Shared by the diffusion, interaction and source tests: a mesh with both
-// geometry tiers built by the free functions (positions at t − h = t = t + h)
-// and a fabric, a zero state, mass sums, and the exact anisotropic Gaussian.
+// The stain fixture every stage test, study and stage benchmark builds on:
+// both geometry tiers of a static mesh as the solver builds them on the rest
+// shape (positions at t − h = t = t + h), a zero state, fabrics, mass sums,
+// and the exact anisotropic Gaussian. The geometry-heavy stage tests wrap the
+// same tiers in StageGeometry (tests/stain/stain_stage_test_support.h).
 #include <blot/stain/stages/diffusion.h>
 #include <blot/stain/geometry/extrinsic_geometry.h>
 #include <blot/stain/geometry/intrinsic_geometry.h>
@@ -16,7 +18,38 @@
 #include <stdexcept>
 #include <utility>
 
+namespace blot::stain::testing {
+
+/// Both geometry tiers of a static mesh, exactly as SurfaceGeometry builds
+/// them on the rest shape.
+struct StaticTiers {
+  IntrinsicGeometry intrinsic;
+  ExtrinsicGeometry extrinsic;
+};
+inline StaticTiers staticTiers(const SurfaceTopology& topology, const RowVectors3& positions,
+                               const FabricField& fabric) {
+  const SurfaceGeometry geometry(topology, positions, fabric);
+  return {geometry.intrinsic(), geometry.extrinsic()};
+}
+
+/// All fields zero, for `n` vertices (without StainState::resize, so these
+/// tests do not depend on where that is implemented).
+inline StainState zeroState(int n) {
+  StainState s;
+  s.velocities = ComplexVector::Zero(n);
+  s.solvent = Vector::Zero(n);
+  s.solute = Vector::Zero(n);
+  s.absorbedSolvent = Vector::Zero(n);
+  s.absorbedSolute = Vector::Zero(n);
+  s.adsorbedSolute = Vector::Zero(n);
+  return s;
+}
+
+}  // namespace blot::stain::testing
+
 namespace blot::stain::liquid_testing {
+
+using testing::zeroState;
 
 constexpr double kPi = 3.14159265358979323846;
 
@@ -51,29 +84,15 @@ struct LiquidMesh {
   LiquidMesh(TriangleMesh m, const FabricField& fabric)
       : mesh(std::move(m)),
         topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()), "liquid test mesh") {
-    // The geometry tiers exactly as the solver builds them on the rest shape.
-    const SurfaceGeometry geometry(topology, mesh.vertexPositions, fabric);
-    intrinsic = geometry.intrinsic();
-    extrinsic = geometry.extrinsic();
+    testing::StaticTiers tiers = testing::staticTiers(topology, mesh.vertexPositions, fabric);
+    intrinsic = std::move(tiers.intrinsic);
+    extrinsic = std::move(tiers.extrinsic);
   }
   int vertexCount() const { return topology.vertexCount(); }
   int faceCount() const { return topology.faceCount(); }
   const Vector& areas() const { return intrinsic.vertexDualAreas; }
   Vector3 position(int i) const { return mesh.vertexPositions.row(i).transpose(); }
 };
-
-/// All fields zero (without StainState::resize, so these tests do not depend
-/// on where that is implemented).
-inline StainState zeroState(int n) {
-  StainState s;
-  s.velocities = ComplexVector::Zero(n);
-  s.solvent = Vector::Zero(n);
-  s.solute = Vector::Zero(n);
-  s.absorbedSolvent = Vector::Zero(n);
-  s.absorbedSolute = Vector::Zero(n);
-  s.adsorbedSolute = Vector::Zero(n);
-  return s;
-}
 
 /// Σ A_i σ_i (kg), summed in index order.
 inline double totalMass(const Vector& areas, const Vector& densities) {
