@@ -199,12 +199,12 @@ SurfaceGeometry::SurfaceGeometry(const SurfaceTopology& topology, const RowVecto
   if (!(strainTolerance > 0) || !std::isfinite(strainTolerance))
     throw std::invalid_argument("SurfaceGeometry: strainTolerance must be finite and positive");
 
-  ExtrinsicGeometry& ex = extrinsic_;
+  ExtrinsicGeometry& ex = dynamic_.extrinsic;
   ex.previousPositions = restPositions;
   ex.positions = restPositions;
   ex.nextPositions = restPositions;
   ex.vertexNormals = vertexNormals(topology, restPositions);
-  nextNormals_ = ex.vertexNormals;
+  dynamic_.nextNormals = ex.vertexNormals;
   const VertexFrames restFrames = vertexTangentFrames(topology, restPositions, ex.vertexNormals);
   ex.restFrames.resize(static_cast<size_t>(n));
   for (int i = 0; i < n; ++i) ex.restFrames[static_cast<size_t>(i)] = restFrames.frame(i);
@@ -232,9 +232,9 @@ SurfaceGeometry::SurfaceGeometry(const SurfaceTopology& topology, const RowVecto
     restEdgeFrameNormals_.row(e) << a.col(0).dot(normal), a.col(1).dot(normal), b.col(0).dot(normal),
         b.col(1).dot(normal);
   }
-  previousRotations_.assign(static_cast<size_t>(n), Eigen::Quaterniond::Identity());
-  rotations_ = previousRotations_;
-  nextRotations_ = previousRotations_;
+  dynamic_.previousRotations.assign(static_cast<size_t>(n), Eigen::Quaterniond::Identity());
+  dynamic_.rotations = dynamic_.previousRotations;
+  dynamic_.nextRotations = dynamic_.previousRotations;
 
   refreshIntrinsic();
 }
@@ -242,17 +242,17 @@ SurfaceGeometry::SurfaceGeometry(const SurfaceTopology& topology, const RowVecto
 void SurfaceGeometry::setPreviousPositions(const RowVectors3& previous) {
   checkRows(previous.rows(), topology_->vertexCount(), "previous positions");
   // The next refresh shifts `positions` into `previousPositions`.
-  extrinsic_.previousPositions = previous;
-  extrinsic_.positions = previous;
-  extrinsic_.rigid = false;
-  unchangedRefreshes_ = 0;
-  lastH_ = 0;
+  dynamic_.extrinsic.previousPositions = previous;
+  dynamic_.extrinsic.positions = previous;
+  dynamic_.extrinsic.rigid = false;
+  dynamic_.unchangedRefreshes = 0;
+  dynamic_.lastH = 0;
 }
 
 void SurfaceGeometry::refreshIntrinsic() {
   const SurfaceTopology& topology = *topology_;
-  const RowVectors3& positions = extrinsic_.nextPositions;
-  IntrinsicGeometry& in = intrinsic_;
+  const RowVectors3& positions = dynamic_.extrinsic.nextPositions;
+  IntrinsicGeometry& in = dynamic_.intrinsic;
   in.edgeLengths = edgeLengths(topology, positions);
   in.faceCornerAngles = faceCornerAngles(topology, in.edgeLengths);
   in.faceAreas = faceAreas(topology, in.edgeLengths);
@@ -269,9 +269,9 @@ void SurfaceGeometry::refreshIntrinsic() {
   in.densityStiffness = anisotropicStiffness(topology, positions, fabric_.densityTensors, wefts);
   in.velocityStiffness = connectionLaplacian(topology, positions, in.faceTransportAngles,
                                              fabric_.velocityTensors, wefts);
-  inverseBuiltSquaredLengths_ = in.edgeLengths.array().square().inverse().matrix();
+  dynamic_.inverseBuiltSquaredLengths = in.edgeLengths.array().square().inverse().matrix();
   ++in.rebuildCount;
-  maxEdgeStrain_ = 0;
+  dynamic_.maxEdgeStrain = 0;
 }
 
 bool SurfaceGeometry::refreshExtrinsic(const RowVectors3& nextPositions, double h) {
@@ -304,17 +304,17 @@ bool SurfaceGeometry::refreshExtrinsicWith(const RowVectors3& nextPositions, dou
   const int n = topology.vertexCount();
   checkRows(nextPositions.rows(), n, "nextPositions");
   if (!(h > 0) || !std::isfinite(h)) throw std::invalid_argument("SurfaceGeometry: h must be finite and positive");
-  ExtrinsicGeometry& ex = extrinsic_;
+  ExtrinsicGeometry& ex = dynamic_.extrinsic;
 
   const bool unchanged = nextPositions == ex.nextPositions;
-  if (unchanged && unchangedRefreshes_ >= 2) {
+  if (unchanged && dynamic_.unchangedRefreshes >= 2) {
     // t − h, t and t + h all hold these positions already; ω = p̈ = 0.
-    lastH_ = h;
+    dynamic_.lastH = h;
     rotationFitStats_ = RotationFitStats();
-    return maxEdgeStrain_ > strainTolerance_;
+    return dynamic_.maxEdgeStrain > strainTolerance_;
   }
-  const double previousH = lastH_ > 0 ? lastH_ : h;
-  lastH_ = h;
+  const double previousH = dynamic_.lastH > 0 ? dynamic_.lastH : h;
+  dynamic_.lastH = h;
 
   // Shift t + h -> t -> t − h by swapping buffers (no allocation, no copy).
   ex.previousPositions.swap(ex.positions);
@@ -322,9 +322,9 @@ bool SurfaceGeometry::refreshExtrinsicWith(const RowVectors3& nextPositions, dou
   ex.nextPositions = nextPositions;  // same size: copies into the existing buffer
   ex.frames.swap(ex.nextFrames);
   ex.rigid = ex.nextRigid;
-  ex.vertexNormals.swap(nextNormals_);
-  previousRotations_.swap(rotations_);
-  rotations_.swap(nextRotations_);
+  ex.vertexNormals.swap(dynamic_.nextNormals);
+  dynamic_.previousRotations.swap(dynamic_.rotations);
+  dynamic_.rotations.swap(dynamic_.nextRotations);
 
   const bool uniform = previousH == h;
   const double invH = 1.0 / h, invHSquared = 1.0 / (h * h), invPreviousH = 1.0 / previousH;
@@ -348,7 +348,7 @@ bool SurfaceGeometry::refreshExtrinsicWith(const RowVectors3& nextPositions, dou
   // times that of U^tᵀ U^{t+h}.
   auto angularVelocity = [&](int i) {
     const size_t k = static_cast<size_t>(i);
-    const Vector3 restAxis = rotationVector(rotations_[k].conjugate() * nextRotations_[k]);
+    const Vector3 restAxis = rotationVector(dynamic_.rotations[k].conjugate() * dynamic_.nextRotations[k]);
     angularVelocities.row(i) = (ex.restFrames[k].transpose() * restAxis * invH).transpose();
   };
 
@@ -358,18 +358,18 @@ bool SurfaceGeometry::refreshExtrinsicWith(const RowVectors3& nextPositions, dou
 #pragma omp parallel for schedule(static) if (n >= kMinParallelVertices)
     for (int i = 0; i < n; ++i) {
       const size_t k = static_cast<size_t>(i);
-      nextRotations_[k] = rotations_[k];
+      dynamic_.nextRotations[k] = dynamic_.rotations[k];
       ex.nextFrames[k] = ex.frames[k];
-      nextNormals_.row(i) = ex.vertexNormals.row(i);
+      dynamic_.nextNormals.row(i) = ex.vertexNormals.row(i);
       angularVelocities.row(i).setZero();
       acceleration(i);
     }
     ex.nextRigid = ex.rigid;
-    ++unchangedRefreshes_;
+    ++dynamic_.unchangedRefreshes;
     rotationFitStats_ = RotationFitStats();
-    return maxEdgeStrain_ > strainTolerance_;
+    return dynamic_.maxEdgeStrain > strainTolerance_;
   }
-  unchangedRefreshes_ = 0;
+  dynamic_.unchangedRefreshes = 0;
   rotationFitStats_ = RotationFitStats();
 
   if (rigidRotation != nullptr) {
@@ -381,25 +381,25 @@ bool SurfaceGeometry::refreshExtrinsicWith(const RowVectors3& nextPositions, dou
     ex.nextRigid = true;
     const Matrix3& R = *rigidRotation;
     const Eigen::Quaterniond q(R);
-    const Eigen::Quaterniond shared = rotations_.empty() ? q : rotations_[0];
+    const Eigen::Quaterniond shared = dynamic_.rotations.empty() ? q : dynamic_.rotations[0];
     const Vector3 sharedAxis = rotationVector(shared.conjugate() * q);
 #pragma omp parallel for schedule(static) if (n >= kMinParallelVertices)
     for (int i = 0; i < n; ++i) {
       const size_t k = static_cast<size_t>(i);
-      const Eigen::Quaterniond& previous = rotations_[k];
+      const Eigen::Quaterniond& previous = dynamic_.rotations[k];
       const Matrix3& restFrame = ex.restFrames[k];
       if (previous.coeffs() == shared.coeffs()) {
         angularVelocities.row(i) = (restFrame.transpose() * sharedAxis * invH).transpose();  // as angularVelocity(i)
       } else {
         angularVelocity(i);
       }
-      nextRotations_[k] = q;
+      dynamic_.nextRotations[k] = q;
       ex.kabschRotations[k] = R;
       ex.nextFrames[k].noalias() = R * restFrame;
-      nextNormals_.row(i) = ex.nextFrames[k].col(2).transpose();
+      dynamic_.nextNormals.row(i) = ex.nextFrames[k].col(2).transpose();
       acceleration(i);
     }
-    return maxEdgeStrain_ > strainTolerance_;
+    return dynamic_.maxEdgeStrain > strainTolerance_;
   }
 
   ex.nextRigid = false;
@@ -436,7 +436,7 @@ bool SurfaceGeometry::refreshExtrinsicWith(const RowVectors3& nextPositions, dou
       }
       previous = e;
       // Every edge is seen from both ends; max and min do not mind.
-      const double ratio = e.squaredNorm() * inverseBuiltSquaredLengths_(ringEdges[mk]);
+      const double ratio = e.squaredNorm() * dynamic_.inverseBuiltSquaredLengths(ringEdges[mk]);
       maxRatio = std::max(maxRatio, ratio);
       minRatio = std::min(minRatio, ratio);
     }
@@ -444,13 +444,13 @@ bool SurfaceGeometry::refreshExtrinsicWith(const RowVectors3& nextPositions, dou
     const double normalSquared = normalSum.squaredNorm();
     // A fully folded fan has no normal: keep the one at t rather than a NaN.
     if (normalSquared > 0.0) {
-      nextNormals_.row(i) = (normalSum * (1.0 / std::sqrt(normalSquared))).transpose();
+      dynamic_.nextNormals.row(i) = (normalSum * (1.0 / std::sqrt(normalSquared))).transpose();
     } else {
-      nextNormals_.row(i) = ex.vertexNormals.row(i);
+      dynamic_.nextNormals.row(i) = ex.vertexNormals.row(i);
     }
 
     Matrix3 U;
-    Eigen::Quaterniond q = extrapolateRotation(previousRotations_[k], rotations_[k]);
+    Eigen::Quaterniond q = extrapolateRotation(dynamic_.previousRotations[k], dynamic_.rotations[k]);
     int vertexIterations = 0;
     const bool converged = !useSvd && newtonRotation(covariance, q, U, vertexIterations);
     if (!converged) {
@@ -459,18 +459,18 @@ bool SurfaceGeometry::refreshExtrinsicWith(const RowVectors3& nextPositions, dou
       if (!useSvd) ++fallbacks;
     }
     iterations += vertexIterations;
-    nextRotations_[k] = q;
+    dynamic_.nextRotations[k] = q;
     ex.kabschRotations[k] = U;
     ex.nextFrames[k].noalias() = U * ex.restFrames[k];
     angularVelocity(i);
     acceleration(i);
   }
 
-  maxEdgeStrain_ = std::max(std::sqrt(maxRatio) - 1.0, 1.0 - std::sqrt(minRatio));
+  dynamic_.maxEdgeStrain = std::max(std::sqrt(maxRatio) - 1.0, 1.0 - std::sqrt(minRatio));
   rotationFitStats_.fittedVertices = n;
   rotationFitStats_.newtonIterations = useSvd ? 0 : iterations;
   rotationFitStats_.svdFallbacks = fallbacks;
-  return maxEdgeStrain_ > strainTolerance_;
+  return dynamic_.maxEdgeStrain > strainTolerance_;
 }
 
 FabricField isotropicFabricField(int faceCount, double densityDiffusivity, double viscosity) {

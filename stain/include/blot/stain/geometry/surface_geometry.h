@@ -189,11 +189,11 @@ class SurfaceGeometry {
   /// Rebuilds the intrinsic tier from the current positions (t + h).
   void refreshIntrinsic();
   /// max_e |ℓ_e(t+h)/ℓ_e,built − 1| from the last refreshExtrinsic.
-  double maxEdgeStrain() const { return maxEdgeStrain_; }
+  double maxEdgeStrain() const { return dynamic_.maxEdgeStrain; }
 
   const SurfaceTopology& topology() const { return *topology_; }
-  const IntrinsicGeometry& intrinsic() const { return intrinsic_; }
-  const ExtrinsicGeometry& extrinsic() const { return extrinsic_; }
+  const IntrinsicGeometry& intrinsic() const { return dynamic_.intrinsic; }
+  const ExtrinsicGeometry& extrinsic() const { return dynamic_.extrinsic; }
   const FabricField& fabric() const { return fabric_; }
 
   /// Chooses the rotation fit used by refreshExtrinsic (default WarmStartedNewton).
@@ -238,24 +238,10 @@ class SurfaceGeometry {
     }
   };
   /// Copy of the dynamic state (allocates).
-  DynamicState dynamicState() const {
-    return {intrinsic_,      extrinsic_,      nextNormals_,   previousRotations_, rotations_,
-            nextRotations_,  inverseBuiltSquaredLengths_, maxEdgeStrain_, lastH_, unchangedRefreshes_};
-  }
+  DynamicState dynamicState() const { return dynamic_; }
   /// Restores a dynamic state taken from a geometry on the same topology
   /// (the caller checks sizes; StainSolver::restore does).
-  void restoreDynamicState(const DynamicState& s) {
-    intrinsic_ = s.intrinsic;
-    extrinsic_ = s.extrinsic;
-    nextNormals_ = s.nextNormals;
-    previousRotations_ = s.previousRotations;
-    rotations_ = s.rotations;
-    nextRotations_ = s.nextRotations;
-    inverseBuiltSquaredLengths_ = s.inverseBuiltSquaredLengths;
-    maxEdgeStrain_ = s.maxEdgeStrain;
-    lastH_ = s.lastH;
-    unchangedRefreshes_ = s.unchangedRefreshes;
-  }
+  void restoreDynamicState(const DynamicState& s) { dynamic_ = s; }
 
  private:
   bool refreshExtrinsicWith(const RowVectors3& nextPositions, double h, const Matrix3* rigidRotation);
@@ -264,18 +250,16 @@ class SurfaceGeometry {
   RowVectors3 restPositions_;
   FabricField fabric_;
   double strainTolerance_;
-  double maxEdgeStrain_ = 0;
-  IntrinsicGeometry intrinsic_;
-  ExtrinsicGeometry extrinsic_;
+  // Both tiers, the rotation history (U_i at t − h, t, t + h as unit
+  // quaternions: warm start and ω), nextNormals (#V by 3, vertex normals at
+  // t + h, which become vertexNormals), 1 / ℓ_e² at the last intrinsic build,
+  // the largest edge strain, the h of the last refresh (0: none yet) and the
+  // count of consecutive refreshes with p(t+h) == p(t): what a step carries
+  // to the next, kept in one struct so that snapshots copy it whole.
+  DynamicState dynamic_;
   // Preallocated per-step data (no allocation in refreshExtrinsic):
-  RowVectors3 nextNormals_;  // #V by 3, vertex normals at t + h (become vertexNormals)
   std::vector<Vector3> restRingEdges_;  // per ring entry: v̄_j − v̄_i (rest shape)
   EdgeFrameNormals restEdgeFrameNormals_;  // #E by 4, see restEdgeFrameNormals()
-  // U_i at t − h, t, t + h as unit quaternions (warm start and ω).
-  std::vector<Eigen::Quaterniond> previousRotations_, rotations_, nextRotations_;
-  Vector inverseBuiltSquaredLengths_;  // #E: 1 / ℓ_e² at the last intrinsic build
-  double lastH_ = 0;                   // h of the last refresh (0: none yet)
-  int unchangedRefreshes_ = 2;         // consecutive refreshes with p(t+h) == p(t)
   RotationFitMethod rotationFitMethod_ = RotationFitMethod::WarmStartedNewton;
   RotationFitStats rotationFitStats_;
 };
