@@ -510,7 +510,7 @@ StepReport StainSolver::advanceStages() {
   if (!runStage(Stage::Sources, ctx_.switches.sources, report, [&] {
         keepBackup();
         applySources(ctx_, heldRegions_, geometry_.intrinsic(), state_);
-        markTerms(StepTerm::Sources);
+        profile_.markRan(StepTerm::Sources);
       }))
     return report;
   {
@@ -535,25 +535,24 @@ StepReport StainSolver::advanceStages() {
   // clang-format off
   const std::vector<char>& band = band_.bandMask;    // forces act here, u is defined here
   const std::vector<char>& reach = band_.reachMask;  // where liquid can be after this step
-  if (!runStage(Stage::BodyForces, on.gravity || on.linearInertia, report, [&] { applyBodyForces(ctx, extrinsic, band, state_); markTerms(StepTerm::Gravity, on.gravity, StepTerm::LinearInertia, on.linearInertia); }) ||
-      !runStage(Stage::FilmPressure, on.filmPressure, report, [&] { applyFilmPressure(ctx, topology, extrinsic, band, state_); markTerms(StepTerm::FilmPressure); }) ||
-      !runStage(Stage::AdvectVelocity, on.velocityAdvection, report, [&] { advectVelocity(ctx, topology, intrinsic, reach, velocityScratch_, state_); markTerms(StepTerm::VelocityAdvection); }) ||
-      !runStage(Stage::Coriolis, on.coriolis, report, [&] { markTerms(StepTerm::Coriolis);
+  if (!runStage(Stage::BodyForces, on.gravity || on.linearInertia, report, [&] { applyBodyForces(ctx, extrinsic, band, state_); markTerms({{StepTerm::Gravity, on.gravity}, {StepTerm::LinearInertia, on.linearInertia}}); }) ||
+      !runStage(Stage::FilmPressure, on.filmPressure, report, [&] { applyFilmPressure(ctx, topology, extrinsic, band, state_); profile_.markRan(StepTerm::FilmPressure); }) ||
+      !runStage(Stage::AdvectVelocity, on.velocityAdvection, report, [&] { advectVelocity(ctx, topology, intrinsic, reach, velocityScratch_, state_); profile_.markRan(StepTerm::VelocityAdvection); }) ||
+      !runStage(Stage::Coriolis, on.coriolis, report, [&] { profile_.markRan(StepTerm::Coriolis);
                                                             frameChange ? applyFrameVelocityChange(ctx, extrinsic, velocityScratch_.footVertices, velocityScratch_.footWeights, reach, state_)
                                                                         : applyCoriolis(ctx, extrinsic, band, state_); }) ||
       !runStage(Stage::AdvectDensity, on.densityAdvection, report, [&] { recordAdvection(advectDensities(ctx, topology, intrinsic, extrinsic, band_.wetMask, densityScratch_, state_, &geometry_.restEdgeFrameNormals(), &reach)); }) ||
       !runStage(Stage::Diffuse, on.densityDiffusion || on.velocityDiffusion, report, [&] { return recordDiffusion(diffuse(ctx, intrinsic, systems_, diffusionScratch_, state_, &band_.diffusionMask)); }) ||
       !runStage(Stage::Interact, on.absorption || on.adsorption || on.evaporation, report, [&] { interact(ctx, topology, intrinsic, reach, state_, &evaporatedMass_); evaporationWritten_ = on.evaporation;
-                                                                                                   markTerms(StepTerm::Absorption, on.absorption, StepTerm::Adsorption, on.adsorption, StepTerm::Evaporation, on.evaporation); }))
+                                                                                                   markTerms({{StepTerm::Absorption, on.absorption}, {StepTerm::Adsorption, on.adsorption}, {StepTerm::Evaporation, on.evaporation}}); }))
     return report;
   // clang-format on
   return finishStep();
 }
 
-void StainSolver::markTerms(StepTerm a, bool ranA, StepTerm b, bool ranB, StepTerm c, bool ranC) {
-  if (ranA) profile_.markRan(a);
-  if (ranB) profile_.markRan(b);
-  if (ranC) profile_.markRan(c);
+void StainSolver::markTerms(std::initializer_list<std::pair<StepTerm, bool>> terms) {
+  for (const auto& [term, ran] : terms)
+    if (ran) profile_.markRan(term);
 }
 
 void StainSolver::recordAdvection(const DensityAdvectionReport& r) {

@@ -14,7 +14,9 @@
 #include <blot/stain/geometry/surface_geometry.h>
 #include <blot/stain/stages/velocity_advection.h>
 
+#include <initializer_list>
 #include <memory>
+#include <utility>
 #include <string>
 #include <vector>
 
@@ -186,9 +188,8 @@ class StainSolver {
   /// and negative densities. Fills `report` and restores the state when one
   /// is bad; returns false then.
   bool checkStage(Stage stage, StepReport& report);
-  /// Marks the terms that ran (up to three, each with its condition).
-  void markTerms(StepTerm a, bool ranA = true, StepTerm b = StepTerm::Sources, bool ranB = false,
-                 StepTerm c = StepTerm::Sources, bool ranC = false);
+  /// Marks each term whose condition is true as run this step.
+  void markTerms(std::initializer_list<std::pair<StepTerm, bool>> terms);
   /// The profile's record of a density advection and of a diffusion.
   void recordAdvection(const DensityAdvectionReport& report);
   SolverStatus recordDiffusion(const DiffusionReport& report);
