@@ -119,11 +119,13 @@ Engine::Engine(const EngineDef& def) : def_(def) {
   } else {
     stain::Homogenizer homogenizer;
     std::vector<stain::FabricPatch> patches = def_.fabricPatches;
-    for (std::size_t i = 0; i < patches.size() && i < def_.fabricPatchDiffusivities.size(); ++i) {
-      const double d = def_.fabricPatchDiffusivities[i];
-      if (!(d > 0) || !patches[i].pattern) continue;
-      const stain::Matrix2 s = homogenizer.homogenize(*patches[i].pattern, def_.homogenizationSubdivisions).effective;
-      patches[i].tensor = s * (2.0 * d / s.trace());
+    for (std::size_t i = 0; i < patches.size(); ++i) {
+      if (!patches[i].pattern) continue;
+      const bool known = i < def_.fabricPatchEffectiveTensors.size() && !def_.fabricPatchEffectiveTensors[i].isZero(0.0);
+      const stain::Matrix2 s = known ? def_.fabricPatchEffectiveTensors[i]
+                                     : homogenizer.homogenize(*patches[i].pattern, def_.homogenizationSubdivisions).effective;
+      const double d = i < def_.fabricPatchDiffusivities.size() ? def_.fabricPatchDiffusivities[i] : 0.0;
+      patches[i].tensor = d > 0 ? stain::Matrix2(s * (2.0 * d / s.trace())) : s;
       patches[i].pattern.reset();
     }
     const stain::FabricLayout layout =

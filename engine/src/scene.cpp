@@ -516,8 +516,9 @@ void parseFabric(ObjectReader& r, const stain::TriangleMesh& mesh, EngineDef& de
       patch.tensor = parseTensor(ctx, p.require("tensor"), p.path("tensor"));
     }
     // The engine gets the homogenized tensor only if its bounds met (or the
-    // scene accepts a looser one); the solve is repeated in the engine, cheap
-    // next to loading a scene (docs/patterns.md).
+    // scene accepts a looser one), and takes it from here instead of solving
+    // the cell problems again (docs/patterns.md).
+    stain::Matrix2 effective = stain::Matrix2::Zero();
     if (patch.pattern) {
       const std::string key = p.path(p.has("pattern") ? "pattern" : "preset");
       stain::HomogenizationResult h;
@@ -531,7 +532,9 @@ void parseFabric(ObjectReader& r, const stain::TriangleMesh& mesh, EngineDef& de
                           " of the largest eigenvalue (tolerance " + formatNumber(h.tolerance) + ") at " +
                           std::to_string(h.vertexCount) + " unknowns; set \"fabric.accept_unconverged\": true to use "
                           "the mean of the bounds anyway");
+      effective = h.effective;
     }
+    def.fabricPatchEffectiveTensors.push_back(effective);
     // Scale: the patch's tensor (S_eff for a pattern, after homogenization in
     // the engine) is scaled so its mean eigenvalue, trace / 2, is this (m²/s).
     double scale = 0;

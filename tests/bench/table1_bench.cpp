@@ -101,6 +101,7 @@ EngineDef makeDef(SceneId id) {
                                      stain::Vector3(0.8, 0.6, 0)};
     def.fabricPatches.clear();
     def.fabricPatchDiffusivities.clear();
+    def.fabricPatchEffectiveTensors.clear();
     for (int k = 0; k < 3; ++k) {
       stain::FabricPatch patch;
       patch.name = "slab" + std::to_string(k);

@@ -66,6 +66,11 @@ struct EngineDef {
   /// its homogenized S_eff so that trace / 2 equals this (m²/s); 0 keeps the
   /// pattern's own units.
   std::vector<double> fabricPatchDiffusivities;
+  /// Per patch (same order as fabricPatches, or empty): its pattern's S_eff as
+  /// homogenized already (the scene loader does, to check convergence), before
+  /// fabricPatchDiffusivities scales it. A patch with a pattern and no entry
+  /// here (or a zero matrix) is homogenized when the Engine is built.
+  std::vector<stain::Matrix2> fabricPatchEffectiveTensors;
   int homogenizationSubdivisions = stain::kAutoSubdivisions;  ///< K for the patterns' cell problems
 
   /// Switches, liquid parameters, gravity (m/s², also given to a Bullet cloth)
