@@ -1,6 +1,8 @@
 // Scene files: good scenes parse into the EngineDef fields they name, and bad
 // ones fail with a message that names the source and the key path.
 #include <blot/engine/scene.h>
+#include <blot/stain/fabric/homogenization.h>
+#include <blot/stain/fabric/weave_pattern.h>
 
 #include <gtest/gtest.h>
 
@@ -130,6 +132,12 @@ TEST(SceneTest, FabricPatchesWithTensorAndPreset) {
   EXPECT_TRUE(scene.engine.fabricPatches[1].pattern.has_value());
   EXPECT_EQ(scene.engine.fabricPatches[1].name, "fabric.patches[1]");  // errors name the key path
   EXPECT_EQ(scene.engine.fabricPatches[1].faces.size(), 200u);
+  // The loader's homogenization goes to the engine (no second solve there):
+  // the pattern's S_eff, nothing for the tensor patch.
+  ASSERT_EQ(scene.engine.fabricPatchEffectiveTensors.size(), 2u);
+  EXPECT_TRUE(scene.engine.fabricPatchEffectiveTensors[0].isZero(0.0));
+  EXPECT_EQ(scene.engine.fabricPatchEffectiveTensors[1],
+            stain::homogenize(stain::presetWeavePattern("twill-2-1")).effective);
 }
 
 // A pattern whose homogenization bounds do not meet (here a fixed K = 1, far
