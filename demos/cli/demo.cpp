@@ -11,6 +11,7 @@
 // JSON summary with the mass budget (implicit diffusion conserves Σ M σ, so
 // the relative drift printed is a correctness check a user can read).
 // Rejected: hiding a full coupled scene here; that belongs to scene files.
+#include "assets.h"
 #include "commands.h"
 
 #include <blot/cloth/surface_motion.h>
@@ -46,10 +47,10 @@ namespace {
 
 struct DemoOptions {
   std::string name = "rotating-cloth";
-  std::string meshPath = "build/external/meshes/bunny00.off";
+  std::string meshPath = "build/external/meshes/bunny00.off";  // found by findAsset (assets.h)
   std::string outputDirectory = "out/demo";
   std::string pigment = "wine";
-  int frames = 6;
+  int frames = 5;               // after the initial one, as in `blot run` and `blot figure`
   int stepsPerFrame = 10;
   double timeStep = 0.01;      // s
   double diffusivity = 0.01;   // m²/s
@@ -81,7 +82,7 @@ int runDropDiffusion(const DemoOptions& options) {
     throw std::invalid_argument("--frames and --steps-per-frame must be >= 1, --dt and "
                                 "--diffusivity positive");
   }
-  const stain::TriangleMesh mesh = stain::loadMesh(options.meshPath);
+  const stain::TriangleMesh mesh = stain::loadMesh(findAsset(options.meshPath));
   const auto vertexCount = static_cast<int>(mesh.vertexPositions.rows());
   const stain::SurfaceTopology topology(mesh.faces, vertexCount, options.meshPath);
   const stain::Vector lengths = stain::edgeLengths(topology, mesh.vertexPositions);
@@ -129,7 +130,7 @@ int runDropDiffusion(const DemoOptions& options) {
   const stain::Vector none;
   Eigen::MatrixX3d colors;
   stain::Vector rhs(vertexCount);
-  for (int frame = 0; frame < options.frames; ++frame) {
+  for (int frame = 0; frame <= options.frames; ++frame) {  // frame 0: the initial state
     if (frame > 0) {
       for (int step = 0; step < options.stepsPerFrame; ++step) {
         rhs = areas.cwiseProduct(solute);
@@ -159,7 +160,7 @@ int runDropDiffusion(const DemoOptions& options) {
   const std::string sheetPath =
       (std::filesystem::path(options.outputDirectory) / "drop_diffusion.png").string();
   engine::ContactSheetOptions sheetOptions;
-  sheetOptions.columns = std::min(options.frames, 3);
+  sheetOptions.columns = std::min(options.frames + 1, 3);
   sheetOptions.labelScale = 2;
   engine::writePng(engine::contactSheet(images, labels, sheetOptions), sheetPath);
 
@@ -261,7 +262,7 @@ int runRotatingCloth(const DemoOptions& options) {
   stain::RowVectors3 worldVelocities(vertexCount, 3), relativeVelocities(vertexCount, 3);
   ProfileSums sums;
   const auto start = std::chrono::steady_clock::now();
-  for (int frame = 0; frame < options.frames; ++frame) {
+  for (int frame = 0; frame <= options.frames; ++frame) {  // frame 0: the initial state
     for (int step = 0; frame > 0 && step < options.stepsPerFrame; ++step) {
       motion.advance(options.timeStep);
       // The motion is known rigid: the solver takes its rotation instead of
@@ -305,7 +306,7 @@ int runRotatingCloth(const DemoOptions& options) {
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   const std::string sheetPath = (std::filesystem::path(options.outputDirectory) / "rotating_cloth.png").string();
   engine::ContactSheetOptions sheetOptions;
-  sheetOptions.columns = std::min(options.frames, 4);
+  sheetOptions.columns = std::min(options.frames + 1, 4);
   sheetOptions.labelScale = 2;
   engine::writePng(engine::contactSheet(images, labels, sheetOptions), sheetPath);
 
@@ -330,7 +331,7 @@ int runRotatingCloth(const DemoOptions& options) {
       {"frames", frames},
       {"contact_sheet", sheetPath}};
   std::cout << summary.dump(2) << "\n";
-  std::cerr << "blot demo: wrote " << sheetPath << " and " << options.frames << " PLY frames in "
+  std::cerr << "blot demo: wrote " << sheetPath << " and " << options.frames + 1 << " PLY frames in "
             << options.outputDirectory << "\n";
   return 0;
 }
@@ -357,9 +358,12 @@ void registerDemoCommand(CLI::App& app, int& exitCode) {
               "Demos: rotating-cloth (default), drop-diffusion");
   command->add_option("name", options->name, "Demo name")->capture_default_str();
   command->add_option("--mesh", options->meshPath, "Mesh file")->capture_default_str();
-  command->add_option("--output", options->outputDirectory, "Output folder (created)")->capture_default_str();
+  command->add_option("--out", options->outputDirectory, "Output folder (created)")->capture_default_str();
+  // The old name, hidden: --out is the name every command uses.
+  command->add_option("--output", options->outputDirectory, "Same as --out")->group("");
   command->add_option("--pigment", options->pigment, "wine, coffee or ink")->capture_default_str();
-  command->add_option("--frames", options->frames, "Frames written")->capture_default_str();
+  command->add_option("--frames", options->frames, "Frames after the initial one (frames 0..N are written)")
+      ->capture_default_str();
   command->add_option("--steps-per-frame", options->stepsPerFrame, "Time steps per frame")->capture_default_str();
   command->add_option("--dt", options->timeStep, "Time step (s)")->capture_default_str();
   command->add_option("--diffusivity", options->diffusivity, "Isotropic diffusivity (m^2/s)")->capture_default_str();
