@@ -52,5 +52,9 @@ install(FILES ${PROJECT_BINARY_DIR}/blot.pc ${PROJECT_BINARY_DIR}/blot-outputs.p
 if(TARGET blot)
   install(TARGETS blot RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/assets/ DESTINATION ${CMAKE_INSTALL_DATADIR}/blot/assets)
+  # The CGAL sample meshes (scripts/setup), where the bunny scenes' relative
+  # paths (../../build/external/meshes/) and `blot demo drop-diffusion` look.
+  install(DIRECTORY ${PROJECT_SOURCE_DIR}/build/external/meshes/
+          DESTINATION ${CMAKE_INSTALL_DATADIR}/blot/build/external/meshes OPTIONAL)
 endif()
 unset(_blot_libraries)
