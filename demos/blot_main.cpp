@@ -1,6 +1,7 @@
 // `blot`: the command line for running scenes, homogenizing weave patterns and
 // inspecting meshes. Each subcommand lives in cli/<name>.cpp.
 #include "commands.h"
+#include "suggest.h"
 
 #include <blot/engine/version.h>
 
@@ -20,7 +21,11 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    const int code = app.exit(e);
+    if (code != 0) {
+      if (const std::string hint = blot::cli::suggestion(app, argc, argv); !hint.empty()) std::cerr << "blot: " << hint << "\n";
+    }
+    return code;
   } catch (const std::exception& e) {
     std::cerr << "blot: error: " << e.what() << "\n";
     return 1;

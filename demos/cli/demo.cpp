@@ -5,6 +5,7 @@
 // A demo is a scene file in assets/scenes/ and the shape its contact sheet shows
 // the stain on; the command line overrides what a user varies when trying one
 // out (frames, steps, time step, diffusivity, pigment).
+#include "assets.h"
 #include "commands.h"
 
 #include <blot/engine/engine.h>
@@ -29,7 +30,7 @@ namespace {
 
 struct Demo {
   const char* name;
-  const char* sceneFile;  ///< in BLOT_DEMO_SCENE_DIR
+  const char* sceneFile;  ///< in assets/scenes/, found by findAsset (assets.h)
   /// The contact sheet's shape: the rest shape shows a moving cloth's stain in
   /// the cloth's own frame.
   engine::PreviewShape shape;
@@ -51,7 +52,7 @@ struct DemoOptions {
   std::string scenePath;  // empty: the demo's scene
   std::string outputDirectory = "out/demo";
   std::string pigment;    // empty: the scene's
-  int frames = 6;         // frames written, the initial one included
+  int frames = 5;         // after the initial one, as in `blot run` and `blot figure`
   int stepsPerFrame = 0;  // 0: the scene's
   double timeStep = 0;    // s; 0: the scene's
   double diffusivity = 0; // m²/s; 0: the scene's
@@ -89,10 +90,10 @@ std::string frameLabel(double time) {
 
 int runDemo(const DemoOptions& options) {
   const Demo& demo = findDemo(options.name);
-  if (options.frames < 1 || options.stepsPerFrame < 0 || !(options.timeStep >= 0) || !(options.diffusivity >= 0))
-    throw std::invalid_argument("--frames must be >= 1, --steps-per-frame, --dt and --diffusivity >= 0");
+  if (options.frames < 0 || options.stepsPerFrame < 0 || !(options.timeStep >= 0) || !(options.diffusivity >= 0))
+    throw std::invalid_argument("--frames must be >= 0, --steps-per-frame, --dt and --diffusivity >= 0");
   const std::string scenePath = options.scenePath.empty()
-                                    ? (std::filesystem::path(BLOT_DEMO_SCENE_DIR) / demo.sceneFile).string()
+                                    ? findAsset(std::string("assets/scenes/") + demo.sceneFile)
                                     : options.scenePath;
   engine::SceneDef scene = engine::loadScene(scenePath);
   engine::EngineDef& def = scene.engine;
@@ -113,7 +114,7 @@ int runDemo(const DemoOptions& options) {
   std::vector<engine::Image> images;
   std::vector<std::string> labels;
   nlohmann::json frames = nlohmann::json::array();
-  for (int frame = 0; frame < options.frames; ++frame) {
+  for (int frame = 0; frame <= options.frames; ++frame) {  // frame 0: the initial state
     if (frame > 0) {
       const stain::StepReport report = e.advanceSteps(stepsPerFrame);
       if (report.status != stain::StepStatus::Ok)
@@ -129,7 +130,7 @@ int runDemo(const DemoOptions& options) {
   }
   const std::string sheetPath = (std::filesystem::path(options.outputDirectory) / (scene.name + ".png")).string();
   engine::ContactSheetOptions sheetOptions;
-  sheetOptions.columns = std::min(options.frames, demo.columns);
+  sheetOptions.columns = std::min(options.frames + 1, demo.columns);
   sheetOptions.labelScale = 2;
   engine::writePng(engine::contactSheet(images, labels, sheetOptions), sheetPath);
 
@@ -149,7 +150,7 @@ int runDemo(const DemoOptions& options) {
       {"frames", frames},
       {"contact_sheet", sheetPath}};
   std::cout << summary.dump(2) << "\n";
-  std::cerr << "blot demo: wrote " << sheetPath << " and " << options.frames << " PLY frames in "
+  std::cerr << "blot demo: wrote " << sheetPath << " and " << options.frames + 1 << " PLY frames in "
             << options.outputDirectory << "\n";
   return 0;
 }
@@ -163,10 +164,14 @@ void registerDemoCommand(CLI::App& app, int& exitCode) {
   CLI::App* command = app.add_subcommand(
       "demo", "Run a shipped demo scene; writes PLY frames and a PNG contact sheet, prints JSON. Demos: " + names);
   command->add_option("name", options->name, "Demo name")->capture_default_str();
-  command->add_option("--scene", options->scenePath, "Scene file (default: the demo's, in assets/scenes/)");
-  command->add_option("--output", options->outputDirectory, "Output folder (created)")->capture_default_str();
+  command->add_option("--scene", options->scenePath, "Scene file (default: the demo's, in assets/scenes/)")
+      ->transform(assetPath());
+  command->add_option("--out", options->outputDirectory, "Output folder (created)")->capture_default_str();
+  // The old name, hidden: --out is the name every command uses.
+  command->add_option("--output", options->outputDirectory, "Same as --out")->group("");
   command->add_option("--pigment", options->pigment, "wine, coffee or ink (default: the scene's)");
-  command->add_option("--frames", options->frames, "Frames written, the initial one included")->capture_default_str();
+  command->add_option("--frames", options->frames, "Frames after the initial one (frames 0..N are written)")
+      ->capture_default_str();
   command->add_option("--steps-per-frame", options->stepsPerFrame, "Internal steps per frame (default: the scene's)");
   command->add_option("--dt", options->timeStep, "Internal time step, s (default: the scene's)");
   command->add_option("--diffusivity", options->diffusivity,

@@ -17,6 +17,7 @@
 //     (Fig. 13), rendered from above into a labelled contact sheet.
 // Rejected: hard-coding the setups here (a second description of the same
 // scene that would drift from the files users run).
+#include "assets.h"
 #include "commands.h"
 
 #include <blot/engine/engine.h>
@@ -84,8 +85,8 @@ engine::Image renderPanel(const engine::Engine& e, int width, const engine::Scen
   });
 }
 
-/// Default base scenes are relative to the working directory: the repository root, like `blot demo`'s mesh.
-std::string defaultScene(const std::string& file) { return "assets/scenes/" + file; }
+/// Default base scenes: assets/scenes/ wherever `blot` finds its assets (assets.h).
+std::string defaultScene(const std::string& file) { return findAsset("assets/scenes/" + file); }
 
 int runFig5(const FigureOptions& o) {
   const std::string scenePath = o.scenePath.empty() ? defaultScene("rotating_region.json") : o.scenePath;
@@ -229,7 +230,8 @@ void registerFigureCommand(CLI::App& app, int& exitCode) {
       CLI::IsMember({"fig5", "parameter-grid"}));
   command->add_option("--kind", options->kind, "parameter-grid: absorption (Fig. 12) or adsorption (Fig. 13)")
       ->capture_default_str();
-  command->add_option("--scene", options->scenePath, "Base scene (default: the figure's file in assets/scenes/)");
+  command->add_option("--scene", options->scenePath, "Base scene (default: the figure's file in assets/scenes/)")
+      ->transform(assetPath());
   command->add_option("--out", options->outputDirectory, "Output folder (default: out/<figure>)");
   command->add_option("--frames", options->frames, "Frames to run (default: the scene's outputs.frames)");
   command->add_option("--width", options->width, "Pixels per panel")->capture_default_str();

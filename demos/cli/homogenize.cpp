@@ -17,6 +17,7 @@
 // reported on stderr naming the file or option, with exit code 1; nothing is
 // printed on stdout then, so scripts never parse half a result. A result that
 // did not converge is printed with "converged": false and a warning on stderr.
+#include "assets.h"
 #include "commands.h"
 
 #include <blot/stain/fabric/homogenization.h>
@@ -139,7 +140,7 @@ void registerHomogenizeCommand(CLI::App& app, int& exitCode) {
   CLI::App* command = app.add_subcommand(
       "homogenize", "Print the effective (homogenized) diffusion tensor of a weave pattern as JSON "
                     "(docs/patterns.md)");
-  CLI::Option* file = command->add_option("pattern", options->patternPath, "Pattern file (.json)");
+  CLI::Option* file = command->add_option("pattern", options->patternPath, "Pattern file (.json)")->transform(assetPath());
   CLI::Option* preset = command->add_option(
       "--preset", options->preset, "Use a named preset instead of a file: plain, twill-2-1, twill-3-1, "
                                    "satin-5, basket, rib-knit");

@@ -8,6 +8,7 @@
 // components, genus) and size (area, bounding box, edge lengths), computed by
 // the same stain/ functions the solver uses, not by a second implementation.
 // The optional preview is the engine's software renderer, auto-framed.
+#include "assets.h"
 #include "commands.h"
 
 #include <blot/engine/image.h>
@@ -162,7 +163,7 @@ void registerMeshInfoCommand(CLI::App& app, int& exitCode) {
   CLI::App* command = app.add_subcommand(
       "mesh-info", "Print a JSON summary of a mesh (topology, size, triangle quality); "
                    "optionally render a PNG preview");
-  command->add_option("mesh", options->meshPath, "Mesh file (.obj, .ply, .off)")->required();
+  command->add_option("mesh", options->meshPath, "Mesh file (.obj, .ply, .off)")->required()->transform(assetPath());
   command->add_option("--render", options->renderPath, "Write a shaded PNG preview here");
   command->add_option("--view", options->view, "Preview view direction x,y,z (camera looks along it)")
       ->delimiter(',')

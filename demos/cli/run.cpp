@@ -13,6 +13,7 @@
 // the last good frame written; a bad scene exits 1 with the key path.
 // Rejected: writing frames from a second thread (ordering and error handling
 // for little gain at these sizes).
+#include "assets.h"
 #include "commands.h"
 
 #include <blot/engine/engine.h>
@@ -376,7 +377,7 @@ void registerRunCommand(CLI::App& app, int& exitCode) {
   auto options = std::make_shared<RunOptions>();
   CLI::App* command = app.add_subcommand(
       "run", "Run a scene file (docs/scene-format.md): PLY frames, a PNG of the last frame, JSON summary");
-  command->add_option("scene", options->scenePath, "Scene file (JSON)")->required();
+  command->add_option("scene", options->scenePath, "Scene file (JSON)")->required()->transform(assetPath());
   command->add_option("--frames", options->frames, "Frames to run (default: the scene's outputs.frames)");
   command->add_option("--out", options->outputDirectory, "Output folder (default: the scene's outputs.directory)");
   command->add_option("--threads", options->threads, "OpenMP threads (default: all cores)");
@@ -385,11 +386,14 @@ void registerRunCommand(CLI::App& app, int& exitCode) {
                       "Save the whole state every N frames to <out>/checkpoint_<frame>.state (0: never)");
   command->add_flag("--resume", options->resume,
                     "Continue from <out>/checkpoint.json; frames and results equal an uninterrupted run's");
+  // Testing-only options: hidden from --help (an empty group).
   command->add_option("--kill-after-frame", options->killAfterFrame,
-                      "Testing only: the process kills itself with SIGKILL after this frame");
+                      "Testing only: the process kills itself with SIGKILL after this frame")
+      ->group("");
   command->add_option("--testing-inject-fault", options->injectFault,
                       "Testing only: STAGE:STEP:VERTEX puts a NaN after that stage of that internal step "
-                      "(docs/reliability.md)");
+                      "(docs/reliability.md)")
+      ->group("");
   command->callback([options, &exitCode]() { exitCode = runScene(*options); });
 }
 

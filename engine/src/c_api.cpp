@@ -10,8 +10,13 @@
 #include <blot/blot.h>
 #include <blot/engine/engine.h>
 #include <blot/engine/scene.h>
+#include <blot/stain/fabric/weave_pattern.h>
 
+#include <cerrno>
+#include <cmath>
+#include <cstring>
 #include <exception>
+#include <fstream>
 #include <memory>
 #include <string>
 
@@ -72,9 +77,238 @@ blotStatus copyRows(const char* function, const blotEngine* engine, View view, f
   return BLOT_OK;
 }
 
+/// A file the caller named that cannot be opened is an I/O error, told apart
+/// from a scene the parser rejects.
+bool checkReadable(const char* function, const char* path, blotStatus& status) {
+  std::ifstream in(path, std::ios::binary);
+  if (in) return true;
+  const int error = errno;
+  status = fail(BLOT_ERROR_IO, std::string(function) + ": " + path + ": cannot open (" +
+                                   (error != 0 ? std::strerror(error) : "unreadable") + ")");
+  return false;
+}
+
+Eigen::Vector3d vec3(const double v[3]) { return Eigen::Vector3d(v[0], v[1], v[2]); }
+
+void setVec3(double out[3], const Eigen::Vector3d& v) {
+  for (int c = 0; c < 3; ++c) out[c] = v[c];
+}
+
+blotMassBudget toMassBudget(const blot::stain::MassBudget& b) {
+  blotMassBudget out;
+  out.freeSolvent = b.freeSolvent;
+  out.absorbedSolvent = b.absorbedSolvent;
+  out.evaporatedSolvent = b.evaporatedSolvent;
+  out.addedSolvent = b.addedSolvent;
+  out.freeSolute = b.freeSolute;
+  out.absorbedSolute = b.absorbedSolute;
+  out.adsorbedSolute = b.adsorbedSolute;
+  out.addedSolute = b.addedSolute;
+  out.solventError = b.solventError();
+  out.soluteError = b.soluteError();
+  return out;
+}
+
+/// blotEngineDef -> EngineDef; throws std::invalid_argument naming the field
+/// (the Engine constructor checks ranges and the mesh itself).
+blot::engine::EngineDef toEngineDef(const blotEngineDef& d) {
+  using blot::engine::MotionSource;
+  if (d.vertexCount < 3 || d.faceCount < 1)
+    throw std::invalid_argument("vertexCount " + std::to_string(d.vertexCount) + " and faceCount " +
+                                std::to_string(d.faceCount) + ": expected at least 3 vertices and 1 face");
+  if (d.positions == nullptr || d.faces == nullptr) throw std::invalid_argument("positions and faces must not be NULL");
+  blot::engine::EngineDef def;
+  def.mesh.vertexPositions.resize(d.vertexCount, 3);
+  for (int i = 0; i < d.vertexCount; ++i)
+    for (int c = 0; c < 3; ++c) def.mesh.vertexPositions(i, c) = d.positions[3 * i + c];
+  def.mesh.faces.resize(d.faceCount, 3);
+  for (int f = 0; f < d.faceCount; ++f)
+    for (int c = 0; c < 3; ++c) def.mesh.faces(f, c) = d.faces[3 * f + c];
+
+  switch (d.source) {
+    case BLOT_MOTION_STATIC: def.source = MotionSource::Static; break;
+    case BLOT_MOTION_RIGID: def.source = MotionSource::Rigid; break;
+    case BLOT_MOTION_BULLET: def.source = MotionSource::Bullet; break;
+    default: throw std::invalid_argument("source " + std::to_string(int(d.source)) + ": expected a blotMotionSource");
+  }
+  def.rigid.angularVelocity = vec3(d.rigidAngularVelocity);
+  def.rigid.pivot = vec3(d.rigidPivot);
+  def.rigid.linearVelocity = vec3(d.rigidLinearVelocity);
+
+  const blotClothDef& c = d.cloth;
+  def.cloth.totalMass = c.totalMass;
+  def.cloth.stretchStiffness = c.stretchStiffness;
+  def.cloth.bendStiffness = c.bendStiffness;
+  def.cloth.dampingRate = c.dampingRate;
+  def.cloth.positionIterations = c.positionIterations;
+  def.cloth.substeps = c.substeps;
+  def.cloth.tethers = c.tethers != 0;
+  def.cloth.tetherSlack = c.tetherSlack;
+  if (c.pinnedVertexCount < 0 || (c.pinnedVertexCount > 0 && c.pinnedVertices == nullptr))
+    throw std::invalid_argument("cloth.pinnedVertexCount " + std::to_string(c.pinnedVertexCount) +
+                                ": expected >= 0, with cloth.pinnedVertices set when > 0");
+  for (int k = 0; k < c.pinnedVertexCount; ++k) {
+    if (c.pinnedVertices[k] < 0 || c.pinnedVertices[k] >= d.vertexCount)
+      throw std::invalid_argument("cloth.pinnedVertices[" + std::to_string(k) + "]: expected a vertex in [0, " +
+                                  std::to_string(d.vertexCount) + "), got " + std::to_string(c.pinnedVertices[k]));
+    blot::cloth::ClothPin pin;
+    pin.vertex = c.pinnedVertices[k];
+    def.cloth.pins.push_back(pin);
+  }
+  def.coupling = c.twoWay != 0 ? blot::coupling::CouplingMode::TwoWay : blot::coupling::CouplingMode::OneWay;
+
+  const blotFabricDef& fabric = d.fabric;
+  def.diffusivity = fabric.diffusivity;
+  def.viscosity = fabric.viscosity;
+  if (fabric.weavePreset != nullptr && fabric.weavePreset[0] != '\0') {
+    blot::stain::FabricPatch patch;
+    patch.name = fabric.weavePreset;
+    patch.pattern = blot::stain::presetWeavePattern(fabric.weavePreset);
+    const Eigen::Vector3d weft = vec3(fabric.weft);
+    if (!(weft.norm() > 0)) throw std::invalid_argument("fabric.weft: expected a non-zero direction");
+    for (int f = 0; f < d.faceCount; ++f) {
+      patch.faces.push_back(f);
+      patch.weftConstraints.push_back({f, weft});
+    }
+    def.fabricPatches.push_back(std::move(patch));
+    def.fabricPatchDiffusivities.push_back(fabric.diffusivity);
+  }
+
+  def.stain.liquid.absorptionRate = d.liquid.absorptionRate;
+  def.stain.liquid.saturationDensity = d.liquid.saturationDensity;
+  def.stain.liquid.desorptionRate = d.liquid.desorptionRate;
+  def.stain.liquid.adsorptionCapacity = d.liquid.adsorptionCapacity;
+  def.stain.liquid.evaporationRate = d.liquid.evaporationRate;
+  def.stain.gravity = vec3(d.gravity);
+  // A Bullet cloth's links jitter by percents near pins: the scene loader's
+  // default strain tolerance for it (docs/scene-format.md, strain_tolerance).
+  if (def.source == MotionSource::Bullet) def.stain.strainTolerance = 0.02;
+  def.timeStep = d.timeStep;
+  def.maxStepsPerCall = d.maxStepsPerCall;
+  return def;
+}
+
 }  // namespace
 
 extern "C" {
+
+blotClothDef blotDefaultClothDef(void) {
+  const blot::cloth::ClothDef c;
+  blotClothDef out;
+  out.totalMass = c.totalMass;
+  out.stretchStiffness = c.stretchStiffness;
+  out.bendStiffness = c.bendStiffness;
+  out.dampingRate = c.dampingRate;
+  out.positionIterations = c.positionIterations;
+  out.substeps = c.substeps;
+  out.tethers = c.tethers ? 1 : 0;
+  out.tetherSlack = c.tetherSlack;
+  out.pinnedVertices = nullptr;
+  out.pinnedVertexCount = 0;
+  out.twoWay = 0;
+  return out;
+}
+
+blotFabricDef blotDefaultFabricDef(void) {
+  const blot::engine::EngineDef e;
+  blotFabricDef out;
+  out.diffusivity = e.diffusivity;
+  out.viscosity = e.viscosity;
+  out.weavePreset = nullptr;
+  out.weft[0] = 1.0;
+  out.weft[1] = out.weft[2] = 0.0;
+  return out;
+}
+
+blotLiquidDef blotDefaultLiquidDef(void) {
+  const blot::stain::LiquidParameters l;
+  blotLiquidDef out;
+  out.absorptionRate = l.absorptionRate;
+  out.saturationDensity = l.saturationDensity;
+  out.desorptionRate = l.desorptionRate;
+  out.adsorptionCapacity = l.adsorptionCapacity;
+  out.evaporationRate = l.evaporationRate;
+  return out;
+}
+
+blotEngineDef blotDefaultEngineDef(void) {
+  const blot::engine::EngineDef e;
+  blotEngineDef out;
+  out.positions = nullptr;
+  out.vertexCount = 0;
+  out.faces = nullptr;
+  out.faceCount = 0;
+  out.source = BLOT_MOTION_STATIC;
+  setVec3(out.rigidAngularVelocity, e.rigid.angularVelocity);
+  setVec3(out.rigidPivot, e.rigid.pivot);
+  setVec3(out.rigidLinearVelocity, e.rigid.linearVelocity);
+  out.cloth = blotDefaultClothDef();
+  out.fabric = blotDefaultFabricDef();
+  out.liquid = blotDefaultLiquidDef();
+  setVec3(out.gravity, e.stain.gravity);
+  out.timeStep = e.timeStep;
+  out.maxStepsPerCall = e.maxStepsPerCall;
+  return out;
+}
+
+blotStatus blotCreateEngine(const blotEngineDef* def, blotEngine** outEngine) {
+  if (def == nullptr || outEngine == nullptr) return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotCreateEngine: null argument");
+  return guarded("blotCreateEngine", [&] {
+    try {
+      auto handle = std::make_unique<blotEngine>();
+      handle->engine = std::make_unique<blot::engine::Engine>(toEngineDef(*def));
+      *outEngine = handle.release();
+      return BLOT_OK;
+    } catch (const std::invalid_argument&) {
+      throw;
+    } catch (const std::bad_alloc&) {
+      throw;
+    } catch (const std::runtime_error& e) {
+      // Mesh, fabric and preset errors from the definition are bad arguments too.
+      throw std::invalid_argument(e.what());
+    }
+  });
+}
+
+blotStatus blotEngine_CopyLiquidWorldVelocities(const blotEngine* engine, float* out, int capacity) {
+  return copyRows("blotEngine_CopyLiquidWorldVelocities", engine,
+                  [](const blot::engine::Engine& e) -> const Eigen::MatrixX3d& { return e.liquidWorldVelocities(); },
+                  out, capacity);
+}
+
+blotStatus blotEngine_CopyLiquidRelativeVelocities(const blotEngine* engine, float* out, int capacity) {
+  return copyRows("blotEngine_CopyLiquidRelativeVelocities", engine,
+                  [](const blot::engine::Engine& e) -> const Eigen::MatrixX3d& { return e.liquidVelocities(); }, out,
+                  capacity);
+}
+
+blotStatus blotEngine_GetStatistics(const blotEngine* engine, blotStatistics* out) {
+  if (engine == nullptr || out == nullptr) return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_GetStatistics: null argument");
+  return guarded("blotEngine_GetStatistics", [&] {
+    const blot::engine::EngineStatistics s = engine->engine->statistics();
+    out->steps = s.steps;
+    out->time = s.time;
+    out->droppedTime = s.droppedTime;
+    out->dropsApplied = s.dropsApplied;
+    out->intrinsicRefreshes = s.intrinsicRefreshes;
+    out->wallSeconds = s.wallSeconds;
+    out->stepsPerSecond = s.stepsPerSecond;
+    out->lastStepMilliseconds = s.lastTimes.total;
+    out->lastClothMilliseconds = s.lastTimes.cloth;
+    out->lastStainMilliseconds = s.lastTimes.stain;
+    out->lastCouplingMilliseconds = s.lastTimes.coupling;
+    out->massBudget = toMassBudget(s.massBudget);
+    return BLOT_OK;
+  });
+}
+
+blotStatus blotEngine_GetMassBudget(const blotEngine* engine, blotMassBudget* out) {
+  if (engine == nullptr || out == nullptr) return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_GetMassBudget: null argument");
+  return guarded("blotEngine_GetMassBudget", [&] {
+    *out = toMassBudget(engine->engine->surface().stain().massBudget());
+    return BLOT_OK;
+  });
+}
 
 blotDropDef blotDefaultDropDef(void) {
   const blot::stain::DropDef d;
@@ -93,6 +327,7 @@ const char* blotGetLastError(void) { return gLastError.c_str(); }
 blotStatus blotCreateEngineFromSceneFile(const char* path, blotEngine** outEngine) {
   if (path == nullptr || outEngine == nullptr)
     return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotCreateEngineFromSceneFile: null argument");
+  if (blotStatus status; !checkReadable("blotCreateEngineFromSceneFile", path, status)) return status;
   return guarded("blotCreateEngineFromSceneFile", [&] {
     auto handle = std::make_unique<blotEngine>();
     handle->engine = blot::engine::Engine::fromSceneFile(path);
@@ -206,13 +441,18 @@ blotStatus blotEngine_CopyFaces(const blotEngine* engine, int32_t* out, int capa
 blotStatus blotEngine_Save(const blotEngine* engine, const char* path) {
   if (engine == nullptr || path == nullptr) return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_Save: null argument");
   return guarded("blotEngine_Save", [&] {
-    engine->engine->save(path);
+    try {
+      engine->engine->save(path);
+    } catch (const std::runtime_error& e) {  // the atomic writer's failures name the file
+      return fail(BLOT_ERROR_IO, std::string("blotEngine_Save: ") + e.what());
+    }
     return BLOT_OK;
   });
 }
 
 blotStatus blotEngine_Load(blotEngine* engine, const char* path) {
   if (engine == nullptr || path == nullptr) return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_Load: null argument");
+  if (blotStatus status; !checkReadable("blotEngine_Load", path, status)) return status;
   return guarded("blotEngine_Load", [&] {
     engine->engine->load(path);
     return BLOT_OK;

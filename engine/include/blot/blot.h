@@ -7,8 +7,16 @@
  *
  * Errors: every call that can fail returns a blotStatus; on failure the
  * message (naming the file, key, field or stage) is available from
- * blotGetLastError() on the same thread until the next failing call there.
+ * blotGetLastError() on the same thread. The string belongs to the library:
+ * do not free it; it stays valid and unchanged until the next call that fails
+ * on that thread (successful calls leave it alone), so copy it to keep it.
  * Nothing throws across this boundary.
+ *
+ * Creation without files: fill a blotEngineDef (start from
+ * blotDefaultEngineDef(), which holds blotDefaultClothDef(),
+ * blotDefaultFabricDef() and blotDefaultLiquidDef()), point it at your mesh
+ * arrays and call blotCreateEngine. The arrays are copied; they need to live
+ * only during the call.
  *
  * Threads: one engine must not be used from two threads at once; different
  * engines are independent.
@@ -30,7 +38,7 @@ typedef enum blotStatus {
   BLOT_ERROR_INVALID_ARGUMENT = 1, /**< null pointer, bad index, buffer too small, bad value */
   BLOT_ERROR_SCENE = 2,            /**< scene file or JSON rejected (message names the key) */
   BLOT_ERROR_NUMERICAL = 3,        /**< a step failed (stage, vertex, step in the message); state kept */
-  BLOT_ERROR_IO = 4,               /**< file could not be read or written */
+  BLOT_ERROR_IO = 4,               /**< a file given to the call is missing, unreadable or unwritable */
   BLOT_ERROR_INTERNAL = 5          /**< anything else */
 } blotStatus;
 
@@ -56,10 +64,110 @@ typedef struct blotDropDef {
 /** radius 0.05 m, 1 g solvent, 0.1 g solute, at rest, no splash. */
 blotDropDef blotDefaultDropDef(void);
 
-/** Message of the last failing call on this thread ("" if none). Valid until the next failing call. */
+/** Where the moving mesh comes from. */
+typedef enum blotMotionSource {
+  BLOT_MOTION_STATIC = 0, /**< the mesh stays at its rest shape */
+  BLOT_MOTION_RIGID = 1,  /**< a rigid motion (blotEngineDef.rigid*) */
+  BLOT_MOTION_BULLET = 2  /**< Bullet soft-body cloth (blotEngineDef.cloth) */
+} blotMotionSource;
+
+/** Bullet soft-body cloth (see blot::cloth::ClothDef, docs/cloth.md). */
+typedef struct blotClothDef {
+  double totalMass;         /**< kg, > 0, spread by lumped area */
+  double stretchStiffness;  /**< Bullet kLST in (0, 1] */
+  double bendStiffness;     /**< kLST in [0, 1]; 0 builds no bending links */
+  double dampingRate;       /**< 1/s, >= 0 */
+  int positionIterations;   /**< >= 1 */
+  int substeps;             /**< Bullet steps per internal step, >= 1 */
+  int tethers;              /**< nonzero: long-range attachments to the pins */
+  double tetherSlack;       /**< fraction, >= 0 */
+  const int32_t* pinnedVertices; /**< vertices held at their rest position (may be NULL if the count is 0) */
+  int pinnedVertexCount;
+  int twoWay;               /**< nonzero: the liquid's mass and momentum act on the cloth (coupling two-way) */
+} blotClothDef;
+
+/** Fabric: isotropic diffusion, or a homogenized weave preset. */
+typedef struct blotFabricDef {
+  double diffusivity;   /**< m²/s, > 0: isotropic diffusivity, or the preset's trace / 2 */
+  double viscosity;     /**< m²/s, >= 0: velocity diffusivity of the film */
+  /** NULL or "": isotropic. Otherwise a preset of `blot homogenize --list-presets`
+   *  (e.g. "twill-2-1"), homogenized once, on every face, weft along `weft`. */
+  const char* weavePreset;
+  double weft[3];       /**< weft direction (projected into each face), used with weavePreset */
+} blotFabricDef;
+
+/** The liquid's interaction with the fabric (see blot::stain::LiquidParameters). */
+typedef struct blotLiquidDef {
+  double absorptionRate;     /**< K_p, 1/s */
+  double saturationDensity;  /**< sigma_sat, kg/m² */
+  double desorptionRate;     /**< K_d, 1/s */
+  double adsorptionCapacity; /**< A_d, kg/m² */
+  double evaporationRate;    /**< K_evap, kg/(m² s) */
+} blotLiquidDef;
+
+/** Everything an engine is built from. Only the mesh has no default. */
+typedef struct blotEngineDef {
+  const double* positions;  /**< rest shape, vertexCount x 3 interleaved xyz (m) */
+  int vertexCount;
+  const int32_t* faces;     /**< faceCount x 3 vertex indices, counter-clockwise */
+  int faceCount;
+  blotMotionSource source;
+  double rigidAngularVelocity[3]; /**< rad/s, BLOT_MOTION_RIGID */
+  double rigidPivot[3];           /**< m */
+  double rigidLinearVelocity[3];  /**< m/s of the pivot */
+  blotClothDef cloth;             /**< BLOT_MOTION_BULLET */
+  blotFabricDef fabric;
+  blotLiquidDef liquid;
+  double gravity[3];        /**< m/s², also given to the Bullet cloth */
+  double timeStep;          /**< the fixed internal step h (s, > 0) */
+  int maxStepsPerCall;      /**< >= 1 */
+} blotEngineDef;
+
+/** Bullet's stable cloth settings: 0.15 kg, kLST 1, bending 0.2, 4 iterations, 4 substeps, tethers. No pins, one-way. */
+blotClothDef blotDefaultClothDef(void);
+/** Isotropic, diffusivity 0.01 m²/s, viscosity 2e-3 m²/s, weft +x. */
+blotFabricDef blotDefaultFabricDef(void);
+/** The engine's liquid defaults (docs/scene-format.md, "liquid"). */
+blotLiquidDef blotDefaultLiquidDef(void);
+/** No mesh, static, the default cloth, fabric and liquid, gravity (0, 0, -9.8), h = 1/120 s, 8 steps per call. */
+blotEngineDef blotDefaultEngineDef(void);
+
+/** Liquid mass totals (kg) and the relative conservation errors. */
+typedef struct blotMassBudget {
+  double freeSolvent, absorbedSolvent, evaporatedSolvent, addedSolvent;
+  double freeSolute, absorbedSolute, adsorbedSolute, addedSolute;
+  double solventError; /**< |free + absorbed + evaporated - added| / added */
+  double soluteError;  /**< |free + absorbed + adsorbed - added| / added */
+} blotMassBudget;
+
+/** Counters and timings since creation (see blot::engine::EngineStatistics). */
+typedef struct blotStatistics {
+  int64_t steps;            /**< internal steps taken */
+  double time;              /**< simulated time (s) */
+  double droppedTime;       /**< frame time discarded by maxStepsPerCall (s) */
+  int dropsApplied;
+  int intrinsicRefreshes;   /**< internal steps that rebuilt the metric */
+  double wallSeconds;       /**< wall-clock time inside internal steps (s) */
+  double stepsPerSecond;
+  double lastStepMilliseconds;     /**< the last internal step: total */
+  double lastClothMilliseconds;    /**< its cloth part */
+  double lastStainMilliseconds;    /**< its stain part */
+  double lastCouplingMilliseconds; /**< its coupling part */
+  blotMassBudget massBudget;       /**< now */
+} blotStatistics;
+
+/** Message of the last failing call on this thread ("" if none). Owned by the
+ *  library; valid and unchanged until the next failing call on this thread. */
 const char* blotGetLastError(void);
 
-/** Creates an engine from a scene file (docs/scene-format.md). *outEngine is set on success. */
+/** Creates an engine from a definition, no file involved. *outEngine is set on success;
+ *  a NULL array or a bad field (out of range, invalid mesh, unknown preset) is
+ *  BLOT_ERROR_INVALID_ARGUMENT with a message naming the field and the value. */
+blotStatus blotCreateEngine(const blotEngineDef* def, blotEngine** outEngine);
+
+/** Creates an engine from a scene file (docs/scene-format.md). *outEngine is set on success.
+ *  BLOT_ERROR_IO if the file cannot be opened; BLOT_ERROR_SCENE if its content is rejected
+ *  (also for a mesh or pattern file it names that cannot be read: the message names it). */
 blotStatus blotCreateEngineFromSceneFile(const char* path, blotEngine** outEngine);
 /** The same from JSON text; relative paths resolve against baseDirectory (NULL: "."). */
 blotStatus blotCreateEngineFromSceneJson(const char* json, const char* baseDirectory, blotEngine** outEngine);
@@ -91,8 +199,18 @@ blotStatus blotEngine_CopyColors(const blotEngine* engine, float* out, int capac
 blotStatus blotEngine_CopyDensities(const blotEngine* engine, blotDensity which, float* out, int capacity);
 /** Copies #F x 3 vertex indices of the triangles (capacity >= 3 #F). */
 blotStatus blotEngine_CopyFaces(const blotEngine* engine, int32_t* out, int capacity);
+/** Copies #V x 3 liquid velocities in the world (inertial) frame (m/s): the cloth's velocity plus the relative one. */
+blotStatus blotEngine_CopyLiquidWorldVelocities(const blotEngine* engine, float* out, int capacity);
+/** Copies #V x 3 liquid velocities relative to the cloth, tangential, in world axes (m/s). */
+blotStatus blotEngine_CopyLiquidRelativeVelocities(const blotEngine* engine, float* out, int capacity);
 
-/** Saves / loads the whole state (binary; see Engine::save and Engine::load). */
+/** Counters, timings and the mass budget. */
+blotStatus blotEngine_GetStatistics(const blotEngine* engine, blotStatistics* out);
+/** The mass budget alone (cheaper than the statistics). */
+blotStatus blotEngine_GetMassBudget(const blotEngine* engine, blotMassBudget* out);
+
+/** Saves / loads the whole state (binary; see Engine::save and Engine::load).
+ *  BLOT_ERROR_IO for a file that cannot be written, opened or does not match the engine. */
 blotStatus blotEngine_Save(const blotEngine* engine, const char* path);
 blotStatus blotEngine_Load(blotEngine* engine, const char* path);
 
