@@ -210,11 +210,15 @@ Engine::~Engine() = default;
 // ------------------------------------------------------------------ stepping
 
 stain::StepReport Engine::step(double frameDt) {
-  if (!(frameDt >= 0) || !std::isfinite(frameDt)) {
+  // Longer frames would only be cut to maxStepsPerCall steps, and a huge
+  // frameDt / h would overflow the accumulator (inf - inf = NaN: the engine
+  // would never step again), so they are refused and change nothing.
+  if (!(frameDt >= 0) || !(frameDt <= kMaxFrameSeconds)) {
     stain::StepReport report;
     report.status = stain::StepStatus::InvalidArgument;
     report.stage = stain::Stage::Guard;
-    report.message = "Engine::step: frameDt must be finite and >= 0";
+    report.message = "Engine::step: frameDt must be finite and in [0, " + std::to_string(kMaxFrameSeconds) +
+                     "] s, got " + std::to_string(frameDt);
     return report;
   }
   accumulator_ += frameDt / def_.timeStep;

@@ -15,6 +15,8 @@
 // rather than std::hash of a string, so it is stable across runs, platforms and
 // standard libraries, which a cache key written to logs needs.
 #include <blot/stain/fabric/weave_pattern.h>
+#include <blot/stain/io/bounded_read.h>
+#include <blot/stain/io/strict_json.h>
 
 #include <blot/stain/content_hash.h>
 
@@ -350,11 +352,12 @@ WeavePattern weavePatternFromCells(const std::vector<std::string>& cells,
 WeavePattern parseWeavePattern(const std::string& jsonText, const std::string& sourceName) {
   Json document;
   try {
-    document = Json::parse(jsonText);
-  } catch (const Json::exception& e) {
-    // Not only parse_error: a number too large for a double (1e999) is an
-    // out_of_range error from the same parse (found by tests/fuzz).
-    throw PatternError(sourceName + ": not valid JSON: " + e.what());
+    document = parseStrictJson(jsonText);
+  } catch (const StrictJsonError& e) {
+    const std::string what = e.what();
+    const std::string syntax = "invalid JSON: ";
+    throw PatternError(sourceName + ": " +
+                       (what.rfind(syntax, 0) == 0 ? "not valid JSON: " + what.substr(syntax.size()) : what));
   }
   if (!document.is_object())
     throw PatternError(sourceName + ": expected a JSON object with \"tensors\" or \"cells\", got " +
@@ -390,11 +393,13 @@ WeavePattern parseWeavePattern(const std::string& jsonText, const std::string& s
 }
 
 WeavePattern loadWeavePattern(const std::string& path) {
-  std::ifstream file(path, std::ios::binary);
-  if (!file) throw PatternError(path + ": cannot open pattern file");
-  std::ostringstream text;
-  text << file.rdbuf();
-  return parseWeavePattern(text.str(), path);
+  std::string text;
+  try {
+    text = readFileBounded(path, kJsonFileByteLimit, "pattern file");
+  } catch (const FileReadError& e) {
+    throw PatternError(e.what());
+  }
+  return parseWeavePattern(text, path);
 }
 
 std::vector<WeavePreset> weavePresets() {

@@ -2,6 +2,8 @@
 // file reading and mesh assembly (declared in mesh_text.h).
 #include "mesh_text.h"
 
+#include <blot/stain/io/bounded_read.h>
+
 #include <cerrno>
 #include <charconv>
 #include <cstdio>
@@ -86,18 +88,11 @@ bool parseInteger(string_view token, long long& value) {
 }
 
 std::string readFile(const std::string& path) {
-  errno = 0;
-  std::FILE* file = std::fopen(path.c_str(), "rb");
-  if (!file) fail(path, std::string("cannot open file: ") + std::strerror(errno));
-  std::string text;
-  char buffer[1 << 16];
-  size_t n = 0;
-  while ((n = std::fread(buffer, 1, sizeof buffer, file)) > 0) text.append(buffer, n);
-  const bool readError = std::ferror(file) != 0;
-  const int readErrno = errno;
-  std::fclose(file);
-  if (readError) fail(path, std::string("cannot read file: ") + std::strerror(readErrno));
-  return text;
+  try {
+    return readFileBounded(path, kMeshFileByteLimit, "file");
+  } catch (const FileReadError& e) {
+    throw MeshError(e.what());
+  }
 }
 
 /// Builds the mesh arrays from flat buffers; polygons were already fanned.
