@@ -299,6 +299,14 @@ void readMotionState(Reader& r, cloth::SurfaceMotion& motion) {
   }
 }
 
+/// The most bytes a state file of this mesh can take: 1 MiB plus 16 KiB per
+/// vertex and face (a saved two-way Bullet flag takes about 1.4 KiB per
+/// vertex), never more than stain::kStateFileByteLimit.
+std::size_t stateFileByteBudget(Eigen::Index vertices, Eigen::Index faces) {
+  const double budget = double(1 << 20) + double(16 << 10) * double(vertices + faces);
+  return static_cast<std::size_t>(std::min(budget, double(stain::kStateFileByteLimit)));
+}
+
 /// What the stain snapshot must satisfy before it reaches the solver (and
 /// CHOLMOD): its step count and clock agree with the engine's, the stiffness
 /// matrices are #V by #V, and no density is negative beyond the solver's own
@@ -371,7 +379,8 @@ void Engine::save(const std::string& path) const {
 void Engine::load(const std::string& path) {
   std::string text;
   try {
-    text = stain::readFileBounded(path, stain::kStateFileByteLimit, "the state file");
+    text = stain::readFileBounded(path, stateFileByteBudget(def_.mesh.vertexPositions.rows(), def_.mesh.faces.rows()),
+                                  "the state file");
   } catch (const stain::FileReadError& e) {
     throw StateFileError(e.what());
   }
