@@ -18,7 +18,8 @@ namespace blot::engine {
 namespace {
 
 constexpr char kMagic[8] = {'B', 'L', 'O', 'T', 'S', 'T', 'A', 'T'};
-constexpr std::uint32_t kVersion = 3;  // 2: field lists; 3: drops carry relativeVelocity and velocityIsWorld
+constexpr std::uint32_t kVersion = 4;  // 2: field lists; 3: drops carry relativeVelocity and velocityIsWorld;
+                                       // 4: the run counters (drops applied, refreshes, term steps)
 
 /// True for a type with a field list (a visit member).
 template <typename T, typename = void>
@@ -367,6 +368,13 @@ void Engine::save(const std::string& path) const {
   w.dense(surface_->pendingImpulses());
   w.raw(surface_->evaporatedMomentum().data(), 3);
   surface_->stain().snapshot().visit(w);
+  // The counters a run reports (blot run's summary.json), so that a resumed
+  // run reports the whole run; wall-clock timings are not state.
+  w.pod(droppedTime_);
+  w.pod<std::int32_t>(dropsApplied_);
+  w.pod<std::int32_t>(intrinsicRefreshes_);
+  w.pod<std::uint32_t>(static_cast<std::uint32_t>(totals_.termSteps.size()));
+  for (const std::int64_t n : totals_.termSteps) w.pod(n);
 
   // Atomic: a reader never sees a half-written state.
   try {
@@ -454,6 +462,22 @@ void Engine::load(const std::string& path) {
   }
   stain::StainSolverSnapshot snapshot;
   snapshot.visit(r);
+  const double droppedTime = r.finiteValue("counters.droppedTime");
+  const auto dropsApplied = r.pod<std::int32_t>("counters.dropsApplied");
+  const auto intrinsicRefreshes = r.pod<std::int32_t>("counters.intrinsicRefreshes");
+  if (droppedTime < 0 || dropsApplied < 0 || intrinsicRefreshes < 0 || intrinsicRefreshes > steps)
+    r.fail("run counters out of range (dropped time " + std::to_string(droppedTime) + " s, " +
+           std::to_string(dropsApplied) + " drops, " + std::to_string(intrinsicRefreshes) + " refreshes in " +
+           std::to_string(steps) + " steps)");
+  if (r.pod<std::uint32_t>("counters.termSteps") != totals_.termSteps.size())
+    r.fail("counters.termSteps: saved for another list of step terms");
+  decltype(totals_.termSteps) termSteps{};
+  for (std::size_t k = 0; k < termSteps.size(); ++k) {
+    termSteps[k] = r.pod<std::int64_t>("counters.termSteps");
+    if (termSteps[k] < 0 || termSteps[k] > steps)
+      r.fail("counters.termSteps[" + std::to_string(k) + "] = " + std::to_string(termSteps[k]) + " is outside [0, " +
+             std::to_string(steps) + "]");
+  }
   if (!r.atEnd()) r.fail("unexpected bytes after the state");
   checkSnapshot(r, snapshot, steps, def_.timeStep, def_.mesh.vertexPositions.rows());
   try {
@@ -464,6 +488,10 @@ void Engine::load(const std::string& path) {
   surface_ = std::move(surface);
   steps_ = steps;
   accumulator_ = accumulator;
+  droppedTime_ = droppedTime;
+  dropsApplied_ = dropsApplied;
+  intrinsicRefreshes_ = intrinsicRefreshes;
+  totals_.termSteps = termSteps;
   nextScheduled_ = nextScheduled;
   pending_.clear();
   for (const stain::DropDef& d : pending) pending_.push_back(d);
