@@ -95,6 +95,25 @@ TEST(BadPattern, TrailingGarbageNamesLineAndColumn) {
                  {"not valid JSON", "line 2, column 3"});
 }
 
+// Strict and bounded JSON: a key given twice is refused (nlohmann keeps the
+// last), nesting past 64 is refused while parsing, and an endless stream is
+// refused after the 16 MiB budget.
+TEST(BadPattern, DuplicateKeysDeepNestingAndEndlessStreamsAreRefused) {
+  expectMentions(patternError(R"({"tensors": [[[1, 0, 0, 1]]], "tensors": [[[2, 0, 0, 2]]]})"),
+                 {"cloth.json: tensors: duplicate key"});
+  expectMentions(patternError(R"({"name": "a", "cells": ["W"], "name": "b"})"), {"cloth.json: name: duplicate key"});
+  const std::string deep = "{\"tensors\": " + std::string(100000, '[') + std::string(100000, ']') + "}";
+  const std::string message = patternError(deep);
+  expectMentions(message, {"cloth.json: nested deeper than 64 arrays or objects (at tensors[0]"});
+  EXPECT_LT(message.size(), 300u);
+  try {
+    loadWeavePattern("/dev/zero");
+    ADD_FAILURE() << "/dev/zero loaded";
+  } catch (const PatternError& error) {
+    expectMentions(error.what(), {"/dev/zero: pattern file has more than the limit of 16777216 bytes"});
+  }
+}
+
 TEST(BadPattern, MissingFileNamesThePath) {
   try {
     loadWeavePattern("/nonexistent/dir/cloth.json");
