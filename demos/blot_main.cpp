@@ -5,10 +5,15 @@
 
 #include <blot/engine/version.h>
 
+#include <csignal>
 #include <exception>
 #include <iostream>
 
 int main(int argc, char** argv) {
+  // Past the file-size limit (ulimit -f) a write fails with EFBIG instead of
+  // killing the process, so the atomic writers remove their temporary and the
+  // command exits non-zero with the path.
+  std::signal(SIGXFSZ, SIG_IGN);
   CLI::App app{"Blot: stains forming on moving, deforming cloth"};
   app.set_version_flag("--version", blot::engine::versionString());
   app.require_subcommand(1);

@@ -235,7 +235,9 @@ void registerFigureCommand(CLI::App& app, int& exitCode) {
   command->add_option("--out", options->outputDirectory, "Output folder (default: out/<figure>)");
   command->add_option("--frames", options->frames, "Frames to run (default: the scene's outputs.frames)");
   command->add_option("--width", options->width, "Pixels per panel")->capture_default_str();
-  command->add_option("--threads", options->threads, "OpenMP threads")->capture_default_str();
+  command->add_option("--threads", options->threads, "OpenMP threads (0: all cores, at most 1024)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 1024));
   command->callback([options, &exitCode]() {
     if (options->threads > 0) omp_set_num_threads(options->threads);
     try {

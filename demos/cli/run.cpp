@@ -19,7 +19,10 @@
 #include <blot/engine/engine.h>
 #include <blot/engine/frame_writer.h>
 #include <blot/engine/scene.h>
+#include <blot/stain/content_hash.h>
 #include <blot/stain/io/atomic_file.h>
+#include <blot/stain/io/bounded_read.h>
+#include <blot/stain/io/strict_json.h>
 
 #include <nlohmann/json.hpp>
 #include <omp.h>
@@ -89,7 +92,38 @@ struct Checkpoint {
   int frame = 0;
   std::string stateFile;  // file name inside the output folder
   std::uint64_t stateHash = 0;
+  std::uint64_t fileHash = 0;  // of the state file's bytes, checked before Engine::load parses them
 };
+
+constexpr int kMaxThreads = 1024;  // --threads
+
+/// The hash over checkpoint.json's own fields ("record_hash"): an edited
+/// frame number or file name is refused, not resumed from.
+std::uint64_t recordHash(int frame, const std::string& stateFile, std::uint64_t stateHash, std::uint64_t fileHash) {
+  std::uint64_t h = stain::kContentHashBasis;
+  const std::int64_t f = frame;
+  stain::hashBytes(h, &f, sizeof f);
+  stain::hashBytes(h, stateFile.data(), stateFile.size());
+  stain::hashBytes(h, &stateHash, sizeof stateHash);
+  stain::hashBytes(h, &fileHash, sizeof fileHash);
+  return h;
+}
+
+std::uint64_t bytesHash(const std::string& bytes) {
+  std::uint64_t h = stain::kContentHashBasis;
+  stain::hashBytes(h, bytes.data(), bytes.size());
+  return h;
+}
+
+/// Exactly 16 lower- or upper-case hex digits; throws naming the key.
+std::uint64_t parseHexHash(const std::string& file, const char* key, const nlohmann::json& record) {
+  const auto it = record.find(key);
+  const std::string text = it != record.end() && it->is_string() ? it->get<std::string>() : std::string();
+  if (text.size() != 16 || text.find_first_not_of("0123456789abcdefABCDEF") != std::string::npos)
+    throw std::runtime_error(file + ": " + key + ": expected 16 hex digits, got " +
+                             (it == record.end() ? std::string("nothing") : stain::briefJson(*it)));
+  return std::stoull(text, nullptr, 16);
+}
 
 std::string hexHash(std::uint64_t hash) {
   char hex[17];
@@ -100,8 +134,15 @@ std::string hexHash(std::uint64_t hash) {
 void writeCheckpoint(const engine::Engine& engine, const std::filesystem::path& directory, int frame,
                      const std::string& previousStateFile) {
   const std::string stateFile = "checkpoint_" + std::to_string(frame) + ".state";
-  engine.save((directory / stateFile).string());
-  const nlohmann::json record = {{"frame", frame}, {"state", stateFile}, {"state_hash", hexHash(engine.stateHash())}};
+  const std::string statePath = (directory / stateFile).string();
+  engine.save(statePath);
+  const std::uint64_t fileHash = bytesHash(stain::readFileBounded(statePath, stain::kStateFileByteLimit, "the state file"));
+  const std::uint64_t stateHash = engine.stateHash();
+  const nlohmann::json record = {{"frame", frame},
+                                 {"state", stateFile},
+                                 {"state_hash", hexHash(stateHash)},
+                                 {"file_hash", hexHash(fileHash)},
+                                 {"record_hash", hexHash(recordHash(frame, stateFile, stateHash, fileHash))}};
   const std::string text = record.dump(2) + "\n";
   stain::writeFileAtomically((directory / "checkpoint.json").string(), text.data(), text.size());
   if (!previousStateFile.empty() && previousStateFile != stateFile) {
@@ -113,24 +154,36 @@ void writeCheckpoint(const engine::Engine& engine, const std::filesystem::path& 
 /// Reads <directory>/checkpoint.json; throws naming the file and the key.
 Checkpoint readCheckpoint(const std::filesystem::path& directory) {
   const std::filesystem::path json = directory / "checkpoint.json";
-  std::ifstream in(json);
-  if (!in) throw std::runtime_error(json.string() + ": no checkpoint to resume from (run with --checkpoint-every N first)");
+  std::error_code missing;
+  if (!std::filesystem::exists(json, missing))
+    throw std::runtime_error(json.string() + ": no checkpoint to resume from (run with --checkpoint-every N first)");
   nlohmann::json record;
   try {
-    in >> record;
-  } catch (const nlohmann::json::exception& e) {
+    record = stain::parseStrictJson(stain::readFileBounded(json.string(), stain::kRecordFileByteLimit, "checkpoint record"));
+  } catch (const std::exception& e) {
     throw std::runtime_error(json.string() + ": not a checkpoint record: " + e.what());
   }
+  if (!record.is_object()) throw std::runtime_error(json.string() + ": not a checkpoint record: expected an object");
   Checkpoint c;
-  if (!record.contains("frame") || !record["frame"].is_number_integer() || record["frame"].get<int>() < 0)
-    throw std::runtime_error(json.string() + ": frame: expected an integer >= 0");
-  if (!record.contains("state") || !record["state"].is_string())
-    throw std::runtime_error(json.string() + ": state: expected a file name");
-  if (!record.contains("state_hash") || !record["state_hash"].is_string())
-    throw std::runtime_error(json.string() + ": state_hash: expected a hex string");
-  c.frame = record["frame"].get<int>();
-  c.stateFile = record["state"].get<std::string>();
-  c.stateHash = std::stoull(record["state_hash"].get<std::string>(), nullptr, 16);
+  const auto frame = record.find("frame");
+  if (frame == record.end() || !frame->is_number_integer() || frame->get<long long>() < 0 ||
+      frame->get<long long>() > 1000000)
+    throw std::runtime_error(json.string() + ": frame: expected an integer in [0, 1000000]");
+  const auto state = record.find("state");
+  // Only the name the writer gives (no folder, no "..": the file must be in the output folder).
+  const std::string name = state != record.end() && state->is_string() ? state->get<std::string>() : std::string();
+  if (name.rfind("checkpoint_", 0) != 0 || name.size() < 18 || name.substr(name.size() - 6) != ".state" ||
+      name.substr(11, name.size() - 17).find_first_not_of("0123456789") != std::string::npos)
+    throw std::runtime_error(json.string() + ": state: expected a file name checkpoint_<frame>.state, got " +
+                             (state == record.end() ? std::string("nothing") : stain::briefJson(*state)));
+  c.frame = static_cast<int>(frame->get<long long>());
+  c.stateFile = name;
+  c.stateHash = parseHexHash(json.string(), "state_hash", record);
+  c.fileHash = parseHexHash(json.string(), "file_hash", record);
+  const std::uint64_t expected = recordHash(c.frame, c.stateFile, c.stateHash, c.fileHash);
+  if (parseHexHash(json.string(), "record_hash", record) != expected)
+    throw std::runtime_error(json.string() + ": record_hash does not match the record's frame, state and hashes "
+                             "(the file was edited or is damaged)");
   return c;
 }
 
@@ -219,6 +272,22 @@ nlohmann::json meanTimesJson(const engine::EngineStatistics& s) {
 
 namespace {
 
+/// Removes the temporaries (<name>.<pid>.tmp, stain::writeFileAtomically)
+/// that a killed run left in the output folder.
+void removeStaleTemporaries(const std::string& directory) {
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator(directory, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.size() < 5 || name.compare(name.size() - 4, 4, ".tmp") != 0) continue;
+    const std::string stem = name.substr(0, name.size() - 4);
+    const size_t dot = stem.rfind('.');
+    if (dot == std::string::npos || dot + 1 == stem.size() ||
+        stem.find_first_not_of("0123456789", dot + 1) != std::string::npos || !entry.is_regular_file(ec))
+      continue;
+    std::filesystem::remove(entry.path(), ec);
+  }
+}
+
 int runScene(const RunOptions& options) {
   engine::SceneDef scene;
   try {
@@ -227,8 +296,22 @@ int runScene(const RunOptions& options) {
     std::cerr << "blot run: error: " << e.what() << "\n";
     return 1;
   }
-  if (options.frames < 0 || options.threads < 0) {
-    std::cerr << "blot run: error: --frames and --threads must be >= 0\n";
+  if (options.frames < 0 || options.frames > 1000000) {
+    std::cerr << "blot run: error: --frames " << options.frames << ": expected 0 (the scene's) to 1000000\n";
+    return 1;
+  }
+  if (options.threads < 0 || options.threads > kMaxThreads) {
+    std::cerr << "blot run: error: --threads " << options.threads << ": expected 0 (all cores) to " << kMaxThreads
+              << "\n";
+    return 1;
+  }
+  if (options.checkpointEvery < 0) {
+    std::cerr << "blot run: error: --checkpoint-every " << options.checkpointEvery
+              << ": expected 0 (never) or a positive number of frames\n";
+    return 1;
+  }
+  if (options.killAfterFrame < 0) {
+    std::cerr << "blot run: error: --kill-after-frame " << options.killAfterFrame << ": expected >= 0\n";
     return 1;
   }
   if (options.threads > 0) omp_set_num_threads(options.threads);
@@ -269,14 +352,26 @@ int runScene(const RunOptions& options) {
   std::string checkpointState;
   if (options.resume) {
     try {
+      removeStaleTemporaries(directory);
       const Checkpoint c = readCheckpoint(directory);
-      engine->load((std::filesystem::path(directory) / c.stateFile).string());
+      const std::string statePath = (std::filesystem::path(directory) / c.stateFile).string();
+      // The bytes are checked against the record before Engine::load parses them.
+      const std::uint64_t fileHash =
+          bytesHash(stain::readFileBounded(statePath, stain::kStateFileByteLimit, "the state file"));
+      if (fileHash != c.fileHash)
+        throw std::runtime_error(c.stateFile + ": file hash " + hexHash(fileHash) + " does not match checkpoint.json's " +
+                                 hexHash(c.fileHash) + " (the state file was changed after the checkpoint)");
+      engine->load(statePath);
       if (engine->stateHash() != c.stateHash)
         throw std::runtime_error(c.stateFile + ": state hash " + hexHash(engine->stateHash()) +
                                  " does not match checkpoint.json's " + hexHash(c.stateHash));
       if (c.frame > frames)
         throw std::runtime_error("checkpoint.json: frame " + std::to_string(c.frame) + " is past --frames " +
                                  std::to_string(frames));
+      if (engine->stepCount() != static_cast<std::int64_t>(c.frame) * scene.outputs.stepsPerFrame)
+        throw std::runtime_error("checkpoint.json: frame " + std::to_string(c.frame) + " of " +
+                                 std::to_string(scene.outputs.stepsPerFrame) + " steps does not match the state's " +
+                                 std::to_string(engine->stepCount()) + " internal steps");
       firstFrame = c.frame + 1;
       checkpointState = c.stateFile;
       for (int frame = 0; frame <= c.frame; ++frame)  // frames already on disk

@@ -59,18 +59,23 @@ Eigen::Vector3d closestBarycentric(const Eigen::Vector3d& p, const Eigen::Vector
   return {1 - v - w, v, w};
 }
 
-void requireFinite(double value, const char* field) {
-  if (!std::isfinite(value)) throw std::invalid_argument(std::string("drop: ") + field + " must be finite");
+/// Checks a drop's fields before it is queued (stain::addDrop checks again when it lands).
+void requirePlausible(double value, const char* field) {
+  if (!(std::abs(value) <= kMaxSceneMagnitude))
+    throw std::invalid_argument(std::string("drop: ") + field + " must be finite and at most " +
+                                std::to_string(static_cast<long>(kMaxSceneMagnitude)) + " in size, got " +
+                                std::to_string(value));
 }
 
-/// Checks a drop's fields before it is queued (stain::addDrop checks again when it lands).
 void validateDrop(const stain::DropDef& d, int vertexCount) {
   if (d.centerVertex < -1 || d.centerVertex >= vertexCount)
     throw std::invalid_argument("drop: centerVertex = " + std::to_string(d.centerVertex) + " is out of range [0, " +
                                 std::to_string(vertexCount) + ") (or -1 to use centerPoint)");
-  for (int c = 0; c < 3; ++c) requireFinite(d.centerPoint[c], "centerPoint");
-  for (int c = 0; c < 3; ++c) requireFinite(d.velocity[c], "velocity");
-  for (int c = 0; c < 3; ++c) requireFinite(d.relativeVelocity[c], "relativeVelocity");
+  // Past kMaxSceneMagnitude a squared distance to the cloth could overflow
+  // (every face at distance inf: the nearest one would be arbitrary).
+  for (int c = 0; c < 3; ++c) requirePlausible(d.centerPoint[c], "centerPoint");
+  for (int c = 0; c < 3; ++c) requirePlausible(d.velocity[c], "velocity");
+  for (int c = 0; c < 3; ++c) requirePlausible(d.relativeVelocity[c], "relativeVelocity");
   if (!(d.radius > 0) || !std::isfinite(d.radius)) throw std::invalid_argument("drop: radius must be finite and > 0");
   if (!(d.solventMass >= 0) || !std::isfinite(d.solventMass))
     throw std::invalid_argument("drop: solventMass must be finite and >= 0");
@@ -212,11 +217,15 @@ Engine::~Engine() = default;
 // ------------------------------------------------------------------ stepping
 
 stain::StepReport Engine::step(double frameDt) {
-  if (!(frameDt >= 0) || !std::isfinite(frameDt)) {
+  // Longer frames would only be cut to maxStepsPerCall steps, and a huge
+  // frameDt / h would overflow the accumulator (inf - inf = NaN: the engine
+  // would never step again), so they are refused and change nothing.
+  if (!(frameDt >= 0) || !(frameDt <= kMaxFrameSeconds)) {
     stain::StepReport report;
     report.status = stain::StepStatus::InvalidArgument;
     report.stage = stain::Stage::Guard;
-    report.message = "Engine::step: frameDt must be finite and >= 0";
+    report.message = "Engine::step: frameDt must be finite and in [0, " + std::to_string(kMaxFrameSeconds) +
+                     "] s, got " + std::to_string(frameDt);
     return report;
   }
   accumulator_ += frameDt / def_.timeStep;
@@ -307,7 +316,7 @@ void Engine::addDrop(const stain::DropDef& drop) {
 }
 
 SurfaceHit Engine::addDropAtPoint(const Eigen::Vector3d& point, stain::DropDef drop) {
-  if (!point.allFinite()) throw std::invalid_argument("drop: point must be finite");
+  for (int c = 0; c < 3; ++c) requirePlausible(point[c], "point");
   const SurfaceHit hit = nearestSurfacePoint(point);
   drop.centerVertex = -1;
   drop.centerPoint = hit.point;

@@ -4,8 +4,11 @@
 #include <blot/engine/engine.h>
 
 #include <blot/stain/io/atomic_file.h>
+#include <blot/stain/io/bounded_read.h>
 
+#include <cmath>
 #include <cstring>
+#include <limits>
 #include <fstream>
 #include <iterator>
 #include <sstream>
@@ -15,7 +18,8 @@ namespace blot::engine {
 namespace {
 
 constexpr char kMagic[8] = {'B', 'L', 'O', 'T', 'S', 'T', 'A', 'T'};
-constexpr std::uint32_t kVersion = 3;  // 2: field lists; 3: drops carry relativeVelocity and velocityIsWorld
+constexpr std::uint32_t kVersion = 4;  // 2: field lists; 3: drops carry relativeVelocity and velocityIsWorld;
+                                       // 4: the run counters (drops applied, refreshes, term steps)
 
 /// True for a type with a field list (a visit member).
 template <typename T, typename = void>
@@ -107,19 +111,50 @@ class Reader {
     check(static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols) * sizeof(typename Derived::Scalar), what);
     m.resize(rows, cols);
     take(m.data(), sizeof(typename Derived::Scalar) * static_cast<std::size_t>(m.size()), what);
+    if constexpr (std::is_floating_point_v<typename Derived::Scalar>) {
+      for (Eigen::Index k = 0; k < m.size(); ++k)
+        if (!std::isfinite(m.data()[k]))
+          fail(std::string(what) + ": entry " + std::to_string(k) + " of " + std::to_string(m.size()) + " is not finite");
+    }
   }
   template <typename Scalar>
   void sparse(Eigen::SparseMatrix<Scalar>& m, const char* what) {
     const auto rows = pod<std::int64_t>(what), cols = pod<std::int64_t>(what), nnz = pod<std::int64_t>(what);
-    if (rows < 0 || cols < 0 || nnz < 0 || cols >= std::int64_t(bytes_.size()) || nnz > std::int64_t(bytes_.size())) fail(std::string("bad shape of ") + what);
-    std::vector<int> outer(static_cast<std::size_t>(cols + 1)), inner(static_cast<std::size_t>(nnz));
-    std::vector<Scalar> values(static_cast<std::size_t>(nnz));
-    check(outer.size() * sizeof(int), what);
+    const auto limit = static_cast<std::int64_t>(bytes_.size());
+    if (rows < 0 || cols < 0 || nnz < 0 || rows >= limit || cols >= limit || nnz > limit ||
+        rows > std::numeric_limits<int>::max() || (rows > 0 && cols > 0 && nnz / rows > cols))
+      fail(std::string("bad shape of ") + what + " (" + std::to_string(rows) + " x " + std::to_string(cols) + ", " +
+           std::to_string(nnz) + " non-zeros)");
+    check(static_cast<std::size_t>(cols + 1) * sizeof(int), what);
+    std::vector<int> outer(static_cast<std::size_t>(cols + 1));
     take(outer.data(), outer.size() * sizeof(int), what);
-    check(inner.size() * sizeof(int) + values.size() * sizeof(Scalar), what);
+    check(static_cast<std::size_t>(nnz) * (sizeof(int) + sizeof(Scalar)), what);
+    std::vector<int> inner(static_cast<std::size_t>(nnz));
+    std::vector<Scalar> values(static_cast<std::size_t>(nnz));
     take(inner.data(), inner.size() * sizeof(int), what);
     take(values.data(), values.size() * sizeof(Scalar), what);
-    if (outer.front() != 0 || outer.back() != nnz) fail(std::string("corrupt sparse matrix ") + what);
+    // The compressed-column structure CHOLMOD and Eigen assume without
+    // checking: column pointers from 0 to nnz, never decreasing; row indices
+    // inside the matrix and strictly increasing within a column.
+    if (outer.front() != 0 || outer.back() != nnz)
+      fail(std::string("corrupt sparse matrix ") + what + ": column pointers run from " + std::to_string(outer.front()) +
+           " to " + std::to_string(outer.back()) + ", expected 0 to " + std::to_string(nnz));
+    for (std::int64_t c = 0; c < cols; ++c) {
+      const int begin = outer[static_cast<std::size_t>(c)], end = outer[static_cast<std::size_t>(c + 1)];
+      if (end < begin)
+        fail(std::string("corrupt sparse matrix ") + what + ": column pointer " + std::to_string(c + 1) + " (" +
+             std::to_string(end) + ") is below column pointer " + std::to_string(c) + " (" + std::to_string(begin) + ")");
+      for (int k = begin; k < end; ++k) {
+        const int row = inner[static_cast<std::size_t>(k)];
+        if (row < 0 || row >= rows || (k > begin && row <= inner[static_cast<std::size_t>(k - 1)]))
+          fail(std::string("corrupt sparse matrix ") + what + ": column " + std::to_string(c) + " has row index " +
+               std::to_string(row) + " (entry " + std::to_string(k) + "); expected increasing indices in [0, " +
+               std::to_string(rows) + ")");
+      }
+    }
+    for (std::int64_t k = 0; k < nnz; ++k)
+      if (!finite(values[static_cast<std::size_t>(k)]))
+        fail(std::string(what) + ": entry " + std::to_string(k) + " is not finite");
     m = Eigen::Map<const Eigen::SparseMatrix<Scalar>>(rows, cols, nnz, outer.data(), inner.data(), values.data());
   }
   template <typename T>
@@ -129,8 +164,27 @@ class Reader {
     check(n * sizeof(T), what);
     v.resize(n);
     take(v.data(), n * sizeof(T), what);
+    if constexpr (std::is_floating_point_v<T>) {
+      for (std::size_t k = 0; k < v.size(); ++k)
+        if (!std::isfinite(v[k])) fail(std::string(what) + ": entry " + std::to_string(k) + " is not finite");
+    } else if constexpr (std::is_base_of_v<Eigen::DenseBase<T>, T>) {
+      for (std::size_t k = 0; k < v.size(); ++k)
+        if (!v[k].allFinite()) fail(std::string(what) + ": entry " + std::to_string(k) + " is not finite");
+    }
+  }
+  template <typename Scalar>
+  static bool finite(const Scalar& x) {
+    if constexpr (std::is_floating_point_v<Scalar>) return std::isfinite(x);
+    else return std::isfinite(x.real()) && std::isfinite(x.imag());
   }
   bool atEnd() const { return offset_ == bytes_.size(); }
+  std::size_t remaining() const { return bytes_.size() - offset_; }
+  /// A double that must be finite (the engine's own fields).
+  double finiteValue(const char* what) {
+    const double v = pod<double>(what);
+    if (!std::isfinite(v)) fail(std::string(what) + " is not finite");
+    return v;
+  }
 
   /// A state struct's field, read in place (errors name it).
   template <typename T>
@@ -139,7 +193,10 @@ class Reader {
   }
 
  private:
-  void read(double& v, const char* name) { v = pod<double>(name); }
+  void read(double& v, const char* name) {
+    v = pod<double>(name);
+    if (!std::isfinite(v)) fail(std::string(name) + " is not finite");
+  }
   void read(int& v, const char* name) { v = pod<std::int32_t>(name); }
   void read(bool& v, const char* name) { v = pod<std::uint8_t>(name) != 0; }
   template <typename Derived>
@@ -185,12 +242,12 @@ void writeDrop(Writer& w, const stain::DropDef& d) {
 stain::DropDef readDrop(Reader& r) {
   stain::DropDef d;
   d.centerVertex = r.pod<std::int32_t>("drop");
-  for (int c = 0; c < 3; ++c) d.centerPoint[c] = r.pod<double>("drop");
-  d.radius = r.pod<double>("drop");
-  d.solventMass = r.pod<double>("drop");
-  d.soluteMass = r.pod<double>("drop");
-  for (int c = 0; c < 3; ++c) d.velocity[c] = r.pod<double>("drop");
-  d.splashSpeed = r.pod<double>("drop");
+  for (int c = 0; c < 3; ++c) d.centerPoint[c] = r.finiteValue("drop.centerPoint");
+  d.radius = r.finiteValue("drop.radius");
+  d.solventMass = r.finiteValue("drop.solventMass");
+  d.soluteMass = r.finiteValue("drop.soluteMass");
+  for (int c = 0; c < 3; ++c) d.velocity[c] = r.finiteValue("drop.velocity");
+  d.splashSpeed = r.finiteValue("drop.splashSpeed");
   d.splashSeed = r.pod<std::uint64_t>("drop");
   return d;
 }
@@ -243,6 +300,52 @@ void readMotionState(Reader& r, cloth::SurfaceMotion& motion) {
   }
 }
 
+/// The most bytes a state file of this mesh can take: 1 MiB plus 16 KiB per
+/// vertex and face (a saved two-way Bullet flag takes about 1.4 KiB per
+/// vertex), never more than stain::kStateFileByteLimit.
+std::size_t stateFileByteBudget(Eigen::Index vertices, Eigen::Index faces) {
+  const double budget = double(1 << 20) + double(16 << 10) * double(vertices + faces);
+  return static_cast<std::size_t>(std::min(budget, double(stain::kStateFileByteLimit)));
+}
+
+/// What the stain snapshot must satisfy before it reaches the solver (and
+/// CHOLMOD): its step count and clock agree with the engine's, the stiffness
+/// matrices are #V by #V, and no density is negative beyond the solver's own
+/// tolerance (−1e-12 of the largest, as the stage checks).
+void checkSnapshot(const Reader& r, const stain::StainSolverSnapshot& s, std::int64_t engineSteps, double h,
+                   Eigen::Index vertices) {
+  if (s.steps < 0 || s.steps != engineSteps)
+    r.fail("stain step count " + std::to_string(s.steps) + " differs from the engine's " + std::to_string(engineSteps));
+  const double expected = static_cast<double>(engineSteps) * h;
+  if (!(std::abs(s.time - expected) <= 0.5 * h))
+    r.fail("stain time " + std::to_string(s.time) + " s does not match " + std::to_string(engineSteps) +
+           " steps of " + std::to_string(h) + " s");
+  const auto square = [&](const char* name, Eigen::Index rows, Eigen::Index cols) {
+    if ((rows != 0 || cols != 0) && (rows != vertices || cols != vertices))
+      r.fail(std::string(name) + " is " + std::to_string(rows) + " x " + std::to_string(cols) + ", expected " +
+             std::to_string(vertices) + " x " + std::to_string(vertices));
+  };
+  square("geometry.intrinsic.densityStiffness", s.geometry.intrinsic.densityStiffness.rows(),
+         s.geometry.intrinsic.densityStiffness.cols());
+  square("geometry.intrinsic.velocityStiffness", s.geometry.intrinsic.velocityStiffness.rows(),
+         s.geometry.intrinsic.velocityStiffness.cols());
+  if (!(s.factorizedStep >= 0)) r.fail("factorizedStep " + std::to_string(s.factorizedStep) + " is negative");
+  const std::pair<const char*, const Eigen::VectorXd*> fields[] = {
+      {"solvent", &s.state.solvent},
+      {"solute", &s.state.solute},
+      {"absorbedSolvent", &s.state.absorbedSolvent},
+      {"absorbedSolute", &s.state.absorbedSolute},
+      {"adsorbedSolute", &s.state.adsorbedSolute}};
+  for (const auto& [name, field] : fields) {
+    if (field->size() == 0) continue;
+    const double floor = -1e-12 * std::max(0.0, field->maxCoeff());
+    for (Eigen::Index i = 0; i < field->size(); ++i)
+      if ((*field)[i] < floor)
+        r.fail(std::string("state.") + name + "[" + std::to_string(i) + "] = " + std::to_string((*field)[i]) +
+               " is negative");
+  }
+}
+
 }  // namespace
 
 void Engine::save(const std::string& path) const {
@@ -265,6 +368,13 @@ void Engine::save(const std::string& path) const {
   w.dense(surface_->pendingImpulses());
   w.raw(surface_->evaporatedMomentum().data(), 3);
   surface_->stain().snapshot().visit(w);
+  // The counters a run reports (blot run's summary.json), so that a resumed
+  // run reports the whole run; wall-clock timings are not state.
+  w.pod(droppedTime_);
+  w.pod<std::int32_t>(dropsApplied_);
+  w.pod<std::int32_t>(intrinsicRefreshes_);
+  w.pod<std::uint32_t>(static_cast<std::uint32_t>(totals_.termSteps.size()));
+  for (const std::int64_t n : totals_.termSteps) w.pod(n);
 
   // Atomic: a reader never sees a half-written state.
   try {
@@ -275,9 +385,15 @@ void Engine::save(const std::string& path) const {
 }
 
 void Engine::load(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw StateFileError(path + ": cannot open the state file");
-  Reader r(std::vector<char>(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()), path);
+  std::string text;
+  try {
+    text = stain::readFileBounded(path, stateFileByteBudget(def_.mesh.vertexPositions.rows(), def_.mesh.faces.rows()),
+                                  "the state file");
+  } catch (const stain::FileReadError& e) {
+    throw StateFileError(e.what());
+  }
+  Reader r(std::vector<char>(text.begin(), text.end()), path);
+  text = std::string();
   char magic[8];
   for (char& c : magic) c = r.pod<char>("magic");
   if (std::memcmp(magic, kMagic, sizeof kMagic) != 0) r.fail("not a Blot state file (bad magic)");
@@ -299,16 +415,35 @@ void Engine::load(const std::string& path) {
   if (h != def_.timeStep)
     r.fail("saved with time step " + std::to_string(h) + " s, this engine uses " + std::to_string(def_.timeStep) + " s");
   const auto steps = r.pod<std::int64_t>("engine");
-  const double accumulator = r.pod<double>("engine");
+  // The engine's step count decides time(), the frame a resumed run starts
+  // at and the drop schedule: it must agree with the stain's own count and
+  // clock below, so an edited count is refused instead of resumed from.
+  if (steps < 0 || steps > (std::int64_t(1) << 52))
+    r.fail("step count " + std::to_string(steps) + " is outside [0, 2^52]");
+  const double accumulator = r.finiteValue("engine.accumulator");
+  if (!(accumulator >= 0 && accumulator <= 1 + 1e-9))
+    r.fail("carried frame time " + std::to_string(accumulator) + " steps is outside [0, 1]");
   const auto nextScheduled = r.pod<std::uint64_t>("engine");
   if (nextScheduled > schedule_.size())
     r.fail("saved after " + std::to_string(nextScheduled) + " scheduled drops, this engine has only " +
            std::to_string(schedule_.size()));
   const auto pendingCount = r.pod<std::uint64_t>("engine");
-  if (pendingCount > 1000000) r.fail("corrupt pending-drop count");
+  constexpr std::uint64_t kDropBytes = 4 + 8 * 11;  // what writeDrop writes
+  if (pendingCount > r.remaining() / kDropBytes)
+    r.fail("pending-drop count " + std::to_string(pendingCount) + " does not fit in the file's " +
+           std::to_string(r.remaining()) + " remaining bytes");
   std::vector<stain::DropDef> pending;
-  for (std::uint64_t k = 0; k < pendingCount; ++k) pending.push_back(readDrop(r));
-  const double motionTime = r.pod<double>("motion time");
+  const auto vertexCount = static_cast<std::int32_t>(def_.mesh.vertexPositions.rows());
+  for (std::uint64_t k = 0; k < pendingCount; ++k) {
+    pending.push_back(readDrop(r));
+    const stain::DropDef& d = pending.back();
+    if (d.centerVertex < -1 || d.centerVertex >= vertexCount || !(d.radius > 0) || d.solventMass < 0 ||
+        d.soluteMass < 0 || d.splashSpeed < 0)
+      r.fail("pending drop " + std::to_string(k) + ": vertex " + std::to_string(d.centerVertex) + " of " +
+             std::to_string(vertexCount) + ", radius " + std::to_string(d.radius) +
+             " m, masses and splash speed must be >= 0");
+  }
+  const double motionTime = r.finiteValue("motion time");
 
   // Everything into a fresh surface; the engine changes only when all succeeded.
   std::unique_ptr<coupling::CoupledSurface> surface = buildSurface();
@@ -327,7 +462,24 @@ void Engine::load(const std::string& path) {
   }
   stain::StainSolverSnapshot snapshot;
   snapshot.visit(r);
+  const double droppedTime = r.finiteValue("counters.droppedTime");
+  const auto dropsApplied = r.pod<std::int32_t>("counters.dropsApplied");
+  const auto intrinsicRefreshes = r.pod<std::int32_t>("counters.intrinsicRefreshes");
+  if (droppedTime < 0 || dropsApplied < 0 || intrinsicRefreshes < 0 || intrinsicRefreshes > steps)
+    r.fail("run counters out of range (dropped time " + std::to_string(droppedTime) + " s, " +
+           std::to_string(dropsApplied) + " drops, " + std::to_string(intrinsicRefreshes) + " refreshes in " +
+           std::to_string(steps) + " steps)");
+  if (r.pod<std::uint32_t>("counters.termSteps") != totals_.termSteps.size())
+    r.fail("counters.termSteps: saved for another list of step terms");
+  decltype(totals_.termSteps) termSteps{};
+  for (std::size_t k = 0; k < termSteps.size(); ++k) {
+    termSteps[k] = r.pod<std::int64_t>("counters.termSteps");
+    if (termSteps[k] < 0 || termSteps[k] > steps)
+      r.fail("counters.termSteps[" + std::to_string(k) + "] = " + std::to_string(termSteps[k]) + " is outside [0, " +
+             std::to_string(steps) + "]");
+  }
   if (!r.atEnd()) r.fail("unexpected bytes after the state");
+  checkSnapshot(r, snapshot, steps, def_.timeStep, def_.mesh.vertexPositions.rows());
   try {
     surface->stain().restore(snapshot);
   } catch (const std::exception& e) {
@@ -336,6 +488,10 @@ void Engine::load(const std::string& path) {
   surface_ = std::move(surface);
   steps_ = steps;
   accumulator_ = accumulator;
+  droppedTime_ = droppedTime;
+  dropsApplied_ = dropsApplied;
+  intrinsicRefreshes_ = intrinsicRefreshes;
+  totals_.termSteps = termSteps;
   nextScheduled_ = nextScheduled;
   pending_.clear();
   for (const stain::DropDef& d : pending) pending_.push_back(d);

@@ -10,7 +10,9 @@
 // Rejected: a JSON-Schema file and a validator library — it would add a
 // dependency and still not know the mesh's vertex count.
 #include <blot/engine/scene.h>
+#include <blot/stain/io/bounded_read.h>
 #include <blot/stain/io/mesh_io.h>
+#include <blot/stain/io/strict_json.h>
 #include <blot/stain/fabric/homogenization.h>
 #include <blot/stain/geometry/mesh_primitives.h>
 #include <blot/stain/fabric/weave_pattern.h>
@@ -39,8 +41,7 @@ std::string formatNumber(double value) {
 
 /// "a string \"abc\"", "an array", "2.5", ...: what the file actually holds.
 std::string describe(const json& value) {
-  std::string text = value.dump();
-  if (text.size() > 48) text = text.substr(0, 45) + "...";
+  const std::string text = stain::briefJson(value, 48);
   switch (value.type()) {
     case json::value_t::string: return "a string " + text;
     case json::value_t::array: return "an array " + text;
@@ -66,9 +67,13 @@ struct Range {
            (hiOpen ? ")" : "]");
   }
 };
-Range any() { return {}; }
-Range positive() { return {0, kInf, true, false}; }
-Range nonNegative() { return {0, kInf, false, false}; }
+// Every number a scene gives is at most kMaxSceneMagnitude in size (metres,
+// seconds, kilograms, m/s, m/s², rates): no key can then overflow a product
+// downstream (a squared distance, a mass over an area, float32 in the PLY
+// frames), and the error names the key instead of a later stage.
+Range any() { return {-kMaxSceneMagnitude, kMaxSceneMagnitude, false, false}; }
+Range positive() { return {0, kMaxSceneMagnitude, true, false}; }
+Range nonNegative() { return {0, kMaxSceneMagnitude, false, false}; }
 Range closed(double lo, double hi) { return {lo, hi, false, false}; }
 Range leftOpen(double lo, double hi) { return {lo, hi, true, false}; }
 /// Integers in [lo, hi).
@@ -299,11 +304,17 @@ stain::TriangleMesh parseMesh(ObjectReader& r, std::string& description) {
   r.finish();
   mesh.vertexPositions *= scale;
   mesh.vertexPositions.rowwise() += translate.transpose();
-  // Finite keys can still overflow together ("scale": 1e308 on a 10 m patch).
-  for (Eigen::Index i = 0; i < mesh.vertexPositions.rows(); ++i)
+  // Finite keys can still overflow together ("scale": 1e308 on a 10 m patch),
+  // and a mesh file may hold coordinates near 1e308 whose areas overflow.
+  for (Eigen::Index i = 0; i < mesh.vertexPositions.rows(); ++i) {
     if (!mesh.vertexPositions.row(i).allFinite())
       ctx.fail(r.path(), "vertex " + std::to_string(i) +
                              " is not finite after size, scale and translate (the coordinates overflow a double)");
+    if (mesh.vertexPositions.row(i).cwiseAbs().maxCoeff() > kMaxSceneMagnitude)
+      ctx.fail(r.path(), "vertex " + std::to_string(i) + " has a coordinate of " +
+                             formatNumber(mesh.vertexPositions.row(i).cwiseAbs().maxCoeff()) +
+                             " m after scale and translate; expected at most " + formatNumber(kMaxSceneMagnitude) + " m");
+  }
   description += " (" + std::to_string(mesh.vertexPositions.rows()) + " vertices, " +
                  std::to_string(mesh.faces.rows()) + " faces)";
   return mesh;
@@ -434,7 +445,7 @@ void parseCloth(ObjectReader& r, const stain::TriangleMesh& mesh, EngineDef& def
       if (pattern.empty()) r.context().fail(r.path("pattern"), "required: a printf-style frame path such as \"frames/f_%04d.obj\"");
       def.sequence.pattern = r.context().resolve(pattern);
       def.sequence.firstFrame = r.integer("first_frame", 0, nonNegative());
-      def.sequence.frameCount = r.integer("frame_count", 0, nonNegative());
+      def.sequence.frameCount = r.integer("frame_count", 0, closed(0, kMaxSequenceFrames));
       def.sequence.playback.frameRate = r.number("frame_rate", 30.0, positive());
       def.sequence.playback.interpolation =
           static_cast<cloth::FrameInterpolation>(r.choice("interpolation", 0, {"catmull-rom", "linear"}));
@@ -665,9 +676,13 @@ void parseOutputs(ObjectReader& r, SceneOutputs& o) {
     ObjectReader p(r.context(), *preview, r.path("preview"));
     ScenePreview& s = o.preview;
     s.enabled = p.boolean("enabled", s.enabled);
-    s.width = p.integer("width", s.width, closed(16, 8192));
-    s.height = p.integer("height", s.height, closed(16, 8192));
-    s.supersampling = p.integer("supersampling", s.supersampling, closed(1, 8));
+    s.width = p.integer("width", s.width, closed(16, kMaxImageSide));
+    s.height = p.integer("height", s.height, closed(16, kMaxImageSide));
+    s.supersampling = p.integer("supersampling", s.supersampling, closed(1, kMaxSupersampling));
+    if (double(s.width) * s.height * s.supersampling * s.supersampling > kMaxImageSamples)
+      r.context().fail(p.path(), "width x height x supersampling^2 = " + std::to_string(s.width) + " x " +
+                                     std::to_string(s.height) + " x " + std::to_string(s.supersampling) +
+                                     "^2 is more than the renderer's " + formatNumber(kMaxImageSamples) + " samples");
     s.viewDirection = p.vector3("view_direction", s.viewDirection);
     if (!(s.viewDirection.norm() > 0)) r.context().fail(p.path("view_direction"), "expected a non-zero direction");
     s.projection = static_cast<Projection>(p.choice("projection", int(s.projection), {"perspective", "orthographic"}));
@@ -701,16 +716,21 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
                     options);
   json root;
   try {
-    root = json::parse(jsonText);
-  } catch (const json::exception& e) {
-    // Not only parse_error: a number too large for a double ("1e999") is an
-    // out_of_range, and it must not escape as a foreign exception.
-    throw SceneError(sourceName + ": invalid JSON: " + e.what());
+    root = stain::parseStrictJson(jsonText);
+  } catch (const stain::StrictJsonError& e) {
+    throw SceneError(sourceName + ": " + e.what());
   }
   ObjectReader r(ctx, root, "");
   SceneDef scene;
   scene.sourceName = sourceName;
   scene.name = r.string("name", std::filesystem::path(sourceName).stem().string());
+  // The name becomes file names inside the output folder (<name>_0001.ply,
+  // <name>.png): it may not name a path.
+  if (scene.name.empty() || scene.name.size() > 200 || scene.name.front() == '.' ||
+      scene.name.find_first_of("/\\") != std::string::npos ||
+      std::any_of(scene.name.begin(), scene.name.end(), [](char c) { return static_cast<unsigned char>(c) < 32; }))
+    ctx.fail("name", "expected a file name (1 to 200 characters, no '/', '\\' or control characters, not starting "
+                     "with '.'), got " + describe(json(scene.name)));
   scene.description = r.string("description", "");
   EngineDef& def = scene.engine;
 
@@ -752,7 +772,7 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
   if (def.coupling == coupling::CouplingMode::TwoWay && def.source != MotionSource::Bullet)
     ctx.fail("coupling", std::string("\"two-way\" needs cloth.source \"bullet\", got \"") +
                              motionSourceName(def.source) + "\"");
-  def.timeStep = r.number("time_step", def.timeStep, leftOpen(0, 1));
+  def.timeStep = r.number("time_step", def.timeStep, closed(kMinTimeStep, 1));
   def.maxStepsPerCall = r.integer("max_steps_per_call", def.maxStepsPerCall, closed(1, 100000));
   const json& drops = r.array("drops");
   for (std::size_t i = 0; i < drops.size(); ++i) {
@@ -781,11 +801,13 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
 }
 
 SceneDef loadScene(const std::string& path, const SceneLoadOptions& options) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw SceneError(path + ": cannot open the scene file");
-  std::ostringstream text;
-  text << in.rdbuf();
-  return parseScene(text.str(), path, std::filesystem::path(path).parent_path().string(), options);
+  std::string text;
+  try {
+    text = stain::readFileBounded(path, stain::kJsonFileByteLimit, "the scene file");
+  } catch (const stain::FileReadError& e) {
+    throw SceneError(e.what());
+  }
+  return parseScene(text, path, std::filesystem::path(path).parent_path().string(), options);
 }
 
 EngineDef engineDef(const SceneDef& scene) { return scene.engine; }

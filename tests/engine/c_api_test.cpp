@@ -7,6 +7,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <fstream>
+#include <limits>
 #include <cstdio>
 #include <filesystem>
 #include <string>
@@ -253,6 +256,53 @@ TEST(CApiTest, TheErrorStringLivesUntilTheNextFailure) {
   // Saving into a folder that does not exist is an I/O error too.
   EXPECT_EQ(blotEngine_Save(engine, "/nonexistent/dir/x.state"), BLOT_ERROR_IO);
   EXPECT_NE(std::string(blotGetLastError()).find("/nonexistent/dir/x.state"), std::string::npos) << blotGetLastError();
+// Frame times the engine cannot use and state files that are not its own
+// are statuses, and the engine steps normally afterwards.
+TEST(CApiTest, AbsurdFrameTimesAndTamperedStatesAreRefusedAndTheEngineStaysUsable) {
+  blotEngine* engine = nullptr;
+  ASSERT_EQ(blotCreateEngineFromSceneJson(kScene, nullptr, &engine), BLOT_OK) << blotGetLastError();
+  for (const double dt : {1e308, 2.0, std::numeric_limits<double>::infinity(), std::nan("")}) {
+    EXPECT_EQ(blotEngine_Step(engine, dt), BLOT_ERROR_INVALID_ARGUMENT) << dt;
+    EXPECT_NE(std::string(blotGetLastError()).find("frameDt must be finite and in [0, 1"), std::string::npos)
+        << blotGetLastError();
+  }
+  EXPECT_EQ(blotEngine_GetTime(engine), 0.0);
+  ASSERT_EQ(blotEngine_Step(engine, 1.0), BLOT_OK) << blotGetLastError();  // the limit itself: 8 steps (the cap)
+  EXPECT_NEAR(blotEngine_GetTime(engine), 0.08, 1e-12);
+  ASSERT_EQ(blotEngine_Step(engine, 0.02), BLOT_OK);
+  EXPECT_NEAR(blotEngine_GetTime(engine), 0.10, 1e-12);
+
+  // A drop point far outside the world (its squared distance would overflow).
+  blotDropDef drop = blotDefaultDropDef();
+  const double far[3] = {1e200, 0, 0};
+  int face = -1;
+  EXPECT_EQ(blotEngine_AddDropAtPoint(engine, far, &drop, &face), BLOT_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(blotGetLastError()).find("point must be finite and at most 1000000"), std::string::npos)
+      << blotGetLastError();
+
+  // A state with a NaN density, and an endless stream: IO errors, the engine unchanged.
+  const std::string path = (std::filesystem::temp_directory_path() / "blot_c_api_tampered.state").string();
+  ASSERT_EQ(blotEngine_Save(engine, path.c_str()), BLOT_OK) << blotGetLastError();
+  std::string bytes;
+  {
+    std::ifstream in(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  const std::int64_t stepCount = 10;  // the header's step count (offset 48): 8 + 2 internal steps
+  ASSERT_EQ(std::memcmp(&bytes[48], &stepCount, 8), 0);
+  const std::int64_t negative = -1;
+  std::memcpy(&bytes[48], &negative, 8);
+  {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  }
+  EXPECT_EQ(blotEngine_Load(engine, path.c_str()), BLOT_ERROR_IO);
+  EXPECT_NE(std::string(blotGetLastError()).find("step count -1 is outside"), std::string::npos) << blotGetLastError();
+  EXPECT_EQ(blotEngine_Load(engine, "/dev/zero"), BLOT_ERROR_IO);
+  EXPECT_NE(std::string(blotGetLastError()).find("more than the limit of"), std::string::npos) << blotGetLastError();
+  EXPECT_NEAR(blotEngine_GetTime(engine), 0.10, 1e-12);
+  EXPECT_EQ(blotEngine_Step(engine, 0.01), BLOT_OK);
+  std::remove(path.c_str());
   blotDestroyEngine(engine);
 }
 

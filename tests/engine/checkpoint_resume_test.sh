@@ -38,4 +38,13 @@ for f in "$work/full"/*.ply "$work/full"/*.png; do
   compared=$((compared + 1))
 done
 [ "$compared" -ge 3 ] || { echo "FAIL: only $compared output files to compare"; exit 1; }
+# The summary covers the whole run after a resume too (the counters are in the
+# state): equal but for wall-clock timings and the output folder's name.
+strip() {
+  grep -v -e '"wall_time_s"' -e '"steps_per_second"' -e '"mean_ms_per_step"' -e '"stain' -e '"cloth":' \
+    -e '"coupling":' -e '"total":' "$1" | sed 's#/full/#/OUT/#; s#/killed/#/OUT/#; s#"[^"]*/full"#"OUT"#; s#"[^"]*/killed"#"OUT"#'
+}
+diff <(strip "$work/full.json") <(strip "$work/resumed.json") > "$work/summary.diff" ||
+  { echo "FAIL: the resumed run's summary differs"; cat "$work/summary.diff"; exit 1; }
+ls "$work/killed" | grep -q '\.tmp$' && { echo "FAIL: a temporary file was left"; ls "$work/killed"; exit 1; }
 echo "resume OK: state hash $full, $compared frame/preview files byte-identical"

@@ -6,7 +6,10 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <limits>
 #include <filesystem>
 #include <fstream>
 
@@ -326,6 +329,97 @@ TEST(EngineTest, LoadingAnotherMeshsStateNamesTheMismatch) {
     FAIL() << "no error";
   } catch (const StateFileError& e) {
     EXPECT_NE(std::string(e.what()).find("truncated"), std::string::npos) << e.what();
+  }
+  std::remove(path.c_str());
+}
+
+// A tampered state file is refused with a message naming the file and the
+// field before anything reaches CHOLMOD, Bullet or the engine: corrupt sparse
+// index arrays (a segfault inside CHOLMOD before), NaN densities, negative or
+// inconsistent step counts, an endless stream. The engine is unchanged.
+TEST(EngineTest, TamperedStateFilesAreRefusedBeforeAnythingIsBuilt) {
+  const std::string path = temporaryPath("tampered.state");
+  Engine engine(rotatingPatch(8));
+  engine.advanceSteps(3);
+  engine.save(path);
+  std::string bytes;
+  {
+    std::ifstream in(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  const auto find = [&](const void* pattern, std::size_t size) {
+    const auto at = bytes.find(std::string(static_cast<const char*>(pattern), size));
+    EXPECT_NE(at, std::string::npos);
+    return at;
+  };
+  const auto errorOfLoading = [&](const std::string& tampered) {
+    {
+      std::ofstream out(path, std::ios::binary | std::ios::trunc);
+      out.write(tampered.data(), static_cast<std::streamsize>(tampered.size()));
+    }
+    Engine target(rotatingPatch(8));
+    const std::uint64_t before = target.stateHash();
+    std::string message;
+    try {
+      target.load(path);
+    } catch (const StateFileError& e) {
+      message = e.what();
+    }
+    EXPECT_EQ(target.stateHash(), before);
+    EXPECT_EQ(message.rfind(path + ": ", 0), 0u) << message;
+    return message;
+  };
+  const auto poke = [&](std::size_t at, const auto& value) {
+    std::string tampered = bytes;
+    std::memcpy(&tampered[at], &value, sizeof value);
+    return tampered;
+  };
+  // The header: magic, version, source, #V, #F, fingerprint, h, then the step count.
+  constexpr std::size_t kSteps = 8 + 4 + 4 + 8 + 8 + 8 + 8;
+  EXPECT_NE(errorOfLoading(poke(kSteps, std::int64_t(-5))).find("step count -5 is outside [0, 2^52]"), std::string::npos);
+  EXPECT_NE(errorOfLoading(poke(kSteps, std::int64_t(30))).find("stain step count 3 differs from the engine's 30"),
+            std::string::npos);
+  EXPECT_NE(errorOfLoading(poke(kSteps + 8, std::nan(""))).find("engine.accumulator is not finite"), std::string::npos);
+
+  // A NaN and a negative density in the stain's solvent field.
+  const stain::Vector& solvent = engine.surface().stain().state().solvent;
+  Eigen::Index wettest = 0;
+  solvent.maxCoeff(&wettest);
+  const double largest = solvent[wettest];
+  const std::size_t density = find(&largest, sizeof largest);
+  EXPECT_NE(errorOfLoading(poke(density, std::nan(""))).find("solvent: entry " + std::to_string(wettest) + " of 81 is not finite"),
+            std::string::npos);
+  EXPECT_NE(errorOfLoading(poke(density, -largest)).find("state.solvent[" + std::to_string(wettest) + "] = "),
+            std::string::npos);
+
+  // The density stiffness matrix: rows, cols, nnz, column pointers, row indices, values.
+  const stain::SparseMatrix& stiffness = engine.surface().stain().geometry().intrinsic().densityStiffness;
+  const std::int64_t header[3] = {81, 81, stiffness.nonZeros()};
+  const std::size_t matrix = find(header, sizeof header);
+  const std::size_t outer = matrix + sizeof header, inner = outer + 4 * 82;
+  EXPECT_NE(errorOfLoading(poke(inner + 4 * 5, std::int32_t(1 << 30))).find("corrupt sparse matrix densityStiffness: column"),
+            std::string::npos);
+  EXPECT_NE(errorOfLoading(poke(inner, std::int32_t(-1))).find("has row index -1 (entry 0)"), std::string::npos);
+  EXPECT_NE(errorOfLoading(poke(outer + 4 * 10, std::int32_t(0))).find("column pointer 10 (0) is below"),
+            std::string::npos);
+  EXPECT_NE(errorOfLoading(poke(outer + 4 * 81, std::int32_t(7))).find("column pointers run from 0 to 7"),
+            std::string::npos);
+  EXPECT_NE(errorOfLoading(poke(matrix + 16, std::int64_t(1) << 40)).find("bad shape of densityStiffness"),
+            std::string::npos);
+  EXPECT_NE(errorOfLoading(poke(inner + 4 * stiffness.nonZeros(), std::numeric_limits<double>::infinity()))
+                .find("densityStiffness: entry 0 is not finite"),
+            std::string::npos);
+
+  // Not a file, or an endless one: refused by the byte budget, not by bad_alloc.
+  Engine target(rotatingPatch(8));
+  try {
+    target.load("/dev/zero");
+    ADD_FAILURE() << "/dev/zero loaded";
+  } catch (const StateFileError& e) {
+    // 1 MiB + 16 KiB for each of the 81 vertices and 128 faces.
+    EXPECT_NE(std::string(e.what()).find("/dev/zero: the state file has more than the limit of 4472832 bytes"),
+              std::string::npos)
+        << e.what();
   }
   std::remove(path.c_str());
 }

@@ -205,7 +205,7 @@ INSTANTIATE_TEST_SUITE_P(
         BadScene{"unknown top-level key", withExtra(R"("tme_step": 0.01)"), "tme_step", "unknown key"},
         BadScene{"unknown nested key", withExtra(R"("liquid": {"absorption": 0.1})"), "liquid.absorption",
                  "unknown key (expected one of: absorption_rate"},
-        BadScene{"wrong type", withExtra(R"("time_step": "fast")"), "time_step", "expected a number in (0, 1], got a string"},
+        BadScene{"wrong type", withExtra(R"("time_step": "fast")"), "time_step", "expected a number in [1e-06, 1], got a string"},
         BadScene{"negative time step", withExtra(R"("time_step": -0.01)"), "time_step", "got -0.01"},
         BadScene{"bad enum", withExtra(R"("coupling": "both")"), "coupling", "expected one of \"one-way\", \"two-way\""},
         BadScene{"two-way without bullet", withExtra(R"("coupling": "two-way")"), "coupling", "needs cloth.source \"bullet\""},
@@ -230,7 +230,7 @@ INSTANTIATE_TEST_SUITE_P(
                  "expected an array of 3 numbers"},
         BadScene{"drop without a place", withExtra(R"("drops": [{"radius": 0.1}])"), "drops[0].vertex", "required"},
         BadScene{"drop negative mass", withExtra(R"("drops": [{"vertex": 1, "solute_mass": -1}])"), "drops[0].solute_mass",
-                 "expected a number >= 0, got -1"},
+                 "expected a number in [0, 1000000], got -1"},
         BadScene{"held region vertex", withExtra(R"("held_regions": [{"vertices": [1, 500]}])"),
                  "held_regions[0].vertices[1]", "[0, 121)"},
         BadScene{"held region empty ball", withExtra(R"("held_regions": [{"center": [9, 9, 9], "radius": 0.01}])"),
@@ -245,7 +245,32 @@ INSTANTIATE_TEST_SUITE_P(
         BadScene{"outputs frames zero", withExtra(R"("outputs": {"frames": 0})"), "outputs.frames", "[1, 1000000]"},
         BadScene{"preview key", withExtra(R"("outputs": {"preview": {"size": 3}})"), "outputs.preview.size", "unknown key"},
         BadScene{"pigment", withExtra(R"("display": {"pigment": "blood"})"), "display.pigment", "\"wine\", \"coffee\", \"ink\""},
-        BadScene{"sequence without pattern", withCloth(R"({"source": "sequence"})"), "cloth.pattern", "required"}),
+        BadScene{"sequence without pattern", withCloth(R"({"source": "sequence"})"), "cloth.pattern", "required"},
+        // Plausibility limits: refused at the key, not at a later stage.
+        BadScene{"tiny time step", withExtra(R"("time_step": 1e-300)"), "time_step",
+                 "expected a number in [1e-06, 1], got 1e-300"},
+        BadScene{"huge gravity", withExtra(R"("gravity": [1e300, 0, 0])"), "gravity[0]",
+                 "expected a number in [-1000000, 1000000], got 1e+300"},
+        BadScene{"huge solvent mass", withExtra(R"("drops": [{"vertex": 1, "solvent_mass": 1e300}])"),
+                 "drops[0].solvent_mass", "expected a number in [0, 1000000], got 1e+300"},
+        BadScene{"far drop point", withExtra(R"("drops": [{"point": [1e200, 0, 0]}])"), "drops[0].point[0]",
+                 "expected a number in [-1000000, 1000000], got 1e+200"},
+        BadScene{"huge sequence", withCloth(R"({"source": "sequence", "pattern": "f_%04d.obj", "frame_count": 2000000000})"),
+                 "cloth.frame_count", "expected an integer in [0, 100000], got 2000000000"},
+        BadScene{"supersampling past the renderer's", withExtra(R"("outputs": {"preview": {"supersampling": 6}})"),
+                 "outputs.preview.supersampling", "expected an integer in [1, 4], got 6"},
+        BadScene{"preview past the sample budget",
+                 withExtra(R"("outputs": {"preview": {"width": 8192, "height": 8192, "supersampling": 2}})"),
+                 "outputs.preview", "width x height x supersampling^2 = 8192 x 8192 x 2^2 is more than the renderer's"},
+        BadScene{"name with a folder", withExtra(R"("name": "../escape")"), "name",
+                 "expected a file name (1 to 200 characters, no '/'"},
+        BadScene{"name starting with a dot", withExtra(R"("name": "..")"), "name", "not starting with '.'"},
+        BadScene{"duplicate top-level key", withExtra(R"("time_step": 0.01, "time_step": 0.02)"), "time_step",
+                 "duplicate key (an object gives it twice"},
+        BadScene{"duplicate nested key", withExtra(R"("outputs": {"frames": 2, "frames": 3})"), "outputs.frames",
+                 "duplicate key"},
+        BadScene{"duplicate key in an array element", withExtra(R"("drops": [{"vertex": 1}, {"vertex": 1, "vertex": 2}])"),
+                 "drops[1].vertex", "duplicate key"}),
     [](const ::testing::TestParamInfo<BadScene>& param) {
       std::string name = param.param.label;
       for (char& ch : name)
@@ -295,6 +320,60 @@ TEST(SceneTest, MissingFileIsAnError) {
   EXPECT_THROW(loadScene("/nonexistent/scene.json"), SceneError);
 }
 
+// A value nested 100,000 deep is refused by the parser with a short message
+// (it used to overflow the stack while the error message was formatted).
+TEST(SceneTest, DeeplyNestedValueIsRefusedWithABoundedMessage) {
+  for (const char* key : {"time_step", "name", "unknown"}) {
+    const std::string deep = std::string(100000, '[') + std::string(100000, ']');
+    const std::string message = errorOf(withExtra("\"" + std::string(key) + "\": " + deep));
+    EXPECT_EQ(message.rfind("scene.json: nested deeper than 64 arrays or objects (at " + std::string(key) + "[0]", 0),
+              0u)
+        << message.substr(0, 200);
+    EXPECT_LT(message.size(), 300u);
+  }
+  // Nested within the limit but wrong: the message quotes a bounded prefix.
+  const std::string nested = std::string(60, '[') + std::string(60, ']');
+  const std::string message = errorOf(withExtra("\"time_step\": " + nested));
+  EXPECT_NE(message.find("scene.json: time_step: expected a number"), std::string::npos) << message;
+  EXPECT_LT(message.size(), 200u) << message;
+}
+
+// Every loader refuses a file larger than its budget by its size, and an
+// endless stream (/dev/zero) after reading at most the budget.
+TEST(SceneTest, EndlessOrHugeSceneFileIsRefusedByTheByteBudget) {
+  for (const char* path : {"/dev/zero", "/dev/urandom"}) {
+    try {
+      loadScene(path);
+      ADD_FAILURE() << path << " loaded";
+    } catch (const SceneError& e) {
+      EXPECT_NE(std::string(e.what()).find(std::string(path) + ": the scene file has more than the limit of "
+                                           "16777216 bytes (not a regular file"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+  const std::filesystem::path big = std::filesystem::temp_directory_path() / "blot_scene_budget.json";
+  {
+    std::ofstream out(big);
+  }
+  std::filesystem::resize_file(big, (std::uintmax_t(16) << 20) + 1);  // sparse: no 16 MB written
+  try {
+    loadScene(big.string());
+    ADD_FAILURE() << "loaded";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("the scene file is 16777217 bytes, more than the limit of 16777216 bytes"),
+              std::string::npos)
+        << e.what();
+  }
+  std::filesystem::remove(big);
+  try {
+    loadScene(std::filesystem::temp_directory_path().string());
+    ADD_FAILURE() << "a directory loaded";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("the scene file is a directory"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace blot::engine
 
@@ -318,15 +397,25 @@ TEST(SceneFuzzRegression, NumberTooLargeForADoubleIsASceneErrorNamingTheToken) {
 // Keys that are each finite can overflow together: a 10 m patch scaled by 1e308
 // had infinite coordinates and parsed. Reproducer: corpus scale_overflow.json.
 TEST(SceneFuzzRegression, MeshThatOverflowsAfterScaleNamesTheMeshAndVertex) {
+  // Every number is at most kMaxSceneMagnitude (1e6): the key that would
+  // overflow is refused where it is read.
   const std::string message = errorOf(
       R"({"mesh": {"patch": {"size": [10, 10], "resolution": [2, 2]}, "scale": 1e308}, "cloth": {"source": "static"}})");
-  EXPECT_EQ(message.rfind("scene.json: mesh: vertex 0 is not finite after size, scale and translate", 0), 0u)
-      << message;
-  const std::string translated = errorOf(
+  EXPECT_EQ(message.rfind("scene.json: mesh.scale: expected a number in (0, 1000000], got 1e+308", 0), 0u) << message;
+  const std::string centered = errorOf(
       R"({"mesh": {"patch": {"size": [1, 1], "resolution": [2, 2], "center": [1e308, 0, 0]}, "translate": [1e308, 0, 0]},
           "cloth": {"source": "static"}})");
-  EXPECT_NE(translated.find("scene.json: mesh: vertex "), std::string::npos) << translated;
-  EXPECT_NE(translated.find("overflow a double"), std::string::npos) << translated;
+  EXPECT_NE(centered.find("scene.json: mesh.patch.center[0]: expected a number in [-1000000, 1000000], got 1e+308"),
+            std::string::npos)
+      << centered;
+  // Keys each in range whose product is not: the vertex is named.
+  const std::string scaled = errorOf(
+      R"({"mesh": {"patch": {"size": [1000000, 1000000], "resolution": [2, 2]}, "scale": 1000000},
+          "cloth": {"source": "static"}})");
+  EXPECT_NE(scaled.find("scene.json: mesh: vertex 0 has a coordinate of 500000000000 m after scale and translate; expected "
+                        "at most 1000000 m"),
+            std::string::npos)
+      << scaled;
 }
 
 // Every seed of fuzz_scene (shipped scenes, hand-written ones for the other

@@ -68,6 +68,21 @@ void checkParsedScene(const SceneDef& scene) {
       if (!inside(weft.face, faces) || !weft.direction.allFinite()) std::abort();
   }
   if (!(def.timeStep > 0) || scene.outputs.frames < 1 || scene.outputs.stepsPerFrame < 1) std::abort();
+  // The plausibility limits of scene.h and the renderer's, enforced at load.
+  using blot::engine::kMaxSceneMagnitude;
+  if (!(def.timeStep >= blot::engine::kMinTimeStep && def.timeStep <= 1)) std::abort();
+  if (def.mesh.vertexPositions.cwiseAbs().maxCoeff() > kMaxSceneMagnitude) std::abort();
+  if (!(def.stain.gravity.cwiseAbs().maxCoeff() <= kMaxSceneMagnitude)) std::abort();
+  for (const auto& timed : def.drops)
+    if (!(timed.drop.centerPoint.cwiseAbs().maxCoeff() <= kMaxSceneMagnitude) ||
+        !(timed.drop.solventMass <= kMaxSceneMagnitude) || !(timed.drop.soluteMass <= kMaxSceneMagnitude))
+      std::abort();
+  if (scene.name.empty() || scene.name.front() == '.' || scene.name.find('/') != std::string::npos) std::abort();
+  const auto& preview = scene.outputs.preview;
+  if (preview.supersampling > blot::engine::kMaxSupersampling ||
+      double(preview.width) * preview.height * preview.supersampling * preview.supersampling >
+          blot::engine::kMaxImageSamples)
+    std::abort();
 }
 
 }  // namespace

@@ -95,6 +95,25 @@ TEST(BadPattern, TrailingGarbageNamesLineAndColumn) {
                  {"not valid JSON", "line 2, column 3"});
 }
 
+// Strict and bounded JSON: a key given twice is refused (nlohmann keeps the
+// last), nesting past 64 is refused while parsing, and an endless stream is
+// refused after the 16 MiB budget.
+TEST(BadPattern, DuplicateKeysDeepNestingAndEndlessStreamsAreRefused) {
+  expectMentions(patternError(R"({"tensors": [[[1, 0, 0, 1]]], "tensors": [[[2, 0, 0, 2]]]})"),
+                 {"cloth.json: tensors: duplicate key"});
+  expectMentions(patternError(R"({"name": "a", "cells": ["W"], "name": "b"})"), {"cloth.json: name: duplicate key"});
+  const std::string deep = "{\"tensors\": " + std::string(100000, '[') + std::string(100000, ']') + "}";
+  const std::string message = patternError(deep);
+  expectMentions(message, {"cloth.json: nested deeper than 64 arrays or objects (at tensors[0]"});
+  EXPECT_LT(message.size(), 300u);
+  try {
+    loadWeavePattern("/dev/zero");
+    ADD_FAILURE() << "/dev/zero loaded";
+  } catch (const PatternError& error) {
+    expectMentions(error.what(), {"/dev/zero: pattern file has more than the limit of 16777216 bytes"});
+  }
+}
+
 TEST(BadPattern, MissingFileNamesThePath) {
   try {
     loadWeavePattern("/nonexistent/dir/cloth.json");
@@ -307,6 +326,99 @@ TEST(BadMesh, ParseMeshNamesTheSourceAndRejectsUnknownFormats) {
     expectMentions(error.what(), {"embedded: ", "face 0 (line 6): vertex index 5 out of range [0, 2]"});
   }
   EXPECT_EQ(parseMesh("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "off", "embedded").faces.rows(), 1);
+}
+
+/// The MeshError message of loading tests/data/<relative>; it must start with the path.
+std::string meshError(const std::string& relative) {
+  const std::string path = test::testDataPath(relative);
+  try {
+    loadMesh(path);
+  } catch (const MeshError& error) {
+    const std::string message = error.what();
+    EXPECT_EQ(message.rfind(path + ": ", 0), 0u) << message;
+    return message;
+  }
+  ADD_FAILURE() << "accepted: " << relative;
+  return {};
+}
+
+double totalArea(const TriangleMesh& mesh, Eigen::Vector3d* normalSum = nullptr) {
+  double area = 0;
+  for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f) {
+    const Eigen::Vector3d a = mesh.vertexPositions.row(mesh.faces(f, 0)), b = mesh.vertexPositions.row(mesh.faces(f, 1)),
+                          c = mesh.vertexPositions.row(mesh.faces(f, 2));
+    const Eigen::Vector3d n = (b - a).cross(c - a);
+    area += 0.5 * n.norm();
+    if (normalSum) *normalSum += n;
+  }
+  return area;
+}
+
+// A concave quad is ear-clipped, not fanned into folded triangles (a fan from
+// its first corner gives areas 4.5 and 1.5 with opposite normals, 6 in all).
+TEST(BadMesh, ConcavePolygonIsTriangulatedInsideItsOutline) {
+  const TriangleMesh mesh = loadMesh(test::testDataPath("good/concave_quad.obj"));
+  ASSERT_EQ(mesh.faces.rows(), 2);
+  Eigen::Vector3d normals = Eigen::Vector3d::Zero();
+  EXPECT_NEAR(totalArea(mesh, &normals), 3.0, 1e-14);
+  EXPECT_NEAR(normals.z(), 6.0, 1e-14);  // both triangles face +z: no fold
+  // The same outline as an OFF with one more concave corner (an L of area 3).
+  const TriangleMesh l = parseMesh("OFF\n6 1 0\n0 0 0\n2 0 0\n2 1 0\n1 1 0\n1 2 0\n0 2 0\n6 0 1 2 3 4 5\n", "off", "L");
+  EXPECT_EQ(l.faces.rows(), 4);
+  EXPECT_NEAR(totalArea(l), 3.0, 1e-14);
+  // A convex polygon keeps the fan it always had.
+  const TriangleMesh square = parseMesh("OFF\n4 1 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n", "off", "square");
+  EXPECT_EQ(square.faces.row(0), Eigen::RowVector3i(0, 1, 2));
+  EXPECT_EQ(square.faces.row(1), Eigen::RowVector3i(0, 2, 3));
+}
+
+TEST(BadMesh, SelfIntersectingPolygonIsRefusedNamingFaceAndLine) {
+  expectMentions(meshError("bad/self_intersecting_quad.obj"),
+                 {"face 0 (line 6): the polygon of 4 corners intersects itself"});
+}
+
+// Strict where the formats are: a property or element declared twice, words
+// after an OFF face's corners; coordinates whose squares overflow.
+TEST(BadMesh, DuplicatedPropertiesTrailingWordsAndHugeCoordinatesAreRefused) {
+  expectMentions(meshError("bad/duplicate_property.ply"), {"bad PLY header (line 7)", "declares property 'y' twice"});
+  expectMentions(meshError("bad/trailing_word_face.off"),
+                 {"line 6: face 0: unexpected 'oops' after its 3 corners (only a colour of 3 or 4 numbers may follow)"});
+  EXPECT_EQ(parseMesh("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2 255 0 0\n", "off", "colour").faces.rows(), 1);
+  expectMentions(meshError("bad/huge_coordinates.off"), {"the bounding box", "squared lengths overflow a double"});
+  try {
+    parseMesh("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+              "element vertex 1\nproperty float x\nend_header\n",
+              "ply", "twice.ply");
+    ADD_FAILURE() << "two vertex elements accepted";
+  } catch (const MeshError& error) {
+    expectMentions(error.what(), {"twice.ply: ", "element 'vertex' declared twice"});
+  }
+}
+
+// A UTF-8 byte-order mark before the first statement is skipped (it made
+// tinyobjloader drop the first vertex line).
+TEST(BadMesh, ByteOrderMarkBeforeTheFirstVertexIsSkipped) {
+  const TriangleMesh mesh = loadMesh(test::testDataPath("good/bom_triangle.obj"));
+  EXPECT_EQ(mesh.vertexPositions.rows(), 3);
+  EXPECT_EQ(mesh.faces.rows(), 1);
+}
+
+// An endless stream or a file past the 1 GiB budget is refused before it is read.
+TEST(BadMesh, EndlessStreamIsRefusedByTheByteBudget) {
+  // The budget is read before failing on a stream; /dev/zero would take 1 GiB,
+  // so the check on a regular file's size is what runs here (a sparse file).
+  const fs::path big = fs::temp_directory_path() / "blot_mesh_budget.obj";
+  {
+    std::ofstream out(big);
+  }
+  fs::resize_file(big, (std::uintmax_t(1) << 30) + 1);
+  try {
+    loadMesh(big.string());
+    ADD_FAILURE() << "accepted";
+  } catch (const MeshError& error) {
+    expectMentions(error.what(), {big.string() + ": file is 1073741825 bytes, more than the limit of 1073741824 bytes"});
+  }
+  fs::remove(big);
 }
 
 }  // namespace

@@ -81,6 +81,27 @@ TEST(Homogenization, HomogeneousTileIsItsOwnEffectiveTensor) {
   EXPECT_LT((r.reussBound - s).norm(), 1e-12 * s.norm());
 }
 
+// Extreme but valid tensors: a uniform tile is exactly its own tensor even
+// where the cell problem cannot be factorized in doubles, and a tile scaled by
+// 1e250 (or 1e-250) homogenizes to the scaled result.
+TEST(Homogenization, ExtremeTensorsHomogenizeScaleAware) {
+  Matrix2 s;
+  s << 1e300, 0, 0, 1e-300;
+  const WeavePattern uniform(1, 1, {s}, "extreme");
+  const HomogenizationResult u = homogenize(uniform, 4);
+  EXPECT_EQ(u.effective, s);
+  EXPECT_TRUE(u.converged);
+  EXPECT_EQ(u.eigenvalues(0), 1e-300);
+  EXPECT_EQ(u.eigenvalues(1), 1e300);
+  const WeavePattern tile = randomTile(2, 2, 5.0, 77u);
+  const HomogenizationResult reference = homogenize(tile, 2);
+  for (const double factor : {1e250, 1e-250}) {
+    const HomogenizationResult r = homogenize(tile.scaled(factor), 2);
+    EXPECT_LT((r.effective / factor - reference.effective).norm(), 1e-12 * reference.effective.norm()) << factor;
+    EXPECT_NEAR(r.gap, reference.gap, 1e-12);
+  }
+}
+
 TEST(Homogenization, RandomTilesAreSpdBetweenBoundsAndRotateExactly) {
   int tiles = 0;
   for (int rows : {1, 2, 3, 5}) {

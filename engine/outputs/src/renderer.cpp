@@ -192,22 +192,22 @@ Eigen::Vector3d projectToImage(const Camera& camera, int width, int height,
 }
 
 Renderer::Renderer(const RenderSettings& settings) : settings_(settings) {
-  if (settings.width < 1 || settings.height < 1 || settings.width > 16384 ||
-      settings.height > 16384) {
-    throw std::invalid_argument("Renderer: image size must be in 1..16384, got " +
+  if (settings.width < 1 || settings.height < 1 || settings.width > kMaxImageSide ||
+      settings.height > kMaxImageSide) {
+    throw std::invalid_argument("Renderer: image size must be in 1.." + std::to_string(kMaxImageSide) + ", got " +
                                 std::to_string(settings.width) + " x " +
                                 std::to_string(settings.height));
   }
-  if (settings.supersampling < 1 || settings.supersampling > 4) {
-    throw std::invalid_argument("Renderer: supersampling must be in 1..4, got " +
-                                std::to_string(settings.supersampling));
+  if (settings.supersampling < 1 || settings.supersampling > kMaxSupersampling) {
+    throw std::invalid_argument("Renderer: supersampling must be in 1.." + std::to_string(kMaxSupersampling) +
+                                ", got " + std::to_string(settings.supersampling));
   }
   if (!(settings.lightDirection.norm() > 0.0)) {
     throw std::invalid_argument("Renderer: lightDirection must be non-zero");
   }
   const double sampleCount = static_cast<double>(settings.width) * settings.height *
                              settings.supersampling * settings.supersampling;
-  if (sampleCount > static_cast<double>(1 << 26)) {
+  if (sampleCount > kMaxImageSamples) {
     throw std::invalid_argument("Renderer: width x height x supersampling^2 must be at most "
                                 "2^26 samples (16 bytes each)");
   }

@@ -155,7 +155,14 @@ Vector2 symmetricEigenvalues(const Matrix2& tensor) {
   const double mean = 0.5 * (tensor(0, 0) + tensor(1, 1));
   const double offDiagonal = 0.5 * (tensor(0, 1) + tensor(1, 0));
   const double radius = std::hypot(0.5 * (tensor(0, 0) - tensor(1, 1)), offDiagonal);
-  return Vector2(mean - radius, mean + radius);
+  const double larger = mean + radius, smaller = mean - radius;
+  // Past 1e8 of anisotropy mean - radius cancels (diag(1e300, 1e-300) gave 0):
+  // the product of the eigenvalues, the determinant, gives the small one.
+  if (larger > 0 && smaller < 1e-8 * larger) {
+    const double determinant = tensor(0, 0) * tensor(1, 1) - offDiagonal * offDiagonal;
+    if (determinant > 0 && std::isfinite(determinant)) return Vector2(determinant / larger, larger);
+  }
+  return Vector2(smaller, larger);
 }
 
 double principalAngle(const Matrix2& tensor) {
@@ -317,6 +324,33 @@ HomogenizationResult refineUntilBoundsMeet(const WeavePattern& pattern, const Ho
 
 HomogenizationResult homogenize(const WeavePattern& pattern, const HomogenizationOptions& options) {
   checkOptions(pattern, options);
+  const std::vector<Matrix2>& cells = pattern.cellTensors();
+  // A uniform tile is its own effective tensor (the corrector is zero): exact,
+  // and free of the solve's conditioning (diag(1e300, 1e-300) is valid input
+  // whose cell-problem matrix cannot be factorized in doubles).
+  if (std::all_of(cells.begin(), cells.end(), [&](const Matrix2& t) { return t == cells.front(); })) {
+    const CellProblemBounds exact{cells.front(), cells.front(), 0.0, 0.0};
+    HomogenizationResult result = finishResult(pattern, exact, options.tolerance);
+    result.subdivisions = options.subdivisions == kAutoSubdivisions ? 0 : options.subdivisions;
+    result.levels = 0;  // no cell problem solved
+    return result;
+  }
+  // Tensors far from 1 are scaled by a power of 4 (exact in binary, also
+  // through square roots) so that the solve neither overflows nor underflows;
+  // S_eff and both bounds scale linearly with the tensors.
+  double largest = 0;
+  for (const Matrix2& t : cells) largest = std::max(largest, t.cwiseAbs().maxCoeff());
+  if (largest > 1e100 || largest < 1e-100) {
+    const int exponent = static_cast<int>(std::round(std::log2(largest) / 2));
+    const double factor = std::ldexp(1.0, 2 * exponent);
+    HomogenizationResult result = homogenize(pattern.scaled(1.0 / factor), options);
+    for (Matrix2* m : {&result.upper, &result.lower, &result.effective, &result.voigtBound, &result.average,
+                       &result.reussBound})
+      *m *= factor;
+    result.eigenvalues *= factor;
+    result.patternHash = pattern.contentHash();
+    return result;
+  }
   if (options.subdivisions == kAutoSubdivisions) return refineUntilBoundsMeet(pattern, options);
   const CellMesh mesh = uniformCellMesh(pattern.rows(), pattern.cols(), options.subdivisions);
   HomogenizationResult result = finishResult(pattern, cellProblemBounds(pattern, mesh), options.tolerance);

@@ -15,6 +15,8 @@
 // rather than std::hash of a string, so it is stable across runs, platforms and
 // standard libraries, which a cache key written to logs needs.
 #include <blot/stain/fabric/weave_pattern.h>
+#include <blot/stain/io/bounded_read.h>
+#include <blot/stain/io/strict_json.h>
 
 #include <blot/stain/content_hash.h>
 
@@ -23,6 +25,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <limits>
@@ -41,18 +44,32 @@ std::string position(int row, int col) {
   return "row " + std::to_string(row + 1) + ", column " + std::to_string(col + 1);
 }
 
+/// A number for a message: fixed notation in the usual range, %g beyond it
+/// (std::to_string(1e300) is 301 digits).
+std::string numberText(double x) {
+  if (x == 0 || (std::abs(x) >= 1e-4 && std::abs(x) < 1e15)) return std::to_string(x);
+  char text[32];
+  std::snprintf(text, sizeof text, "%.6g", x);
+  return text;
+}
+
 /// Why a symmetric tensor is not acceptable, or empty when it is SPD and finite.
 std::string tensorProblem(const Matrix2& tensor) {
   if (!tensor.allFinite()) return "has a non-finite entry";
   const double asym = std::abs(tensor(0, 1) - tensor(1, 0));
   if (asym > kSymmetryTolerance * tensor.cwiseAbs().maxCoeff())
-    return "is not symmetric (Dxy = " + std::to_string(tensor(0, 1)) +
-           ", Dyx = " + std::to_string(tensor(1, 0)) + ")";
+    return "is not symmetric (Dxy = " + numberText(tensor(0, 1)) + ", Dyx = " + numberText(tensor(1, 0)) + ")";
+  // Positive definite: Dxx > 0, Dyy > 0 and |Dxy| < sqrt(Dxx) sqrt(Dyy), the
+  // determinant's sign without forming Dxx Dyy (diag(1e300, 1e-300) is valid;
+  // its product would not overflow, but 1e200 x 1e200 would).
   const double offDiagonal = 0.5 * (tensor(0, 1) + tensor(1, 0));
-  const double det = tensor(0, 0) * tensor(1, 1) - offDiagonal * offDiagonal;
-  if (!(tensor(0, 0) > 0.0) || !(tensor(1, 1) > 0.0) || !(det > 0.0))
-    return "is not positive definite (Dxx = " + std::to_string(tensor(0, 0)) +
-           ", Dyy = " + std::to_string(tensor(1, 1)) + ", det = " + std::to_string(det) + ")";
+  const double geometricMean = std::sqrt(std::max(tensor(0, 0), 0.0)) * std::sqrt(std::max(tensor(1, 1), 0.0));
+  if (!(tensor(0, 0) > 0.0) || !(tensor(1, 1) > 0.0) || !(std::abs(offDiagonal) < geometricMean)) {
+    double det = tensor(0, 0) * tensor(1, 1) - offDiagonal * offDiagonal;
+    if (!std::isfinite(det)) det = (geometricMean - std::abs(offDiagonal)) * (geometricMean + std::abs(offDiagonal));
+    return "is not positive definite (Dxx = " + numberText(tensor(0, 0)) + ", Dyy = " + numberText(tensor(1, 1)) +
+           ", det = " + numberText(det) + ")";
+  }
   return {};
 }
 
@@ -350,11 +367,12 @@ WeavePattern weavePatternFromCells(const std::vector<std::string>& cells,
 WeavePattern parseWeavePattern(const std::string& jsonText, const std::string& sourceName) {
   Json document;
   try {
-    document = Json::parse(jsonText);
-  } catch (const Json::exception& e) {
-    // Not only parse_error: a number too large for a double (1e999) is an
-    // out_of_range error from the same parse (found by tests/fuzz).
-    throw PatternError(sourceName + ": not valid JSON: " + e.what());
+    document = parseStrictJson(jsonText);
+  } catch (const StrictJsonError& e) {
+    const std::string what = e.what();
+    const std::string syntax = "invalid JSON: ";
+    throw PatternError(sourceName + ": " +
+                       (what.rfind(syntax, 0) == 0 ? "not valid JSON: " + what.substr(syntax.size()) : what));
   }
   if (!document.is_object())
     throw PatternError(sourceName + ": expected a JSON object with \"tensors\" or \"cells\", got " +
@@ -390,11 +408,13 @@ WeavePattern parseWeavePattern(const std::string& jsonText, const std::string& s
 }
 
 WeavePattern loadWeavePattern(const std::string& path) {
-  std::ifstream file(path, std::ios::binary);
-  if (!file) throw PatternError(path + ": cannot open pattern file");
-  std::ostringstream text;
-  text << file.rdbuf();
-  return parseWeavePattern(text.str(), path);
+  std::string text;
+  try {
+    text = readFileBounded(path, kJsonFileByteLimit, "pattern file");
+  } catch (const FileReadError& e) {
+    throw PatternError(e.what());
+  }
+  return parseWeavePattern(text, path);
 }
 
 std::vector<WeavePreset> weavePresets() {

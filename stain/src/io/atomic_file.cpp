@@ -26,13 +26,21 @@ void writeFileAtomically(const std::string& path, const void* data, std::size_t 
     throw std::runtime_error(path + ": cannot write the temporary file " + tempPath + ": " +
                              std::strerror(errno));
   }
+  errno = 0;
   const std::size_t written = size == 0 ? 0 : std::fwrite(data, 1, size, file);
-  const int writeErrno = errno;
+  int writeErrno = errno;
+  // fwrite may only fill the stdio buffer: a full disk (ENOSPC) or the
+  // file-size limit (EFBIG, with SIGXFSZ ignored) can surface in the flush.
+  errno = 0;
+  const bool flushedOk = std::fflush(file) == 0;
+  if (writeErrno == 0) writeErrno = errno;
+  errno = 0;
   const bool closedOk = std::fclose(file) == 0;
-  if (written != size || !closedOk) {
+  if (writeErrno == 0) writeErrno = errno;
+  if (written != size || !flushedOk || !closedOk) {
     std::remove(tempPath.c_str());
     throw std::runtime_error(path + ": cannot write, failed after " + std::to_string(written) + " of " +
-                             std::to_string(size) + " bytes: " + std::strerror(writeErrno));
+                             std::to_string(size) + " bytes: " + (writeErrno != 0 ? std::strerror(writeErrno) : "write error"));
   }
   if (std::rename(tempPath.c_str(), path.c_str()) != 0) {
     const int renameErrno = errno;

@@ -59,12 +59,18 @@ TriangleMesh parseMesh(const std::string& text, const std::string& format,
   const std::string extension = lowercaseExtension("." + format);
   if (extension != ".obj" && extension != ".ply" && extension != ".off")
     fail(sourceName, "unknown mesh format " + quoted(format) + "; expected obj, ply or off");
-  if (text.find_first_not_of(" \t\r\n\f\v") == std::string::npos)
+  // A UTF-8 byte-order mark (editors on Windows write one) is not part of
+  // the first statement: tinyobjloader would read "\xEF\xBB\xBFv" as an
+  // unknown keyword and drop the first vertex. Line numbers are unchanged.
+  std::string stripped;
+  if (text.size() >= 3 && text.compare(0, 3, "\xEF\xBB\xBF") == 0) stripped = text.substr(3);
+  const std::string& body = stripped.empty() ? text : stripped;
+  if (body.find_first_not_of(" \t\r\n\f\v") == std::string::npos)
     fail(sourceName, "file is empty");
   ElementOrigins origins;
-  TriangleMesh mesh = extension == ".obj"   ? readObj(text, sourceName, origins)
-                      : extension == ".ply" ? readPly(text, sourceName, origins)
-                                            : readOff(text, sourceName, origins);
+  TriangleMesh mesh = extension == ".obj"   ? readObj(body, sourceName, origins)
+                      : extension == ".ply" ? readPly(body, sourceName, origins)
+                                            : readOff(body, sourceName, origins);
   validateWithOrigins(mesh, sourceName, &origins);
   return mesh;
 }

@@ -76,9 +76,17 @@ std::string readFile(const std::string& path);
 TriangleMesh assembleMesh(const std::vector<double>& positions, const std::vector<int>& triangles,
                           std::vector<int> labels, const std::vector<double>& uvs);
 
-/// Appends the fan (c0, ck, ck+1) of one polygon, with its origin and label.
-void appendFan(const std::vector<int>& corners, int polygon, int line, bool hasLabel, int label,
-               std::vector<int>& triangles, std::vector<int>& labels, ElementOrigins& origins);
+/// Non-convex polygons with more corners are refused (ear clipping is O(k^3)).
+inline constexpr size_t kMaxClippedPolygonCorners = 1000;
+
+/// Appends the triangles of one polygon (corners index `positions`, xyz
+/// triples), with its origin and label: a convex polygon as the fan (c0, ck,
+/// ck+1), a non-convex one by ear clipping in its plane (Newell normal), so a
+/// concave quad keeps its area. A self-intersecting polygon, or one whose
+/// vertices are not read yet, is a MeshError naming the face and line.
+void appendPolygon(const std::string& path, const std::vector<int>& corners, const std::vector<double>& positions,
+                   int polygon, int line, bool hasLabel, int label, std::vector<int>& triangles,
+                   std::vector<int>& labels, ElementOrigins& origins);
 
 // The readers (obj_reader.cpp, ply_reader.cpp, off_reader.cpp) and the checks
 // every loaded mesh goes through (mesh_validation.cpp).

@@ -5,6 +5,7 @@
 #include <blot/stain/geometry/surface_topology.h>
 
 #include <climits>
+#include <cmath>
 #include <sstream>
 
 namespace blot::stain::detail {
@@ -61,13 +62,22 @@ void validateWithOrigins(const TriangleMesh& mesh, const std::string& source,
 
   const Vector3 extent =
       mesh.vertexPositions.colwise().maxCoeff() - mesh.vertexPositions.colwise().minCoeff();
+  // Finite coordinates can still overflow every derived quantity (lengths
+  // squared, areas, cotangents): near 1e308 an area is inf or NaN, and NaN
+  // passes any "<=" test.
+  if (!std::isfinite(extent.squaredNorm())) {
+    std::ostringstream s;
+    s << "the bounding box (" << extent.transpose() << ") is too large: squared lengths overflow a double; "
+      << "expected coordinates below about 1e150";
+    fail(source, s.str());
+  }
   const double minArea = 1e-14 * extent.squaredNorm();
   for (Eigen::Index f = 0; f < faceCount; ++f) {
     const Vector3 p0 = mesh.vertexPositions.row(mesh.faces(f, 0));
     const Vector3 p1 = mesh.vertexPositions.row(mesh.faces(f, 1));
     const Vector3 p2 = mesh.vertexPositions.row(mesh.faces(f, 2));
     const double area = 0.5 * (p1 - p0).cross(p2 - p0).norm();
-    if (area <= minArea) {
+    if (!(area > minArea)) {
       std::ostringstream s;
       s << faceName(f, origins) << " has zero area (" << area
         << " <= 1e-14 * bounding-box diagonal^2 = " << minArea << ")";

@@ -239,8 +239,8 @@ TriangleMesh readObj(const std::string& text, const std::string& path, ElementOr
           uvsConsistent = false;
         }
       }
-      appendFan(corners, polygon, scan.polygonLines[p], scan.hasLabels, scan.polygonLabels[p],
-                triangles, labels, origins);
+      appendPolygon(path, corners, scan.positions, polygon, scan.polygonLines[p], scan.hasLabels,
+                    scan.polygonLabels[p], triangles, labels, origins);
       ++polygon;
     }
   }

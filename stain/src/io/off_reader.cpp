@@ -99,8 +99,16 @@ TriangleMesh readOff(const std::string& text, const std::string& path, ElementOr
       }
       corners.push_back(static_cast<int>(index));
     }
-    appendFan(corners, static_cast<int>(f), lines.lineNumber(), false, 0, triangles, labels,
-              origins);
+    // After the corners, OFF allows a colour (3 or 4 numbers), nothing else.
+    const size_t extra = tokens.size() - 1 - static_cast<size_t>(count);
+    for (size_t k = static_cast<size_t>(count) + 1; k < tokens.size(); ++k) {
+      double value = 0;
+      if (!parseDouble(tokens[k], value) || extra > 4)
+        fail(path, at() + element + ": unexpected " + quoted(tokens[k]) + " after its " + std::to_string(count) +
+                       " corners (only a colour of 3 or 4 numbers may follow)");
+    }
+    appendPolygon(path, corners, positions, static_cast<int>(f), lines.lineNumber(), false, 0, triangles, labels,
+                  origins);
   }
   if (nextData()) fail(path, at() + "data after the last face" + countsNote);
   return assembleMesh(positions, triangles, std::move(labels), {});

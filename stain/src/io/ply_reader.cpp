@@ -115,6 +115,8 @@ PlyHeader parsePlyHeader(string_view text, const std::string& path) {
       long long count = 0;
       if (tokens.size() != 3 || !parseInteger(tokens[2], count) || count < 0 || count > INT_MAX)
         bad("expected 'element <name> <count>' with a count in [0, 2^31)");
+      for (const auto& earlier : header.elements)
+        if (earlier.name == tokens[1]) bad("element " + quoted(tokens[1]) + " declared twice");
       header.elements.push_back({std::string(tokens[1]), count, {}});
     } else if (keyword == "property") {
       if (header.elements.empty()) bad("property before any element");
@@ -132,6 +134,10 @@ PlyHeader parsePlyHeader(string_view text, const std::string& path) {
       } else {
         bad("expected 'property <type> <name>' or 'property list <type> <type> <name>'");
       }
+      for (const PlyProperty& earlier : header.elements.back().properties)
+        if (earlier.name == property.name)
+          bad("element " + quoted(header.elements.back().name) + " declares property " + quoted(property.name) +
+              " twice");
       header.elements.back().properties.push_back(std::move(property));
     } else {
       bad("unknown keyword " + quoted(keyword));
@@ -473,8 +479,8 @@ TriangleMesh readPlyBody(Source& source, const PlyHeader& header, const PlyLayou
         if (hasUVs) uvs.insert(uvs.end(), uv, uv + 2);
         if (source.line() > 0) origins.vertexLines.push_back(source.line());
       } else if (isFace) {
-        appendFan(corners, static_cast<int>(i), source.line(), hasLabels, label, triangles, labels,
-                  origins);
+        appendPolygon(path, corners, positions, static_cast<int>(i), source.line(), hasLabels, label, triangles,
+                      labels, origins);
       }
     }
   }

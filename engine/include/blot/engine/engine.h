@@ -167,7 +167,10 @@ class Engine {
   /// intrinsic rebuild (edge strain past StainSolverDef::strainTolerance)
   /// allocates, and Bullet allocates contact lists when a cloth meets a
   /// collider (tests/engine/engine_allocation_test.cpp). Returns the last report.
+  /// frameDt outside [0, kMaxFrameSeconds] (or NaN) is refused (status
+  /// InvalidArgument, stage Guard) and changes nothing.
   stain::StepReport step(double frameDt);
+  static constexpr double kMaxFrameSeconds = 1.0;
   /// Runs exactly `count` internal steps (≥ 0), bypassing the accumulator.
   stain::StepReport advanceSteps(int count);
   /// Testing only: arms a NaN for internal step fault.step (1-based) after

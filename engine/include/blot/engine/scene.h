@@ -53,6 +53,13 @@ struct SceneOutputs {
   ScenePreview preview;
 };
 
+/// Plausibility limits of scene values (docs/scene-format.md): every number,
+/// coordinate and vector component at most this in size; the time step at
+/// least kMinTimeStep seconds; a mesh sequence at most kMaxSequenceFrames frames.
+inline constexpr double kMaxSceneMagnitude = 1e6;
+inline constexpr double kMinTimeStep = 1e-6;
+inline constexpr int kMaxSequenceFrames = 100000;
+
 /// A parsed scene: the engine definition and the outputs.
 struct SceneDef {
   std::string sourceName;       ///< file path or the name given for JSON text

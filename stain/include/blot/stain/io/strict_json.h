@@ -1,0 +1,27 @@
+#pragma once
+/// The one JSON parse of the scene and weave-pattern loaders: strict where
+/// nlohmann is lenient (a duplicated key is an error instead of "last wins")
+/// and bounded (nesting deeper than kJsonMaxDepth is refused while parsing,
+/// so no later recursion over the value can exhaust the stack).
+#include <nlohmann/json.hpp>
+
+#include <stdexcept>
+#include <string>
+
+namespace blot::stain {
+
+inline constexpr int kJsonMaxDepth = 64;  ///< arrays and objects nested deeper are refused
+
+/// Not JSON, a duplicated key, or nested too deep; the message has no source
+/// name (the caller adds it): "outputs.frames: duplicate key ...", ...
+struct StrictJsonError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+nlohmann::json parseStrictJson(const std::string& text);
+
+/// At most `maxChars` characters of a value's JSON text (then "..."), never
+/// more than a few levels deep: safe for error messages on any value.
+std::string briefJson(const nlohmann::json& value, std::size_t maxChars = 48);
+
+}  // namespace blot::stain

@@ -1,0 +1,50 @@
+// Whole-file reads with a byte budget.
+//
+// Design note: the loaders parse from memory, so a file's size is also what
+// the read allocates. A regular file is refused by its stat size before one
+// byte is read; a non-regular one (a FIFO, a character device such as
+// /dev/zero, a file that grows while read) has no meaningful size, so it is
+// read in chunks and refused as soon as it passes the budget.
+#include <blot/stain/io/bounded_read.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <sys/stat.h>
+
+namespace blot::stain {
+
+std::string readFileBounded(const std::string& path, std::size_t maxBytes, const std::string& what) {
+  const auto tooLarge = [&](const std::string& size) {
+    return FileReadError(path + ": " + what + " is " + size + " bytes, more than the limit of " +
+                         std::to_string(maxBytes) + " bytes");
+  };
+  struct stat info {};
+  if (::stat(path.c_str(), &info) != 0)
+    throw FileReadError(path + ": cannot open " + what + ": " + std::strerror(errno));
+  if (S_ISDIR(info.st_mode)) throw FileReadError(path + ": " + what + " is a directory");
+  const bool regular = S_ISREG(info.st_mode);
+  if (regular && static_cast<unsigned long long>(info.st_size) > maxBytes) throw tooLarge(std::to_string(info.st_size));
+  errno = 0;
+  std::FILE* file = std::fopen(path.c_str(), "rb");
+  if (file == nullptr) throw FileReadError(path + ": cannot open " + what + ": " + std::strerror(errno));
+  std::string text;
+  if (regular) text.reserve(static_cast<std::size_t>(info.st_size));
+  char buffer[1 << 16];
+  std::size_t n = 0;
+  while ((n = std::fread(buffer, 1, sizeof buffer, file)) > 0) {
+    if (n > maxBytes - text.size()) {
+      std::fclose(file);
+      throw FileReadError(path + ": " + what + " has more than the limit of " + std::to_string(maxBytes) +
+                          " bytes (not a regular file: read that far, then stopped)");
+    }
+    text.append(buffer, n);
+  }
+  const bool readError = std::ferror(file) != 0;
+  const int readErrno = errno;
+  std::fclose(file);
+  if (readError) throw FileReadError(path + ": cannot read " + what + ": " + std::strerror(readErrno));
+  return text;
+}
+
+}  // namespace blot::stain

@@ -1,0 +1,79 @@
+#!/usr/bin/env bash
+# `blot run` against a careless or hostile user: full disks (the file-size
+# limit, SIGXFSZ), tampered checkpoints, stale temporaries, absurd options and
+# scene names that would leave --out. Each case: the exit status, a fragment
+# of the message, and what must (not) be on disk afterwards.
+#   cli_hostile_input_test.sh BLOT WORKDIR
+set -uo pipefail
+blot=$1 work=$2
+rm -rf "$work" && mkdir -p "$work"
+fail() { echo "FAIL: $*"; exit 1; }
+scene="$work/small.json"
+cat > "$scene" <<'JSON'
+{"name": "small", "mesh": {"patch": {"size": [0.4, 0.4], "resolution": [8, 8]}}, "cloth": {"source": "static"},
+ "time_step": 0.01, "drops": [{"vertex": 40, "radius": 0.1, "solvent_mass": 0.01, "solute_mass": 0.004}],
+ "outputs": {"frames": 4, "steps_per_frame": 2, "ply_every": 1, "preview": {"enabled": false}}}
+JSON
+# expect STATUS FRAGMENT -- command...: runs it, checks the status and that stderr holds the fragment.
+expect() {
+  local want=$1 fragment=$2; shift 3
+  "$@" > "$work/out.txt" 2> "$work/err.txt"
+  local got=$?
+  [ "$got" -eq "$want" ] || { cat "$work/err.txt"; fail "'$*' exited $got, expected $want"; }
+  grep -qF -- "$fragment" "$work/err.txt" || { cat "$work/err.txt"; fail "'$*': no '$fragment' in the message"; }
+}
+no_temporaries() { ! ls "$1" | grep -q '\.tmp$' || { ls "$1"; fail "temporary files left in $1"; }; }
+
+# Options out of range name the option and the limit.
+expect 1 "--threads 10000: expected 0 (all cores) to 1024" -- "$blot" run "$scene" --quiet --out "$work/t" --threads 10000
+expect 1 "--checkpoint-every -1: expected 0 (never)" -- "$blot" run "$scene" --quiet --out "$work/t" --checkpoint-every -1
+expect 1 "--frames -2: expected 0" -- "$blot" run "$scene" --quiet --out "$work/t" --frames -2
+[ -e "$work/t" ] && fail "a refused run created its output folder"
+
+# A name that is a path is refused before anything is written.
+sed 's/"name": "small"/"name": "..\/escaped"/' "$scene" > "$work/escape.json"
+expect 1 "name: expected a file name" -- "$blot" run "$work/escape.json" --quiet --out "$work/esc/out"
+ls "$work/esc" 2>/dev/null | grep -q . && fail "files written for a refused scene"
+expect 1 "/dev/zero: the scene file has more than the limit of 16777216 bytes" -- "$blot" run /dev/zero --quiet
+
+# The file-size limit (a full disk): SIGXFSZ is ignored, the write fails with
+# EFBIG, exit 1 naming the file, no temporary left, earlier frames intact.
+# A frame (7 KB) past a 6 KB limit, then the summary (2.4 KB, no frames) past a 2 KB one.
+sed 's/"ply_every": 1/"ply_every": 0/' "$scene" > "$work/noframes.json"
+for limit in "6 $scene full" "2 $work/noframes.json summary"; do
+  set -- $limit
+  ( ulimit -f "$1"; exec "$blot" run "$2" --quiet --threads 1 --out "$work/$3" ) > /dev/null 2> "$work/err.txt"
+  status=$?
+  [ "$status" -eq 1 ] || { cat "$work/err.txt"; fail "run past the file-size limit $1 KB exited $status, expected 1"; }
+  grep -q "cannot write" "$work/err.txt" || { cat "$work/err.txt"; fail "no 'cannot write' message"; }
+  grep -q "File too large" "$work/err.txt" || { cat "$work/err.txt"; fail "the message does not give EFBIG"; }
+  no_temporaries "$work/$3"
+  [ -e "$work/$3/summary.json" ] && fail "a failed run wrote a summary"
+done
+# summary.json's place taken by a folder: an error, not a silent skip.
+mkdir -p "$work/dir/summary.json"
+expect 1 "summary.json: cannot write" -- "$blot" run "$scene" --quiet --threads 1 --out "$work/dir"
+no_temporaries "$work/dir"
+
+# Checkpoints: an edited frame, an edited state file, a bad hash field, a
+# state name with a folder; a stale temporary is removed by --resume.
+"$blot" run "$scene" --quiet --threads 1 --out "$work/ck" --checkpoint-every 2 --frames 4 > /dev/null 2>&1 || fail "checkpoint run"
+"$blot" run "$scene" --quiet --threads 1 --out "$work/ref" --frames 4 > "$work/ref.json" 2>/dev/null || fail "reference run"
+cp "$work/ck/checkpoint.json" "$work/good.json"
+sed 's/"frame": 2/"frame": 1/' "$work/good.json" > "$work/ck/checkpoint.json"
+expect 1 "record_hash does not match" -- "$blot" run "$scene" --quiet --out "$work/ck" --resume
+sed 's/"state_hash": "[0-9a-f]*"/"state_hash": "xyz"/' "$work/good.json" > "$work/ck/checkpoint.json"
+expect 1 "state_hash: expected 16 hex digits, got \"xyz\"" -- "$blot" run "$scene" --quiet --out "$work/ck" --resume
+sed 's/"state": "checkpoint_2.state"/"state": "..\/ref\/x.state"/' "$work/good.json" > "$work/ck/checkpoint.json"
+expect 1 "state: expected a file name checkpoint_<frame>.state" -- "$blot" run "$scene" --quiet --out "$work/ck" --resume
+cp "$work/good.json" "$work/ck/checkpoint.json"
+cp "$work/ck/checkpoint_2.state" "$work/state.bak"
+printf '\x01' | dd of="$work/ck/checkpoint_2.state" bs=1 seek=200 conv=notrunc status=none
+expect 1 "does not match checkpoint.json's" -- "$blot" run "$scene" --quiet --out "$work/ck" --resume
+cp "$work/state.bak" "$work/ck/checkpoint_2.state"
+echo partial > "$work/ck/small_0003.ply.12345.tmp"
+"$blot" run "$scene" --quiet --threads 1 --out "$work/ck" --resume > "$work/resumed.json" 2>/dev/null || fail "resume"
+no_temporaries "$work/ck"
+hash() { grep '"state_hash"' "$1"; }
+[ "$(hash "$work/resumed.json")" = "$(hash "$work/ref.json")" ] || fail "resumed state hash differs from the uninterrupted run"
+echo "hostile input OK"
