@@ -159,12 +159,12 @@ Complex StainSolver::velocityInCurrentFrame(int i) const {
     return u;
   const RowVectors3& omega = geometry_.extrinsic().vertexAngularVelocities;
   if (omega.rows() != state_.vertexCount() || omega(i, 2) == 0.0) return u;
-  return u * std::polar(1.0, -0.5 * omega(i, 2) * systems_.factorizedStep());
+  return u * std::polar(1.0, -0.5 * omega(i, 2) * systems_.assembledStep());
 }
 
 Vector3 StainSolver::surfaceVelocity(int i) const {
   const ExtrinsicGeometry& e = geometry_.extrinsic();
-  const double h = systems_.factorizedStep();
+  const double h = systems_.assembledStep();
   if (!started_ || !(h > 0)) return initialVelocities_.row(i).transpose();
   return (e.nextPositions.row(i) - e.positions.row(i)).transpose() / h;
 }
@@ -182,7 +182,7 @@ void StainSolver::restartMotion(const RowVectors3& positions, const RowVectors3&
   // use); only the geometry restarts: p(t) with frames fitted to it, and
   // p(t − h) = p − h v as the first step sets it.
   setInitialMotion(positions, velocities);
-  const double h = systems_.factorizedStep();
+  const double h = systems_.assembledStep();
   if (h > 0) {
     geometry_.setPreviousPositions(geometry_.extrinsic().nextPositions - h * initialVelocities_);
   } else {
@@ -326,7 +326,7 @@ void StainSolver::addDrop(const DropDef& drop) {
   const auto turnBack = [&] {
     if (!midpoint) return;
     for (int i = 0; i < n; ++i)
-      if (omega(i, 2) != 0.0) u[i] *= std::polar(1.0, 0.5 * omega(i, 2) * systems_.factorizedStep());
+      if (omega(i, 2) != 0.0) u[i] *= std::polar(1.0, 0.5 * omega(i, 2) * systems_.assembledStep());
   };
   try {
     stain::addDrop(drop, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), state_,
@@ -470,13 +470,15 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
     profile_.intrinsicRefreshes = 1;
     profile_.markRan(StepTerm::IntrinsicRebuild);
   }
-  if (rebuild || systems_.factorizedStep() != h) {
-    profile_.markRan(StepTerm::Factorization);
-    const SolverStatus status = systems_.factorize(geometry_.intrinsic(), h);
+  // New values for M + h L; the factors are computed lazily, by the first
+  // direct solve that needs one (a CG-only step factorizes nothing).
+  if (rebuild || systems_.assembledStep() != h) {
+    profile_.markRan(StepTerm::SystemAssembly);
+    const SolverStatus status = systems_.assemble(geometry_.intrinsic(), h);
     if (status != SolverStatus::Ok) {
       inStep_ = true;  // abandonStep restores the rescaled backup
       report.status = StepStatus::SolverFailure;
-      report.message = std::string("factorization failed: ") + toString(status);
+      report.message = std::string("diffusion system assembly failed: ") + toString(status);
       return report;
     }
   }
@@ -566,6 +568,8 @@ SolverStatus StainSolver::recordDiffusion(const DiffusionReport& r) {
   profile_.diffusionIterations = r.densityIterations + r.velocityIterations;
   profile_.limiterCorrectedVertices = r.limiterCorrectedVertices;
   profile_.limiterMovedMass = r.limiterMovedMass;
+  profile_.factorizations = r.factorizations;
+  if (r.factorizations > 0) profile_.markRan(StepTerm::Factorization);
   const int n = state_.vertexCount();
   if (r.densityMethod != DiffusionMethod::None) {
     const bool krylov = r.densityMethod == DiffusionMethod::ConjugateGradient;
@@ -617,15 +621,16 @@ MassBudget StainSolver::massBudget() const {
 
 // Snapshots: the whole dynamic state by value. The backup, wet mask and
 // scratch buffers are rewritten at the start of every step, so they are not
-// part of it; the factorization is redone from the restored intrinsic tier
-// (same pattern, same values: the same factor as the original's).
+// part of it; the systems are reassembled from the restored intrinsic tier
+// (same pattern, same values: the same factor as the original's, when a
+// direct solve needs it).
 StainSolverSnapshot StainSolver::snapshot() const {
   StainSolverSnapshot s;
   s.state = state_;
   s.geometry = geometry_.dynamicState();
   s.heldRegions = heldRegions_;
   s.initialVelocities = initialVelocities_;
-  s.factorizedStep = systems_.factorizedStep();
+  s.factorizedStep = systems_.assembledStep();
   s.time = time_;
   s.steps = steps_;
   s.started = started_;
@@ -655,10 +660,11 @@ void StainSolver::restore(const StainSolverSnapshot& s) {
         throw std::invalid_argument("StainSolver::restore: held region vertex " + std::to_string(v) +
                                     " out of range [0, " + std::to_string(n) + ")");
   geometry_.restoreDynamicState(s.geometry);
-  if (s.factorizedStep > 0) {
-    const SolverStatus status = systems_.factorize(geometry_.intrinsic(), s.factorizedStep);
+  if (s.factorizedStep > 0) {  // the factors follow lazily, as after any assembly
+    const SolverStatus status = systems_.assemble(geometry_.intrinsic(), s.factorizedStep);
     if (status != SolverStatus::Ok)
-      throw std::runtime_error(std::string("StainSolver::restore: factorization failed: ") + toString(status));
+      throw std::runtime_error(std::string("StainSolver::restore: diffusion system assembly failed: ") +
+                               toString(status));
   }
   state_ = s.state;
   backup_ = s.state;

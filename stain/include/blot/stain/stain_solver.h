@@ -45,7 +45,7 @@ struct StainSolverSnapshot {
   SurfaceGeometry::DynamicState geometry;  ///< positions at t−h, t, t+h, frames, rotation history, intrinsic tier
   std::vector<HeldRegion> heldRegions;
   RowVectors3 initialVelocities;  ///< v(0), used by the first step's p(−h)
-  double factorizedStep = 0;      ///< h the diffusion systems were factorized for (0: none yet)
+  double factorizedStep = 0;      ///< h the diffusion systems were assembled for (0: none yet)
   double time = 0;
   int steps = 0;
   bool started = false;
