@@ -23,7 +23,6 @@
 #include <blot/stain/io/atomic_file.h>
 
 #include <nlohmann/json.hpp>
-#include <omp.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -256,7 +255,7 @@ int runScene(const RunOptions& options) {
     std::cerr << "blot run: error: --frames and --threads must be >= 0\n";
     return 1;
   }
-  if (options.threads > 0) omp_set_num_threads(options.threads);
+  if (options.threads > 0) scene.engine.stain.threads = options.threads;  // this engine's, not process-wide
   const int frames = options.frames > 0 ? options.frames : scene.outputs.frames;
   const std::string directory = options.outputDirectory.empty() ? scene.outputs.directory : options.outputDirectory;
 
@@ -394,7 +393,7 @@ int runScene(const RunOptions& options) {
       {"faces", engine->faces().rows()},
       {"cloth_source", engine::motionSourceName(d.source)},
       {"coupling", d.coupling == coupling::CouplingMode::TwoWay ? "two-way" : "one-way"},
-      {"threads", omp_get_max_threads()},
+      {"threads", engine->threadCount()},
       {"time_step_s", d.timeStep},
       {"frames", frames},
       {"steps", s.steps},
@@ -425,7 +424,7 @@ void registerRunCommand(CLI::App& app, int& exitCode) {
   command->add_option("scene", options->scenePath, "Scene file (JSON)")->required();
   command->add_option("--frames", options->frames, "Frames to run (default: the scene's outputs.frames)");
   command->add_option("--out", options->outputDirectory, "Output folder (default: the scene's outputs.directory)");
-  command->add_option("--threads", options->threads, "OpenMP threads (default: all cores)");
+  command->add_option("--threads", options->threads, "threads of the engine's steps (default: the scene's \"threads\", else OpenMP's default)");
   command->add_flag("--quiet", options->quiet, "No progress output");
   command->add_option("--checkpoint-every", options->checkpointEvery,
                       "Save the whole state every N frames to <out>/checkpoint_<frame>.state (0: never)");

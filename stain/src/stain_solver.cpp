@@ -16,6 +16,8 @@
 #include <stdexcept>
 #include <type_traits>
 
+#include <omp.h>
+
 namespace blot::stain {
 namespace {
 
@@ -28,6 +30,25 @@ using Clock = std::chrono::steady_clock;
 double millisecondsSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
+
+/// The solver's thread count for the parallel regions started in this scope
+/// (OpenMP's nthreads-var of the calling thread; restored on exit).
+class ThreadScope {
+ public:
+  explicit ThreadScope(int threads) : saved_(omp_get_max_threads()) {
+    if (threads != saved_) omp_set_num_threads(threads);
+  }
+  ~ThreadScope() {
+    if (omp_get_max_threads() != saved_) omp_set_num_threads(saved_);
+  }
+  ThreadScope(const ThreadScope&) = delete;
+  ThreadScope& operator=(const ThreadScope&) = delete;
+
+ private:
+  int saved_;
+};
+
+int resolvedThreads(int threads) { return threads > 0 ? threads : std::max(1, omp_get_max_threads()); }
 
 /// Adds the elapsed wall-clock milliseconds to `out` when it goes out of scope.
 class ScopedTimer {
@@ -104,6 +125,7 @@ const StainSolverDef& checkedDefinition(const StainSolverDef& def) {
   nonNegative("liquid.boundaryEvaporationFactor", liquid.boundaryEvaporationFactor);
   nonNegative("liquid.wetThreshold", liquid.wetThreshold);
   positive("liquid.liquidDensity", liquid.liquidDensity);
+  require(def.threads >= 0, "threads", def.threads, "a count >= 0 (0: the OpenMP default)");
   for (int k = 0; k < 3; ++k)
     require(std::isfinite(def.gravity[k]), "gravity", def.gravity[k], "finite in every component");
   positive("strainTolerance", def.strainTolerance);
@@ -135,14 +157,22 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   surfaceVelocityScratch_ = RowVectors3::Zero(n, 3);
   initialVelocities_ = RowVectors3::Zero(n, 3);
   evaporatedMass_ = Vector::Zero(n);
+  threads_ = resolvedThreads(def_.threads);
 }
 
 StainSolver::~StainSolver() = default;
+
+void StainSolver::setThreadCount(int threads) {
+  if (threads < 0)
+    throw std::invalid_argument("StainSolver::setThreadCount: expected a count >= 0, got " + std::to_string(threads));
+  threads_ = resolvedThreads(threads);
+}
 
 void StainSolver::setInitialMotion(const RowVectors3& positions, const RowVectors3& velocities) {
   if (positions.rows() != state_.vertexCount() || velocities.rows() != state_.vertexCount())
     throw std::invalid_argument("StainSolver::setInitialMotion: expected " +
                                 std::to_string(state_.vertexCount()) + " rows");
+  const ThreadScope threads(threads_);
   // Twice: the first refresh puts p(0) in the t + h slot, the second shifts it
   // to t with frames fitted to it. The first step then sets t − h from v(0).
   geometry_.refreshExtrinsic(positions, 1.0);
@@ -433,6 +463,7 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
     report.message = "stepRigid: rotation must be a rotation matrix";
     return report;
   }
+  const ThreadScope threads(threads_);
   profile_ = StepProfile{};
   profile_.vertexCount = state_.vertexCount();
   // The backup (a copy of every field, O(#V)) is taken only before the first
@@ -506,6 +537,7 @@ StepReport StainSolver::advanceStages() {
     report.message = "advanceStages: no refreshGeometry that returned Ok before it";
     return report;
   }
+  const ThreadScope threads(threads_);
   ScopedTimer total(profile_.total);
   // Held regions are topped up first, so liquid they add this step is in the
   // band and gets this step's forces.
@@ -659,6 +691,7 @@ void StainSolver::restore(const StainSolverSnapshot& s) {
       if (v < 0 || v >= n)
         throw std::invalid_argument("StainSolver::restore: held region vertex " + std::to_string(v) +
                                     " out of range [0, " + std::to_string(n) + ")");
+  const ThreadScope threads(threads_);
   geometry_.restoreDynamicState(s.geometry);
   if (s.factorizedStep > 0) {  // the factors follow lazily, as after any assembly
     const SolverStatus status = systems_.assemble(geometry_.intrinsic(), s.factorizedStep);

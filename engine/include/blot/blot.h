@@ -92,6 +92,10 @@ blotStatus blotEngine_CopyDensities(const blotEngine* engine, blotDensity which,
 /** Copies #F x 3 vertex indices of the triangles (capacity >= 3 #F). */
 blotStatus blotEngine_CopyFaces(const blotEngine* engine, int32_t* out, int capacity);
 
+/** OpenMP threads of this engine's steps (>= 0; 0: the calling thread's OpenMP default), from the next
+ *  step on; per engine, not process-wide. Results are bit-identical for any count. */
+blotStatus blotEngine_SetThreadCount(blotEngine* engine, int threads);
+
 /** Saves / loads the whole state (binary; see Engine::save and Engine::load). */
 blotStatus blotEngine_Save(const blotEngine* engine, const char* path);
 blotStatus blotEngine_Load(blotEngine* engine, const char* path);
