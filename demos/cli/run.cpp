@@ -25,7 +25,6 @@
 #include <blot/stain/io/strict_json.h>
 
 #include <nlohmann/json.hpp>
-#include <omp.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -314,7 +313,7 @@ int runScene(const RunOptions& options) {
     std::cerr << "blot run: error: --kill-after-frame " << options.killAfterFrame << ": expected >= 0\n";
     return 1;
   }
-  if (options.threads > 0) omp_set_num_threads(options.threads);
+  if (options.threads > 0) scene.engine.stain.threads = options.threads;  // this engine's, not process-wide
   const int frames = options.frames > 0 ? options.frames : scene.outputs.frames;
   const std::string directory = options.outputDirectory.empty() ? scene.outputs.directory : options.outputDirectory;
 
@@ -444,7 +443,7 @@ int runScene(const RunOptions& options) {
       {"faces", engine->faces().rows()},
       {"cloth_source", engine::motionSourceName(d.source)},
       {"coupling", d.coupling == coupling::CouplingMode::TwoWay ? "two-way" : "one-way"},
-      {"threads", omp_get_max_threads()},
+      {"threads", engine->threadCount()},
       {"time_step_s", d.timeStep},
       {"frames", frames},
       {"steps", s.steps},
@@ -475,7 +474,7 @@ void registerRunCommand(CLI::App& app, int& exitCode) {
   command->add_option("scene", options->scenePath, "Scene file (JSON)")->required()->transform(assetPath());
   command->add_option("--frames", options->frames, "Frames to run (default: the scene's outputs.frames)");
   command->add_option("--out", options->outputDirectory, "Output folder (default: the scene's outputs.directory)");
-  command->add_option("--threads", options->threads, "OpenMP threads (default: all cores)");
+  command->add_option("--threads", options->threads, "threads of the engine's steps (default: the scene's \"threads\", else OpenMP's default)");
   command->add_flag("--quiet", options->quiet, "No progress output");
   command->add_option("--checkpoint-every", options->checkpointEvery,
                       "Save the whole state every N frames to <out>/checkpoint_<frame>.state (0: never)");

@@ -390,6 +390,14 @@ int blotEngine_GetFaceCount(const blotEngine* engine) {
   return engine != nullptr ? static_cast<int>(engine->engine->faces().rows()) : 0;
 }
 
+blotStatus blotEngine_SetThreadCount(blotEngine* engine, int threads) {
+  if (engine == nullptr) return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_SetThreadCount: null engine");
+  return guarded("blotEngine_SetThreadCount", [&] {
+    engine->engine->setThreadCount(threads);
+    return BLOT_OK;
+  });
+}
+
 double blotEngine_GetTime(const blotEngine* engine) { return engine != nullptr ? engine->engine->time() : 0.0; }
 
 blotStatus blotEngine_CopyPositions(const blotEngine* engine, float* out, int capacity) {

@@ -447,6 +447,7 @@ void Engine::load(const std::string& path) {
 
   // Everything into a fresh surface; the engine changes only when all succeeded.
   std::unique_ptr<coupling::CoupledSurface> surface = buildSurface();
+  surface->stain().setThreadCount(surface_->stain().threadCount());  // a setting, not saved state
   if (def_.source != MotionSource::Bullet && motionTime > 0) surface->motion().advance(motionTime);
   readMotionState(r, surface->motion());
   Eigen::VectorXd liquidMasses;

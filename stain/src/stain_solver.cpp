@@ -16,6 +16,8 @@
 #include <stdexcept>
 #include <type_traits>
 
+#include <omp.h>
+
 namespace blot::stain {
 namespace {
 
@@ -28,6 +30,25 @@ using Clock = std::chrono::steady_clock;
 double millisecondsSince(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
+
+/// The solver's thread count for the parallel regions started in this scope
+/// (OpenMP's nthreads-var of the calling thread; restored on exit).
+class ThreadScope {
+ public:
+  explicit ThreadScope(int threads) : saved_(omp_get_max_threads()) {
+    if (threads != saved_) omp_set_num_threads(threads);
+  }
+  ~ThreadScope() {
+    if (omp_get_max_threads() != saved_) omp_set_num_threads(saved_);
+  }
+  ThreadScope(const ThreadScope&) = delete;
+  ThreadScope& operator=(const ThreadScope&) = delete;
+
+ private:
+  int saved_;
+};
+
+int resolvedThreads(int threads) { return threads > 0 ? threads : std::max(1, omp_get_max_threads()); }
 
 /// Adds the elapsed wall-clock milliseconds to `out` when it goes out of scope.
 class ScopedTimer {
@@ -104,6 +125,7 @@ const StainSolverDef& checkedDefinition(const StainSolverDef& def) {
   nonNegative("liquid.boundaryEvaporationFactor", liquid.boundaryEvaporationFactor);
   nonNegative("liquid.wetThreshold", liquid.wetThreshold);
   positive("liquid.liquidDensity", liquid.liquidDensity);
+  require(def.threads >= 0, "threads", def.threads, "a count >= 0 (0: the OpenMP default)");
   for (int k = 0; k < 3; ++k)
     require(std::isfinite(def.gravity[k]), "gravity", def.gravity[k], "finite in every component");
   positive("strainTolerance", def.strainTolerance);
@@ -135,14 +157,22 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   surfaceVelocityScratch_ = RowVectors3::Zero(n, 3);
   initialVelocities_ = RowVectors3::Zero(n, 3);
   evaporatedMass_ = Vector::Zero(n);
+  threads_ = resolvedThreads(def_.threads);
 }
 
 StainSolver::~StainSolver() = default;
+
+void StainSolver::setThreadCount(int threads) {
+  if (threads < 0)
+    throw std::invalid_argument("StainSolver::setThreadCount: expected a count >= 0, got " + std::to_string(threads));
+  threads_ = resolvedThreads(threads);
+}
 
 void StainSolver::setInitialMotion(const RowVectors3& positions, const RowVectors3& velocities) {
   if (positions.rows() != state_.vertexCount() || velocities.rows() != state_.vertexCount())
     throw std::invalid_argument("StainSolver::setInitialMotion: expected " +
                                 std::to_string(state_.vertexCount()) + " rows");
+  const ThreadScope threads(threads_);
   // Twice: the first refresh puts p(0) in the t + h slot, the second shifts it
   // to t with frames fitted to it. The first step then sets t − h from v(0).
   geometry_.refreshExtrinsic(positions, 1.0);
@@ -159,12 +189,12 @@ Complex StainSolver::velocityInCurrentFrame(int i) const {
     return u;
   const RowVectors3& omega = geometry_.extrinsic().vertexAngularVelocities;
   if (omega.rows() != state_.vertexCount() || omega(i, 2) == 0.0) return u;
-  return u * std::polar(1.0, -0.5 * omega(i, 2) * systems_.factorizedStep());
+  return u * std::polar(1.0, -0.5 * omega(i, 2) * systems_.assembledStep());
 }
 
 Vector3 StainSolver::surfaceVelocity(int i) const {
   const ExtrinsicGeometry& e = geometry_.extrinsic();
-  const double h = systems_.factorizedStep();
+  const double h = systems_.assembledStep();
   if (!started_ || !(h > 0)) return initialVelocities_.row(i).transpose();
   return (e.nextPositions.row(i) - e.positions.row(i)).transpose() / h;
 }
@@ -182,7 +212,7 @@ void StainSolver::restartMotion(const RowVectors3& positions, const RowVectors3&
   // use); only the geometry restarts: p(t) with frames fitted to it, and
   // p(t − h) = p − h v as the first step sets it.
   setInitialMotion(positions, velocities);
-  const double h = systems_.factorizedStep();
+  const double h = systems_.assembledStep();
   if (h > 0) {
     geometry_.setPreviousPositions(geometry_.extrinsic().nextPositions - h * initialVelocities_);
   } else {
@@ -326,7 +356,7 @@ void StainSolver::addDrop(const DropDef& drop) {
   const auto turnBack = [&] {
     if (!midpoint) return;
     for (int i = 0; i < n; ++i)
-      if (omega(i, 2) != 0.0) u[i] *= std::polar(1.0, 0.5 * omega(i, 2) * systems_.factorizedStep());
+      if (omega(i, 2) != 0.0) u[i] *= std::polar(1.0, 0.5 * omega(i, 2) * systems_.assembledStep());
   };
   try {
     stain::addDrop(drop, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), state_,
@@ -433,6 +463,7 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
     report.message = "stepRigid: rotation must be a rotation matrix";
     return report;
   }
+  const ThreadScope threads(threads_);
   profile_ = StepProfile{};
   profile_.vertexCount = state_.vertexCount();
   // The backup (a copy of every field, O(#V)) is taken only before the first
@@ -470,13 +501,15 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
     profile_.intrinsicRefreshes = 1;
     profile_.markRan(StepTerm::IntrinsicRebuild);
   }
-  if (rebuild || systems_.factorizedStep() != h) {
-    profile_.markRan(StepTerm::Factorization);
-    const SolverStatus status = systems_.factorize(geometry_.intrinsic(), h);
+  // New values for M + h L; the factors are computed lazily, by the first
+  // direct solve that needs one (a CG-only step factorizes nothing).
+  if (rebuild || systems_.assembledStep() != h) {
+    profile_.markRan(StepTerm::SystemAssembly);
+    const SolverStatus status = systems_.assemble(geometry_.intrinsic(), h);
     if (status != SolverStatus::Ok) {
       inStep_ = true;  // abandonStep restores the rescaled backup
       report.status = StepStatus::SolverFailure;
-      report.message = std::string("factorization failed: ") + toString(status);
+      report.message = std::string("diffusion system assembly failed: ") + toString(status);
       return report;
     }
   }
@@ -504,6 +537,7 @@ StepReport StainSolver::advanceStages() {
     report.message = "advanceStages: no refreshGeometry that returned Ok before it";
     return report;
   }
+  const ThreadScope threads(threads_);
   ScopedTimer total(profile_.total);
   // Held regions are topped up first, so liquid they add this step is in the
   // band and gets this step's forces.
@@ -565,6 +599,8 @@ SolverStatus StainSolver::recordDiffusion(const DiffusionReport& r) {
   profile_.diffusionIterations = r.densityIterations + r.velocityIterations;
   profile_.limiterCorrectedVertices = r.limiterCorrectedVertices;
   profile_.limiterMovedMass = r.limiterMovedMass;
+  profile_.factorizations = r.factorizations;
+  if (r.factorizations > 0) profile_.markRan(StepTerm::Factorization);
   const int n = state_.vertexCount();
   if (r.densityMethod != DiffusionMethod::None) {
     const bool krylov = r.densityMethod == DiffusionMethod::ConjugateGradient;
@@ -616,15 +652,16 @@ MassBudget StainSolver::massBudget() const {
 
 // Snapshots: the whole dynamic state by value. The backup, wet mask and
 // scratch buffers are rewritten at the start of every step, so they are not
-// part of it; the factorization is redone from the restored intrinsic tier
-// (same pattern, same values: the same factor as the original's).
+// part of it; the systems are reassembled from the restored intrinsic tier
+// (same pattern, same values: the same factor as the original's, when a
+// direct solve needs it).
 StainSolverSnapshot StainSolver::snapshot() const {
   StainSolverSnapshot s;
   s.state = state_;
   s.geometry = geometry_.dynamicState();
   s.heldRegions = heldRegions_;
   s.initialVelocities = initialVelocities_;
-  s.factorizedStep = systems_.factorizedStep();
+  s.factorizedStep = systems_.assembledStep();
   s.time = time_;
   s.steps = steps_;
   s.started = started_;
@@ -653,11 +690,13 @@ void StainSolver::restore(const StainSolverSnapshot& s) {
       if (v < 0 || v >= n)
         throw std::invalid_argument("StainSolver::restore: held region vertex " + std::to_string(v) +
                                     " out of range [0, " + std::to_string(n) + ")");
+  const ThreadScope threads(threads_);
   geometry_.restoreDynamicState(s.geometry);
-  if (s.factorizedStep > 0) {
-    const SolverStatus status = systems_.factorize(geometry_.intrinsic(), s.factorizedStep);
+  if (s.factorizedStep > 0) {  // the factors follow lazily, as after any assembly
+    const SolverStatus status = systems_.assemble(geometry_.intrinsic(), s.factorizedStep);
     if (status != SolverStatus::Ok)
-      throw std::runtime_error(std::string("StainSolver::restore: factorization failed: ") + toString(status));
+      throw std::runtime_error(std::string("StainSolver::restore: diffusion system assembly failed: ") +
+                               toString(status));
   }
   state_ = s.state;
   backup_ = s.state;

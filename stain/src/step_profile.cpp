@@ -33,7 +33,7 @@ Stage stageOf(StepTerm term) {
     case StepTerm::RotationFits:
     case StepTerm::RigidFrames:
     case StepTerm::IntrinsicRebuild:
-    case StepTerm::Factorization: return Stage::Geometry;
+    case StepTerm::SystemAssembly: return Stage::Geometry;
     case StepTerm::Gravity:
     case StepTerm::LinearInertia: return Stage::BodyForces;
     case StepTerm::Coriolis: return Stage::Coriolis;
@@ -43,7 +43,8 @@ Stage stageOf(StepTerm term) {
     case StepTerm::DensityDiffusionKrylov:
     case StepTerm::DensityDiffusionDirect:
     case StepTerm::VelocityDiffusionKrylov:
-    case StepTerm::VelocityDiffusionDirect: return Stage::Diffuse;
+    case StepTerm::VelocityDiffusionDirect:
+    case StepTerm::Factorization: return Stage::Diffuse;
     case StepTerm::Absorption:
     case StepTerm::Adsorption:
     case StepTerm::Evaporation: return Stage::Interact;
@@ -79,6 +80,7 @@ const char* stepTermName(StepTerm term) {
     case StepTerm::Adsorption: return "adsorption";
     case StepTerm::Evaporation: return "evaporation";
     case StepTerm::Sources: return "sources";
+    case StepTerm::SystemAssembly: return "system-assembly";
   }
   return "unknown";
 }

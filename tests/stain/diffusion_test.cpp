@@ -390,8 +390,9 @@ TEST(DiffusionSystems, RefactorizationReusesTheScalarAnalysisForBothSystems) {
   DiffusionSystems systems;
   ASSERT_EQ(systems.factorize(g.intrinsic, 0.01), SolverStatus::Ok);
   ASSERT_EQ(systems.factorize(g.intrinsic, 0.02), SolverStatus::Ok);
-  EXPECT_EQ(systems.factorizedStep(), 0.02);
-  EXPECT_EQ(systems.factorizationCount(), 2);
+  EXPECT_EQ(systems.assembledStep(), 0.02);
+  EXPECT_EQ(systems.assemblyCount(), 2);
+  EXPECT_EQ(systems.factorizationCount(), 4) << "two systems, factorized twice each";
   EXPECT_EQ(systems.scalarSolver().analysisCount(), 1);
   EXPECT_EQ(systems.vectorSolver().analysisCount(), 0) << "the complex system shares the scalar analysis";
   EXPECT_EQ(systems.scalarSolver().factorizationCount(), 2);

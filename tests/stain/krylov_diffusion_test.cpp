@@ -215,6 +215,79 @@ StainState runRotatingDrop(int n, int threads, int steps, MassBudget* worst, dou
   return solver.state();
 }
 
+// A drop on a 40 x 40 grid stretched along x by 0.3 % a step (past the strain
+// tolerance, so the metric and the systems are rebuilt every step). The
+// numeric factorization is lazy: with CG on both systems nothing is ever
+// factorized; with direct solves each system is factorized once per assembly.
+struct StretchedRun {
+  int steps = 0, assemblies = 0, factorizations = 0, stepsWithFactorization = 0, cgSteps = 0;
+  int densityDirectSteps = 0, velocityDirectSteps = 0;
+};
+StretchedRun runStretchedDrop(double diffusivityScale) {
+  const int n = 40;
+  const TriangleMesh mesh = gridMesh(n, n, 1, 1);
+  const int faces = static_cast<int>(mesh.faces.rows());
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()), "stretched grid");
+  const double d = diffusivityScale;
+  const FabricField fabric =
+      uniformFabric(faces, fabricTensor(2e-3 * d, 2e-4 * d), fabricTensor(2e-4 * d, 2e-4 * d), kPi / 6);
+  StainSolver solver(topology, mesh.vertexPositions, fabric, StainSolverDef{});
+  DropDef drop;
+  drop.centerPoint = Vector3(0.5, 0.5, 0);
+  drop.radius = 0.2;
+  drop.solventMass = 0.02;
+  drop.soluteMass = 0.002;
+  drop.velocity = Vector3(0.05, 0.02, 0);
+  solver.addDrop(drop);
+  StretchedRun run;
+  RowVectors3 next = mesh.vertexPositions;
+  for (int step = 1; step <= 20; ++step) {
+    next.col(0) = mesh.vertexPositions.col(0) * (1.0 + 0.003 * step);
+    const StepReport report = solver.step(0.01, next);
+    EXPECT_EQ(report.status, StepStatus::Ok) << report.stageName() << ": " << report.message;
+    if (report.status != StepStatus::Ok) break;
+    const StepProfile& p = solver.profile();
+    ++run.steps;
+    run.assemblies += p.ran(StepTerm::SystemAssembly);
+    run.factorizations += p.factorizations;
+    run.stepsWithFactorization += p.ran(StepTerm::Factorization);
+    EXPECT_EQ(p.ran(StepTerm::Factorization), p.factorizations > 0);
+    EXPECT_TRUE(p.factorizations == 0 || p.ran(StepTerm::SystemAssembly)) << "a factor only after new values";
+    run.densityDirectSteps += p.ran(StepTerm::DensityDiffusionDirect);
+    run.velocityDirectSteps += p.ran(StepTerm::VelocityDiffusionDirect);
+    run.cgSteps += p.ran(StepTerm::DensityDiffusionKrylov) && p.ran(StepTerm::VelocityDiffusionKrylov);
+  }
+  return run;
+}
+
+TEST(KrylovDiffusion, ACgOnlyRunFactorizesNothingAndADirectRunOncePerAssembly) {
+  const StretchedRun cg = runStretchedDrop(1.0);  // max h L_ii / A_i ≈ 0.5: CG
+  EXPECT_EQ(cg.steps, 20);
+  EXPECT_EQ(cg.assemblies, 20) << "the stretch must trip the strain test every step";
+  EXPECT_EQ(cg.cgSteps, 20);
+  EXPECT_EQ(cg.factorizations, 0);
+  EXPECT_EQ(cg.stepsWithFactorization, 0);
+
+  // Densities stiff (≈ 50), velocity still mild: only the scalar system is
+  // factorized, once per assembly.
+  const StretchedRun mixed = runStretchedDrop(100.0);
+  EXPECT_EQ(mixed.assemblies, 20);
+  EXPECT_EQ(mixed.densityDirectSteps, 20);
+  EXPECT_EQ(mixed.velocityDirectSteps, 0);
+  EXPECT_EQ(mixed.factorizations, 20);
+
+  // Both stiff: one factor for each system that a step solves directly (the
+  // free densities need no solve on some steps; the velocity on all).
+  const StretchedRun direct = runStretchedDrop(1000.0);
+  EXPECT_EQ(direct.steps, 20);
+  EXPECT_EQ(direct.assemblies, 20);
+  EXPECT_GT(direct.densityDirectSteps, 0);
+  EXPECT_EQ(direct.velocityDirectSteps, 20);
+  EXPECT_EQ(direct.factorizations, direct.densityDirectSteps + direct.velocityDirectSteps)
+      << "each system once per assembly that a direct solve used, never twice";
+  EXPECT_EQ(direct.stepsWithFactorization, 20);
+}
+
 TEST(KrylovDiffusion, StainStepConservesMassForAThousandSteps) {
   MassBudget worst;
   double lowest = 0;

@@ -5,6 +5,7 @@
 #include <blot/stain/stain_solver.h>
 
 #include <gtest/gtest.h>
+#include <omp.h>
 
 #include <cmath>
 #include <cstdlib>
@@ -118,6 +119,51 @@ TEST(StainSolver, RotatingDiscCoriolisKeepsTheInertialPath) {
               withCoriolis, withoutCoriolis);
   EXPECT_LT(withCoriolis, 0.02);
   EXPECT_GT(withoutCoriolis, 0.1);
+}
+
+// The thread count is the solver's setting: two solvers with 1 and 2 threads
+// stepped alternately on one thread give the same bits, and neither leaves
+// its count in the caller's OpenMP setting. 12,321 vertices, half wet, so the
+// geometry, force and advection regions run threaded (above their
+// thresholds; the CG's 16K-row chunks: KrylovDiffusion tests). ~1-2 s.
+TEST(StainSolver, ThreadCountIsPerSolverAndResultsAreBitIdenticalForOneAndTwoThreads) {
+  const TriangleMesh mesh = gridMesh(110, 110, 1.0, 1.0);
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  const FabricField fabric = isotropicFabricField(static_cast<int>(mesh.faces.rows()), 2e-4, 2e-4);
+  StainSolverDef one, two;
+  one.threads = 1;
+  two.threads = 2;
+  StainSolver a(topology, mesh.vertexPositions, fabric, one), b(topology, mesh.vertexPositions, fabric, two);
+  EXPECT_EQ(a.threadCount(), 1);
+  EXPECT_EQ(b.threadCount(), 2);
+  DropDef drop;
+  drop.centerPoint = Vector3(0.5, 0.5, 0);
+  drop.radius = 0.4;
+  drop.solventMass = 0.05;
+  drop.soluteMass = 0.005;
+  drop.velocity = Vector3(0.05, 0.02, 0);
+  a.addDrop(drop);
+  b.addDrop(drop);
+  const int caller = omp_get_max_threads();
+  for (int n = 1; n <= 8; ++n) {
+    const RowVectors3 next = wavingPositions(mesh, n * 0.01);
+    ASSERT_TRUE(a.step(0.01, next).ok());
+    EXPECT_EQ(omp_get_max_threads(), caller) << "a step must restore the caller's setting";
+    ASSERT_TRUE(b.step(0.01, next).ok());
+    EXPECT_EQ(omp_get_max_threads(), caller);
+  }
+  EXPECT_GT(b.profile().densityDiffusionVertices, 0);
+  const StainState& s = a.state();
+  const StainState& t = b.state();
+  EXPECT_TRUE((s.solvent.array() == t.solvent.array()).all());
+  EXPECT_TRUE((s.solute.array() == t.solute.array()).all());
+  EXPECT_TRUE((s.velocities.array() == t.velocities.array()).all());
+  EXPECT_TRUE((s.absorbedSolvent.array() == t.absorbedSolvent.array()).all());
+  EXPECT_TRUE((s.adsorbedSolute.array() == t.adsorbedSolute.array()).all());
+  EXPECT_THROW(a.setThreadCount(-1), std::invalid_argument);
+  StainSolverDef bad;
+  bad.threads = -2;
+  EXPECT_THROW(StainSolver(topology, mesh.vertexPositions, fabric, bad), std::invalid_argument);
 }
 
 TEST(StainSolver, TwoRunsAreBitIdentical) {

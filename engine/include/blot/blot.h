@@ -209,6 +209,10 @@ blotStatus blotEngine_GetStatistics(const blotEngine* engine, blotStatistics* ou
 /** The mass budget alone (cheaper than the statistics). */
 blotStatus blotEngine_GetMassBudget(const blotEngine* engine, blotMassBudget* out);
 
+/** OpenMP threads of this engine's steps (>= 0; 0: the calling thread's OpenMP default), from the next
+ *  step on; per engine, not process-wide. Results are bit-identical for any count. */
+blotStatus blotEngine_SetThreadCount(blotEngine* engine, int threads);
+
 /** Saves / loads the whole state (binary; see Engine::save and Engine::load).
  *  BLOT_ERROR_IO for a file that cannot be written, opened or does not match the engine. */
 blotStatus blotEngine_Save(const blotEngine* engine, const char* path);

@@ -1,5 +1,5 @@
 // Assembly of the diffusion systems M + hL (refilled in place) and
-// DiffusionSystems::releaseFactors / factorize (design note: stages/diffusion.cpp).
+// DiffusionSystems: assemble, the lazy factors, the solves (design note: stages/diffusion.cpp).
 #include "numerics/diffusion_system.h"
 
 #include <algorithm>
@@ -77,51 +77,36 @@ DiffusionSystems::DiffusionSystems() = default;
 void DiffusionSystems::releaseFactors() {
   scalar_.releaseFactor();
   vector_.releaseFactor();
-  h_ = 0;  // diffuse() refuses to run until the systems are factorized again
+  scalarFactorCurrent_ = vectorFactorCurrent_ = false;
+  h_ = 0;  // diffuse() refuses to run until the systems are assembled again
 }
 
-SolverStatus DiffusionSystems::factorize(const IntrinsicGeometry& geometry, double h) {
+SolverStatus DiffusionSystems::assemble(const IntrinsicGeometry& geometry, double h) {
   const Vector& areas = geometry.vertexDualAreas;
   const SparseMatrix& scalarStiffness = geometry.densityStiffness;
   const ComplexSparseMatrix& vectorStiffness = geometry.velocityStiffness;
   if (scalarStiffness.rows() != areas.size() || scalarStiffness.cols() != areas.size()) {
     return SolverStatus::SizeMismatch;
   }
+  // The connection system is absent (0 x 0) when the geometry has no velocity
+  // operator; then velocity diffusion reports NotAnalyzed.
+  if (vectorStiffness.rows() != 0 && (vectorStiffness.rows() != areas.size() || vectorStiffness.cols() != areas.size())) {
+    return SolverStatus::SizeMismatch;
+  }
   h_ = h;
-  ++factorizations_;
-
-  bool scalarPatternChanged = false;
+  ++assemblies_;
+  scalarFactorCurrent_ = vectorFactorCurrent_ = false;
   if (!fillSystem(scalarStiffness, areas, h, scalarSystem_)) {
     buildSystem(scalarStiffness, areas, h, scalarSystem_);
-    scalarPatternChanged = true;
+    scalarReanalyze_ = vectorReanalyze_ = true;  // the vector system shares this analysis
   }
-  if (scalarPatternChanged || !scalar_.isAnalyzed()) {
-    const SolverStatus status = scalar_.analyzePattern(scalarSystem_);
-    if (status != SolverStatus::Ok) return status;
-  }
-  const SolverStatus scalarStatus = scalar_.factorize(scalarSystem_);
-
-  // The connection system: absent (0 x 0) when the geometry has no velocity
-  // operator; then velocity diffusion reports NotAnalyzed.
-  SolverStatus vectorStatus = SolverStatus::Ok;
   if (vectorStiffness.rows() != 0) {
-    if (vectorStiffness.rows() != areas.size() || vectorStiffness.cols() != areas.size()) {
-      return SolverStatus::SizeMismatch;
-    }
-    bool vectorPatternChanged = false;
     if (!fillSystem(vectorStiffness, areas, h, vectorSystem_)) {
       buildSystem(vectorStiffness, areas, h, vectorSystem_);
-      vectorPatternChanged = true;
+      vectorReanalyze_ = true;
     }
-    if (vectorPatternChanged || scalarPatternChanged || !vector_.isAnalyzed()) {
-      // Same pattern as the scalar system (both are P1 one-ring operators):
-      // copy its ordering and symbolic factor instead of analysing again.
-      const SolverStatus status = samePattern(vectorSystem_, scalarSystem_)
-                                      ? vector_.shareAnalysisFrom(scalar_)
-                                      : vector_.analyzePattern(vectorSystem_);
-      if (status != SolverStatus::Ok) return status;
-    }
-    vectorStatus = vector_.factorize(vectorSystem_);
+  } else {
+    vectorSystem_.resize(0, 0);
   }
   // Method per system from its conditioning (see the design note).
   const auto iterative = [&](double ratio) {
@@ -136,7 +121,64 @@ SolverStatus DiffusionSystems::factorize(const IntrinsicGeometry& geometry, doub
   } else {
     vectorIterative_ = false;
   }
-  return scalarStatus != SolverStatus::Ok ? scalarStatus : vectorStatus;
+  return SolverStatus::Ok;
+}
+
+SolverStatus DiffusionSystems::factorScalar() {
+  if (scalarFactorCurrent_) return SolverStatus::Ok;
+  if (scalarReanalyze_ || !scalar_.isAnalyzed()) {
+    const SolverStatus status = scalar_.analyzePattern(scalarSystem_);
+    if (status != SolverStatus::Ok) return status;
+    scalarReanalyze_ = false;
+  }
+  ++factorizations_;
+  const SolverStatus status = scalar_.factorize(scalarSystem_);
+  scalarFactorCurrent_ = status == SolverStatus::Ok;
+  return status;
+}
+
+SolverStatus DiffusionSystems::factorVector() {
+  if (vectorFactorCurrent_) return SolverStatus::Ok;
+  if (vectorSystem_.rows() == 0) return SolverStatus::NotAnalyzed;
+  if (vectorReanalyze_ || !vector_.isAnalyzed()) {
+    // Same pattern as the scalar system (both are P1 one-ring operators):
+    // copy its ordering and symbolic factor instead of analysing again.
+    SolverStatus status = SolverStatus::Ok;
+    if (samePattern(vectorSystem_, scalarSystem_)) {
+      if (scalarReanalyze_ || !scalar_.isAnalyzed()) {
+        status = scalar_.analyzePattern(scalarSystem_);
+        if (status != SolverStatus::Ok) return status;
+        scalarReanalyze_ = false;
+      }
+      status = vector_.shareAnalysisFrom(scalar_);
+    } else {
+      status = vector_.analyzePattern(vectorSystem_);
+    }
+    if (status != SolverStatus::Ok) return status;
+    vectorReanalyze_ = false;
+  }
+  ++factorizations_;
+  const SolverStatus status = vector_.factorize(vectorSystem_);
+  vectorFactorCurrent_ = status == SolverStatus::Ok;
+  return status;
+}
+
+SolverStatus DiffusionSystems::factorize(const IntrinsicGeometry& geometry, double h) {
+  SolverStatus status = assemble(geometry, h);
+  if (status != SolverStatus::Ok) return status;
+  status = factorScalar();
+  const SolverStatus vectorStatus = vectorSystem_.rows() != 0 ? factorVector() : SolverStatus::Ok;
+  return status != SolverStatus::Ok ? status : vectorStatus;
+}
+
+SolverStatus DiffusionSystems::solveScalar(const Vector& rhs, Vector& x) {
+  const SolverStatus status = factorScalar();
+  return status != SolverStatus::Ok ? status : scalar_.solve(rhs, x);
+}
+
+SolverStatus DiffusionSystems::solveVector(const ComplexVector& rhs, ComplexVector& x) {
+  const SolverStatus status = factorVector();
+  return status != SolverStatus::Ok ? status : vector_.solve(rhs, x);
 }
 
 }  // namespace blot::stain

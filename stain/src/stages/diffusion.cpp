@@ -64,7 +64,7 @@ void DiffusionScratch::resize(int vertexCount) {
 }
 
 DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometry,
-                        const DiffusionSystems& systems, DiffusionScratch& scratch, StainState& state,
+                        DiffusionSystems& systems, DiffusionScratch& scratch, StainState& state,
                         const std::vector<char>* wet) {
   DiffusionReport report;
   const PhysicsSwitches& switches = ctx.switches;
@@ -82,9 +82,9 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
     report.status = SolverStatus::SizeMismatch;
     return report;
   }
-  // The factor belongs to one step size; a different h would silently solve
+  // The systems belong to one step size; a different h would silently solve
   // another equation.
-  if (systems.factorizedStep() != ctx.h) {
+  if (systems.assembledStep() != ctx.h) {
     report.status = SolverStatus::NotFactorized;
     return report;
   }
@@ -162,19 +162,22 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
     }
   }
   // Direct solves into scratch: σ_f -> solution, σ_s -> rhs (in place).
+  const int factorizationsBefore = systems.factorizationCount();
   if (!densityByCg && (solvent || solute)) {
     report.densityMethod = DiffusionMethod::Direct;
     if (solvent) {
       massTimes(areas, state.solvent, scratch.rhs);
       const double mass = massOf(scratch.rhs);
-      report.status = systems.scalarSolver().solve(scratch.rhs, scratch.solution);
+      report.status = systems.solveScalar(scratch.rhs, scratch.solution);
+      report.factorizations = systems.factorizationCount() - factorizationsBefore;
       if (report.status != SolverStatus::Ok) return report;
       restoreMass(areas, mass, scratch.solution);
     }
     if (solute) {
       massTimes(areas, state.solute, scratch.rhs);
       const double mass = massOf(scratch.rhs);
-      report.status = systems.scalarSolver().solve(scratch.rhs, scratch.rhs);
+      report.status = systems.solveScalar(scratch.rhs, scratch.rhs);
+      report.factorizations = systems.factorizationCount() - factorizationsBefore;
       if (report.status != SolverStatus::Ok) return report;
       restoreMass(areas, mass, scratch.rhs);
     }
@@ -231,7 +234,8 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
   if (velocity && !velocityByCg) {
     report.velocityMethod = DiffusionMethod::Direct;
     massTimes(areas, state.velocities, scratch.complexRhs);
-    report.status = systems.vectorSolver().solve(scratch.complexRhs, scratch.complexSolution);
+    report.status = systems.solveVector(scratch.complexRhs, scratch.complexSolution);
+    report.factorizations = systems.factorizationCount() - factorizationsBefore;
     if (report.status != SolverStatus::Ok) {
       abandonDensities();
       return report;

@@ -206,6 +206,11 @@ class Engine {
   const Eigen::MatrixX3d& colors() const;      ///< display colour in [0, 1] (Beer–Lambert, stain_color.h)
 
   double time() const;                 ///< simulated time (s)
+  /// OpenMP threads of this engine's stain steps (EngineDef::stain.threads,
+  /// scene key "threads"); a new count applies from the next step (≥ 0, 0:
+  /// the calling thread's OpenMP default). Results do not depend on it.
+  int threadCount() const { return surface_->stain().threadCount(); }
+  void setThreadCount(int threads) { surface_->stain().setThreadCount(threads); }
   std::int64_t stepCount() const { return steps_; }
   double timeStep() const { return def_.timeStep; }
   double accumulator() const { return accumulator_ * def_.timeStep; }  ///< carried frame time (s)

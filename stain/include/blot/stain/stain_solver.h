@@ -27,6 +27,13 @@ struct StainSolverDef {
   LiquidParameters liquid;
   Vector3 gravity = Vector3(0, 0, -9.8);  ///< world gravity (m/s²)
   double strainTolerance = 1e-3;          ///< intrinsic rebuild threshold (relative edge strain)
+  /// OpenMP threads this solver's steps use (≥ 0). 0: the calling thread's
+  /// OpenMP default when the solver is built (OMP_NUM_THREADS, else the
+  /// cores). Each step sets it for its own parallel regions and restores the
+  /// caller's setting after, so solvers with different counts can coexist.
+  /// Stages below their size threshold run serial whatever the count, and
+  /// the results are bit-identical for any count.
+  int threads = 0;
 };
 
 /// Totals for the mass budget (kg). solute* sum to addedSolute; solvent
@@ -47,7 +54,7 @@ struct StainSolverSnapshot {
   SurfaceGeometry::DynamicState geometry;  ///< positions at t−h, t, t+h, frames, rotation history, intrinsic tier
   std::vector<HeldRegion> heldRegions;
   RowVectors3 initialVelocities;  ///< v(0), used by the first step's p(−h)
-  double factorizedStep = 0;      ///< h the diffusion systems were factorized for (0: none yet)
+  double factorizedStep = 0;      ///< h the diffusion systems were assembled for (0: none yet)
   double time = 0;
   int steps = 0;
   bool started = false;
@@ -138,6 +145,10 @@ class StainSolver {
   const SurfaceGeometry& geometry() const { return geometry_; }
   const StepProfile& profile() const { return profile_; }
   const StainSolverDef& definition() const { return def_; }
+  /// Threads the steps use (≥ 1; StainSolverDef::threads resolved), and a new
+  /// count (≥ 1; 0 resolves as in StainSolverDef) from the next step on.
+  int threadCount() const { return threads_; }
+  void setThreadCount(int threads);
   double time() const { return time_; }
   int stepCount() const { return steps_; }
   MassBudget massBudget() const;
@@ -222,6 +233,7 @@ class StainSolver {
   StepProfile profile_;
   double time_ = 0;
   int steps_ = 0;
+  int threads_ = 1;
   bool started_ = false;
 };
 

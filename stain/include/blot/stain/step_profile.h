@@ -51,7 +51,7 @@ enum class StepTerm : unsigned {
   RotationFits = 1u << 0,        ///< Geometry: a rotation fit per vertex (all #V)
   RigidFrames = 1u << 1,         ///< Geometry: a known rigid motion, no fits (all #V)
   IntrinsicRebuild = 1u << 2,    ///< Geometry: metric rebuilt, the strain passed the tolerance (all #V)
-  Factorization = 1u << 3,       ///< Geometry: diffusion systems refactorized (new metric or new h)
+  Factorization = 1u << 3,       ///< Diffuse: a numeric factorization, at the first direct solve after new values
   Gravity = 1u << 4,             ///< BodyForces: tangential gravity (band)
   LinearInertia = 1u << 5,       ///< BodyForces: −Fᵀ p̈ (band)
   Coriolis = 1u << 6,            ///< Coriolis: −2 ω × u (band; the frame change on the reach set)
@@ -66,9 +66,10 @@ enum class StepTerm : unsigned {
   Adsorption = 1u << 15,         ///< Interact: K_d > 0 (reach set)
   Evaporation = 1u << 16,        ///< Interact: K_evap > 0 (reach set)
   Sources = 1u << 17,            ///< Sources: held regions
+  SystemAssembly = 1u << 18,     ///< Geometry: M + h L refilled (new metric or new h; factors now stale)
 };
 /// Number of StepTerm bits (bit k = 1u << k for k in [0, kStepTermCount)).
-inline constexpr int kStepTermCount = 18;
+inline constexpr int kStepTermCount = 19;
 
 /// Short name of one term ("gravity", "density-diffusion-krylov", ...).
 const char* stepTermName(StepTerm term);
@@ -82,7 +83,8 @@ struct StepProfile {
   unsigned stagesRan = 0;          ///< bit k: Stage k did work this step
   unsigned terms = 0;              ///< StepTerm bits of the terms that ran (see describeTerms)
   int advectionSubsteps = 0;       ///< density-advection sub-steps taken
-  int intrinsicRefreshes = 0;      ///< 1 if the metric changed enough to refactorize this step
+  int intrinsicRefreshes = 0;      ///< 1 if the metric changed enough to rebuild the operators this step
+  int factorizations = 0;          ///< numeric Cholesky factorizations this step (direct solves only; 0–2)
   double maxEdgeStrain = 0;        ///< largest |ℓ/ℓ_factored − 1| this step
   int wetVertices = 0;             ///< vertices holding liquid at the start of the step
   int diffusionIterations = 0;     ///< CG iterations, density + velocity (0: direct solves)

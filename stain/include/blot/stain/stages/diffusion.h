@@ -14,7 +14,7 @@
 namespace blot::stain {
 
 /// How a diffusion system is solved. Auto (the default) picks per system at
-/// factorize() from its conditioning: Jacobi-preconditioned conjugate
+/// assemble() from its conditioning: Jacobi-preconditioned conjugate
 /// gradients restricted to the liquid when max_i h L_ii / A_i is at most
 /// kIterativeStiffnessRatio (the Jacobi-scaled system then has a condition
 /// number below ~2(1 + ratio) and converges in a few iterations), the direct
@@ -45,27 +45,46 @@ inline constexpr int kKrylovParallelRows = 16384;
 /// Partial sums stored per chunk (DiffusionScratch::krylovPartials).
 inline constexpr int kKrylovPartialsPerChunk = 10;
 
-/// The factorized systems. Built once (symbolic analysis on the pattern), and
-/// refactorized numerically when h or the intrinsic geometry changes.
+/// The diffusion systems M + h L and their factors. assemble() refills the
+/// systems in place (and chooses each system's method); the numeric Cholesky
+/// factor of a system is computed lazily, at its first direct solve after the
+/// values changed (solveScalar / solveVector), so a step whose solves all run
+/// by CG factorizes nothing. The symbolic analysis is done at the first
+/// factorization and kept while the pattern stays the same.
 class DiffusionSystems {
  public:
   DiffusionSystems();
-  /// (Re)factorizes M + h L for both systems. The first call analyses the
-  /// pattern; later calls reuse it. Returns the first failing status. Also
-  /// stores the inverse diagonals (Jacobi preconditioner) and chooses each
-  /// system's method (setSolverChoice).
+  /// Refills M + h L for both systems, stores the inverse diagonals (Jacobi
+  /// preconditioner), chooses each system's method (setSolverChoice) and marks
+  /// both factors stale. Factorizes nothing. Returns SizeMismatch when the
+  /// geometry's operators do not match its vertex count.
+  SolverStatus assemble(const IntrinsicGeometry& geometry, double h);
+  /// assemble() and both numeric factors now (tests, benchmarks, studies that
+  /// time or inspect the factor). Returns the first failing status.
   SolverStatus factorize(const IntrinsicGeometry& geometry, double h);
+  /// x = (M + h L)⁻¹ rhs for the density / connection system, factorizing it
+  /// first if its values changed since its last factorization. A failed
+  /// factorization is reported here (NotPositiveDefinite, NonFinite, ...) and
+  /// retried at the next call.
+  SolverStatus solveScalar(const Vector& rhs, Vector& x);
+  SolverStatus solveVector(const ComplexVector& rhs, ComplexVector& x);
   /// Frees both numeric factors (keeping the symbolic analysis and the
-  /// systems) until the next factorize(): call before an intrinsic rebuild, so
+  /// systems) until the next assemble(): call before an intrinsic rebuild, so
   /// the stale factors (~120 MB at 140K vertices) are not alive while the new
-  /// operators are assembled. factorizedStep() is 0 until then.
+  /// operators are assembled. assembledStep() is 0 until then.
   void releaseFactors();
-  double factorizedStep() const { return h_; }
+  /// h the systems were assembled for (0: none, or released).
+  double assembledStep() const { return h_; }
+  /// Numeric factorizations done (each system's counts one) and assemblies.
   int factorizationCount() const { return factorizations_; }
+  int assemblyCount() const { return assemblies_; }
+  /// Whether a system's numeric factor matches its current values.
+  bool scalarFactorCurrent() const { return scalarFactorCurrent_; }
+  bool vectorFactorCurrent() const { return vectorFactorCurrent_; }
   const RealCholeskySolver& scalarSolver() const { return scalar_; }
   const ComplexCholeskySolver& vectorSolver() const { return vector_; }
 
-  /// Method policy; takes effect at the next factorize() (default Auto).
+  /// Method policy; takes effect at the next assemble() (default Auto).
   void setSolverChoice(DiffusionSolverChoice choice) { choice_ = choice; }
   DiffusionSolverChoice solverChoice() const { return choice_; }
   /// Whether the density (scalar) / velocity (connection) system is solved by CG.
@@ -74,7 +93,7 @@ class DiffusionSystems {
   /// max_i h L_ii / A_i of each system (dimensionless; ~h D / dx² × 4 on a grid).
   double scalarStiffnessRatio() const { return scalarRatio_; }
   double vectorStiffnessRatio() const { return vectorRatio_; }
-  /// M + h L, both triangles (the matrices the factors were computed from).
+  /// M + h L, both triangles (the matrices the factors are computed from).
   const SparseMatrix& scalarSystem() const { return scalarSystem_; }
   const ComplexSparseMatrix& vectorSystem() const { return vectorSystem_; }
   /// 1 / diag(M + h L), #V (the Jacobi preconditioner; the connection
@@ -83,6 +102,9 @@ class DiffusionSystems {
   const Vector& vectorInverseDiagonal() const { return vectorInverseDiagonal_; }
 
  private:
+  SolverStatus factorScalar();
+  SolverStatus factorVector();
+
   RealCholeskySolver scalar_;
   ComplexCholeskySolver vector_;
   SparseMatrix scalarSystem_;
@@ -90,9 +112,13 @@ class DiffusionSystems {
   Vector scalarInverseDiagonal_, vectorInverseDiagonal_;
   double scalarRatio_ = 0, vectorRatio_ = 0;
   bool scalarIterative_ = false, vectorIterative_ = false;
+  // The factor matches the system's values; the pattern changed since the
+  // last analysis (the next factorization analyses first).
+  bool scalarFactorCurrent_ = false, vectorFactorCurrent_ = false;
+  bool scalarReanalyze_ = true, vectorReanalyze_ = true;
   DiffusionSolverChoice choice_ = DiffusionSolverChoice::Auto;
   double h_ = 0;
-  int factorizations_ = 0;
+  int factorizations_ = 0, assemblies_ = 0;
 };
 
 /// Work arrays, sized once by resize() (no allocation per step). The CG
@@ -125,10 +151,13 @@ struct DiffusionReport {
   int densityIterations = 0, velocityIterations = 0;  ///< CG iterations (0 for direct solves)
   int densityActiveVertices = 0, velocityActiveVertices = 0;  ///< rows the CG worked on
   int fallbacks = 0;  ///< CG solves that stalled and were redone with the factor
+  int factorizations = 0;  ///< numeric factorizations the direct solves needed (0–2)
 };
 
 /// Solves for σ_f, σ_s (if the switches and state need it) and u. Densities are
-/// left unchanged if a solve fails (the status says why).
+/// left unchanged if a solve fails (the status says why). `systems` must be
+/// assembled for ctx.h (else NotFactorized); a direct solve factorizes its
+/// system first if the factor is stale.
 ///
 /// Densities by CG (DiffusionSystems::scalarIterative): warm-started at σ^t,
 /// whose support is the liquid; the Krylov iterate's support grows by one ring
@@ -143,7 +172,7 @@ struct DiffusionReport {
 /// covers the mesh like the densities'. A direct velocity solve always covers
 /// the mesh (the solver then extends u onto the whole mesh).
 DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometry,
-                        const DiffusionSystems& systems, DiffusionScratch& scratch, StainState& state,
+                        DiffusionSystems& systems, DiffusionScratch& scratch, StainState& state,
                         const std::vector<char>* wet = nullptr);
 
 /// Mass-conserving positivity limiter: moves mass from neighbours into each
