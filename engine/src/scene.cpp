@@ -738,7 +738,7 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
   if (const json* display = r.find("display")) {
     ObjectReader d(ctx, *display, "display");
     const int pigment = d.choice("pigment", 0, {"wine", "coffee", "ink"});
-    const Eigen::Vector3d cloth = d.vector3("cloth_color", Eigen::Vector3d(0.93, 0.91, 0.87), closed(0, 1));
+    const Eigen::Vector3d cloth = d.vector3("cloth_color", kDefaultClothColor.matrix(), closed(0, 1));
     d.finish();
     def.colors = stainColorMapping(static_cast<PigmentPreset>(pigment), cloth.array());
   }

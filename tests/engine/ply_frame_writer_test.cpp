@@ -241,10 +241,11 @@ TEST_F(PlyFrameWriterTest, BinaryFrameHoldsEveryPropertyExactly) {
   EXPECT_EQ(ply.format, "binary_little_endian");
   EXPECT_NE(std::find(ply.comments.begin(), ply.comments.end(), "frame: 0"), ply.comments.end());
   expectFrameBytes(ply, frame, PlyScalarType::Float32);
-  // Colours are rounded to nearest: 0.2 * 255 = 51, 0.8 * 255 = 204, 0.5 * 255 -> 128.
-  EXPECT_EQ(frame.vertexColors(1, 0), 51);
-  EXPECT_EQ(frame.vertexColors(1, 1), 204);
-  EXPECT_EQ(frame.vertexColors(1, 2), 128);
+  // Linear colours become sRGB bytes, rounded to nearest:
+  // 255 · srgbEncode(0.2) = 123.55, (0.8) = 231.11, (0.5) = 187.52.
+  EXPECT_EQ(frame.vertexColors(1, 0), 124);
+  EXPECT_EQ(frame.vertexColors(1, 1), 231);
+  EXPECT_EQ(frame.vertexColors(1, 2), 188);
 }
 
 TEST_F(PlyFrameWriterTest, AsciiFrameRoundTripsExactly) {

@@ -2,6 +2,7 @@
 // exact for linear fields), coverage follows the UV triangles, the gutter is
 // exactly `padding` texels wide, and bad input names the argument.
 #include <blot/engine/uv_texture.h>
+#include <blot/engine/color_space.h>
 #include <blot/stain/geometry/mesh_primitives.h>
 
 #include <gtest/gtest.h>
@@ -17,7 +18,8 @@ Eigen::Vector3d linearField(const Eigen::Vector2d& uv) {
   return {uv.x(), uv.y(), 0.5 * uv.x() + 0.25 * uv.y() + 0.1};
 }
 
-int byteOf(double c) { return static_cast<int>(std::lround(std::min(1.0, std::max(0.0, c)) * 255.0)); }
+// The bake interpolates linear colour and stores sRGB bytes.
+int byteOf(double c) { return linearToSrgbByte(c); }
 
 TEST(UvTexture, LinearFieldOnAGridIsReproducedAtEveryTexel) {
   const stain::TriangleMesh grid = stain::gridMesh(7, 5, 2.0, 1.0);
@@ -64,6 +66,7 @@ TEST(UvTexture, CoverageAndGutterFollowTheTriangle) {
   options.width = options.height = 40;
   options.padding = 3;
   const Image texture = bakeVertexColorsToUv(uvs, faces, colors, options);
+  const Rgba8 expected{linearToSrgbByte(0.2), linearToSrgbByte(0.4), linearToSrgbByte(0.6), 255};
   int covered = 0, gutter = 0;
   for (int y = 0; y < 40; ++y) {
     for (int x = 0; x < 40; ++x) {
@@ -73,10 +76,10 @@ TEST(UvTexture, CoverageAndGutterFollowTheTriangle) {
       if (inside) {
         ++covered;
         ASSERT_EQ(texel.a, 255) << "(" << x << ", " << y << ")";
-        EXPECT_EQ(texel, (Rgba8{51, 102, 153, 255}));
+        EXPECT_EQ(texel, expected);
       } else if (texel.a == 255) {
         ++gutter;
-        EXPECT_EQ(texel, (Rgba8{51, 102, 153, 255})) << "gutter texels copy a constant field";
+        EXPECT_EQ(texel, expected) << "gutter texels copy a constant field";
       }
     }
   }

@@ -15,6 +15,8 @@
 // dependent — dilation only writes texels no triangle covers.
 #include <blot/engine/uv_texture.h>
 
+#include <blot/engine/color_space.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -25,10 +27,8 @@
 namespace blot::engine {
 namespace {
 
-std::uint8_t toByte(double value) {
-  const double clamped = std::min(1.0, std::max(0.0, value));
-  return static_cast<std::uint8_t>(std::lround(clamped * 255.0));
-}
+// Colours are baked linearly and stored as sRGB bytes (color_space.h).
+std::uint8_t toByte(double value) { return linearToSrgbByte(value); }
 
 void checkInputs(const Eigen::MatrixX2d& uvs, const Eigen::MatrixX3i& faces, const Eigen::MatrixX3d& colors,
                  const UvBakeOptions& options) {

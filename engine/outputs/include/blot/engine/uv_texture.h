@@ -27,7 +27,9 @@ struct UvBakeOptions {
 /// flipped back by the loader; see docs/rendering.md).
 Eigen::Vector2d texelCenterUv(int x, int y, int width, int height);
 
-/// Bakes vertexColors (#V by 3, linear in [0, 1], written as round(255 c))
+/// Bakes vertexColors (#V by 3, linear in [0, 1], interpolated linearly and
+/// written sRGB-encoded, round(255 · srgbEncode(c)): a texture for an sRGB
+/// sampler, e.g. glTF baseColorTexture or an engine's *_SRGB format)
 /// over the faces (#F by 3) at per-vertex uvs (#V by 2) into an RGBA image;
 /// alpha is 255 on covered and gutter texels, background.a elsewhere. Where
 /// triangles overlap in UV space the one with the larger face index wins
