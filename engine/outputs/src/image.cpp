@@ -332,6 +332,14 @@ void Image::fill(Rgba8 color) {
   }
 }
 
+std::vector<std::uint8_t> encodePng(const Image& image) {
+  if (image.empty()) throw ImageError("encodePng: cannot encode an empty image");
+  std::vector<std::uint8_t> encoded;
+  PngStatus status;
+  if (!encodePng(image, encoded, status)) throw ImageError(std::string("encodePng: ") + status.message);
+  return encoded;
+}
+
 void writePng(const Image& image, const std::string& path) {
   if (image.empty()) throw ImageError(path + ": cannot write an empty image as PNG");
   std::vector<std::uint8_t> encoded;

@@ -195,6 +195,13 @@ std::vector<PlyVertexAttribute> relativeVelocityAttributes(const stain::RowVecto
           PlyVertexAttribute{"rel_vz", vertexVelocities.col(2), type}};
 }
 
+std::vector<PlyVertexAttribute> normalAndUvAttributes(const Eigen::MatrixX3d& vertexNormals,
+                                                      const Eigen::MatrixX2d& vertexUVs, PlyScalarType type) {
+  return {PlyVertexAttribute{"nx", vertexNormals.col(0), type}, PlyVertexAttribute{"ny", vertexNormals.col(1), type},
+          PlyVertexAttribute{"nz", vertexNormals.col(2), type}, PlyVertexAttribute{"u", vertexUVs.col(0), type},
+          PlyVertexAttribute{"v", vertexUVs.col(1), type}};
+}
+
 VertexColors8 vertexColorsToBytes(const Eigen::MatrixX3d& vertexColors) {
   VertexColors8 bytes(vertexColors.rows(), 3);
   for (Eigen::Index i = 0; i < vertexColors.rows(); ++i) {

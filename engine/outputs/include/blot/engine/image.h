@@ -72,6 +72,8 @@ class Image {
 /// (1/2.2) and cHRM chunks libpng pairs with it. Output bytes depend only on
 /// the pixels (no timestamp). Throws ImageError on an empty image or a write failure.
 void writePng(const Image& image, const std::string& path);
+/// The bytes writePng would write (e.g. to embed in a glTF file).
+std::vector<std::uint8_t> encodePng(const Image& image);
 
 /// 16-bit samples, 1 (grey), 2 (grey + alpha), 3 (RGB) or 4 (RGBA) channels,
 /// row-major, top row first: data maps (e.g. stain densities), not colours.
