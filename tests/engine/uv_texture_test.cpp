@@ -143,3 +143,39 @@ TEST(UvTexture, BadInputNamesTheArgument) {
 
 }  // namespace
 }  // namespace blot::engine
+
+namespace blot::engine {
+namespace {
+
+// The 16-bit density map of a linear density field: every texel within half a
+// unit of 1/65535 of round(65535 σ/scale) at its centre, coverage 65535.
+TEST(UvTexture, DensityMapOfALinearFieldIsExactToOneUnit) {
+  const stain::TriangleMesh grid = stain::gridMesh(7, 5, 2.0, 1.0);
+  const double scale = 4.0;
+  Eigen::MatrixXd densities(grid.vertexUVs.rows(), 2);
+  for (Eigen::Index v = 0; v < densities.rows(); ++v) {
+    densities(v, 0) = 3.0 * grid.vertexUVs(v, 0) + 0.5 * grid.vertexUVs(v, 1);  // kg/m²
+    densities(v, 1) = 1.0 + 2.0 * grid.vertexUVs(v, 1);
+  }
+  UvBakeOptions options;
+  options.width = 50;
+  options.height = 30;
+  const Image16 map = densityMap(bakeVertexValuesToUv(grid.vertexUVs, grid.faces, densities, options), scale);
+  ASSERT_EQ(map.channels, 3);
+  int worst = 0;
+  for (int y = 0; y < map.height; ++y)
+    for (int x = 0; x < map.width; ++x) {
+      const Eigen::Vector2d p = texelCenterUv(x, y, map.width, map.height);
+      const double exact[2] = {3.0 * p.x() + 0.5 * p.y(), 1.0 + 2.0 * p.y()};
+      const std::uint16_t* t = map.samples.data() + (static_cast<std::size_t>(y) * map.width + x) * 3;
+      ASSERT_EQ(t[2], 65535);
+      for (int k = 0; k < 2; ++k)
+        worst = std::max(worst, std::abs(int(t[k]) - int(std::lround(65535.0 * exact[k] / scale))));
+    }
+  EXPECT_LE(worst, 1);
+  EXPECT_THROW(densityMap(bakeVertexValuesToUv(grid.vertexUVs, grid.faces, densities, options), 0.0),
+               std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace blot::engine
