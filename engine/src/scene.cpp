@@ -781,8 +781,30 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
     ObjectReader d(ctx, *display, "display");
     const int pigment = d.choice("pigment", 0, {"wine", "coffee", "ink"});
     const Eigen::Vector3d cloth = d.vector3("cloth_color", kDefaultClothColor.matrix(), closed(0, 1));
-    d.finish();
     def.colors = stainColorMapping(static_cast<PigmentPreset>(pigment), cloth.array());
+    // A custom pigment: its absorbance directly, or the (linear) colour the
+    // stain has on this cloth at pigment_color_density of solute.
+    const bool byAbsorbance = d.find("pigment_absorbance") != nullptr, byColor = d.find("pigment_color") != nullptr;
+    if (byAbsorbance && (byColor || d.find("pigment") != nullptr))
+      ctx.fail("display.pigment_absorbance", "give one of pigment, pigment_absorbance, pigment_color");
+    if (byColor && d.find("pigment") != nullptr)
+      ctx.fail("display.pigment_color", "give one of pigment, pigment_absorbance, pigment_color");
+    if (byAbsorbance)
+      def.colors.soluteAbsorbance = d.vector3("pigment_absorbance", Eigen::Vector3d::Zero(), closed(0, 1e6)).array();
+    const double density = d.number("pigment_color_density", 1.0, leftOpen(0, 1e6));
+    if (byColor) {
+      const Eigen::Vector3d color = d.vector3("pigment_color", Eigen::Vector3d::Zero(), leftOpen(0, 1));
+      for (int c = 0; c < 3; ++c) {
+        if (!(color[c] <= cloth[c]))
+          ctx.fail("display.pigment_color", "channel " + std::to_string(c) + " is " + formatNumber(color[c]) +
+                                                ", expected at most the cloth's " + formatNumber(cloth[c]) +
+                                                " (a pigment only absorbs)");
+        def.colors.soluteAbsorbance[c] = -std::log(color[c] / cloth[c]) / density;  // Beer–Lambert solved for ε
+      }
+    } else if (d.find("pigment_color_density") != nullptr) {
+      ctx.fail("display.pigment_color_density", "only meaningful with pigment_color");
+    }
+    d.finish();
   }
   if (const json* outputs = r.find("outputs")) {
     ObjectReader o(ctx, *outputs, "outputs");

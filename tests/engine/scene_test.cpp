@@ -15,6 +15,11 @@ namespace {
 const char* const kMinimal = R"({"mesh": {"patch": {"size": [1, 1], "resolution": [10, 10]}},
                                  "cloth": {"source": "static"}})";
 
+std::string withAbsorbance() {
+  return R"({"mesh": {"patch": {"size": [1, 1], "resolution": [4, 4]}}, "cloth": {"source": "static"},
+             "display": {"pigment_absorbance": [0.5, 2, 4]}})";
+}
+
 std::string withCloth(const std::string& cloth) {
   return R"({"mesh": {"patch": {"size": [1, 1], "resolution": [10, 10]}}, "cloth": )" + cloth + "}";
 }
@@ -237,6 +242,14 @@ INSTANTIATE_TEST_SUITE_P(
         BadScene{"outputs frames zero", withExtra(R"("outputs": {"frames": 0})"), "outputs.frames", "[1, 1000000]"},
         BadScene{"preview key", withExtra(R"("outputs": {"preview": {"size": 3}})"), "outputs.preview.size", "unknown key"},
         BadScene{"pigment", withExtra(R"("display": {"pigment": "blood"})"), "display.pigment", "\"wine\", \"coffee\", \"ink\""},
+        BadScene{"pigment colour brighter than the cloth", withExtra(R"("display": {"pigment_color": [0.9, 0.1, 0.1]})"),
+                 "display.pigment_color", "at most the cloth's"},
+        BadScene{"two pigments", withExtra(R"("display": {"pigment": "ink", "pigment_color": [0.5, 0.1, 0.1]})"),
+                 "display.pigment_color", "give one of"},
+        BadScene{"texture without UVs", R"({"mesh": {"icosphere": {"radius": 1}}, "cloth": {"source": "static"}, "outputs": {"texture": {}}})",
+                 "outputs.texture", "no UVs"},
+        BadScene{"images camera", withExtra(R"("outputs": {"images": {"camera": "top"}})"), "outputs.images.camera",
+                 "\"follow\", \"rest\""},
         BadScene{"sequence without pattern", withCloth(R"({"source": "sequence"})"), "cloth.pattern", "required"}),
     [](const ::testing::TestParamInfo<BadScene>& param) {
       std::string name = param.param.label;
@@ -312,6 +325,21 @@ TEST(SceneFuzzCorpus, EverySeedParsesOrFailsWithASceneErrorNamingTheSource) {
   }
   EXPECT_GE(files, 12);
   EXPECT_GE(parsed, 8) << "the corpus should hold valid scenes too";
+}
+
+// A custom pigment colour: the stain at pigment_color_density has exactly
+// that (linear) colour on the scene's cloth (Beer–Lambert solved for ε).
+TEST(Scene, CustomPigmentColourIsReachedAtItsDensity) {
+  const SceneDef scene = parseScene(R"({"mesh": {"patch": {"size": [1, 1], "resolution": [4, 4]}},
+      "cloth": {"source": "static"},
+      "display": {"cloth_color": [0.8, 0.8, 0.7], "pigment_color": [0.6, 0.2, 0.05], "pigment_color_density": 0.5}})",
+                                    "pigment.json");
+  const Eigen::Array3d c = stainColor(scene.engine.colors, 0, 0.5, 0, 0);
+  EXPECT_NEAR(c[0], 0.6, 1e-14);
+  EXPECT_NEAR(c[1], 0.2, 1e-14);
+  EXPECT_NEAR(c[2], 0.05, 1e-14);
+  const SceneDef direct = parseScene(withAbsorbance(), "absorbance.json");
+  EXPECT_TRUE((direct.engine.colors.soluteAbsorbance == Eigen::Array3d(0.5, 2, 4)).all());
 }
 
 }  // namespace
