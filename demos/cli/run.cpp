@@ -18,6 +18,7 @@
 
 #include <blot/engine/engine.h>
 #include <blot/engine/frame_writer.h>
+#include <blot/engine/frame_exports.h>
 #include <blot/engine/scene.h>
 #include <blot/stain/content_hash.h>
 #include <blot/stain/io/atomic_file.h>
@@ -54,6 +55,14 @@ struct RunOptions {
   bool resume = false;      // continue from <out>/checkpoint.json
   int killAfterFrame = 0;   // testing only: SIGKILL this process after that frame
   std::string injectFault;  // testing only: STAGE:STEP:VERTEX (Engine::injectFaultForTesting)
+  // Artist outputs (override the scene's outputs; docs/rendering.md "blot run outputs").
+  bool images = false;
+  std::string camera;         // "follow" | "rest"; empty: the scene's
+  std::string video;          // "mp4", "gif" or "mp4,gif"
+  int textureSize = 0;        // > 0: bake the stain texture at this size (square)
+  bool textureEveryFrame = false;
+  bool gltf = false;
+  bool gltfEveryFrame = false;
 };
 
 /// "STAGE:STEP:VERTEX" (e.g. "diffuse:12:140") into an InjectedFault; throws
@@ -191,19 +200,41 @@ class Progress {
   Progress(int total, bool quiet) : total_(total), quiet_(quiet), terminal_(isatty(fileno(stderr)) != 0) {}
   void update(int frame, double time, double stepsPerSecond) {
     if (quiet_) return;
-    char text[160];
+    // ETA from the mean wall time per frame so far (frames run in this process).
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    if (first_ < 0) first_ = frame - 1;
+    const double perFrame = frame > first_ ? elapsed / (frame - first_) : 0.0;
+    const double eta = perFrame * (total_ - frame) + perFrame * encodeFrameCost_ * encodeFrames_;
+    char text[200];
     if (terminal_) {
       const int width = 30, filled = total_ > 0 ? width * frame / total_ : width;
       std::string bar(static_cast<size_t>(filled), '#');
       bar.resize(static_cast<size_t>(width), '.');
-      std::snprintf(text, sizeof text, "\r[%s] frame %d/%d  t = %.3f s  %.0f steps/s ", bar.c_str(), frame, total_, time,
-                    stepsPerSecond);
+      std::snprintf(text, sizeof text, "\r[%s] frame %d/%d  t = %.3f s  %.0f steps/s  ETA %.0f s ", bar.c_str(), frame,
+                    total_, time, stepsPerSecond, eta);
       std::cerr << text << std::flush;
       if (frame == total_) std::cerr << "\n";
     } else {
-      std::snprintf(text, sizeof text, "frame %d/%d t=%.4f s steps/s=%.1f", frame, total_, time, stepsPerSecond);
+      std::snprintf(text, sizeof text, "frame %d/%d t=%.4f s steps/s=%.1f eta=%.1f s", frame, total_, time,
+                    stepsPerSecond, eta);
       std::cerr << text << "\n";
     }
+  }
+  /// Frames the videos will encode, counted in the ETA at `cost` frames of simulation each.
+  void expectEncoding(int frames, double cost) {
+    encodeFrames_ = frames;
+    encodeFrameCost_ = cost;
+  }
+  void encoding(const std::string& video, int done, int total) {
+    if (quiet_) return;
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - encodeStart_).count();
+    if (done == 1) encodeStart_ = std::chrono::steady_clock::now();
+    const double eta = done > 1 ? elapsed / (done - 1) * (total - done) : 0.0;
+    char text[160];
+    std::snprintf(text, sizeof text, "%sencoding %s frame %d/%d  ETA %.0f s%s", terminal_ ? "\r" : "", video.c_str(), done,
+                  total, eta, terminal_ ? " " : "\n");
+    std::cerr << text << std::flush;
+    if (terminal_ && done == total) std::cerr << "\n";
   }
   void interrupt() {
     if (terminal_ && !quiet_) std::cerr << "\n";
@@ -212,6 +243,10 @@ class Progress {
  private:
   int total_;
   bool quiet_, terminal_;
+  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now(), encodeStart_ = start_;
+  int first_ = -1;
+  int encodeFrames_ = 0;
+  double encodeFrameCost_ = 0;
 };
 
 /// Which physics terms the run had on and could use (a static surface has no
@@ -287,6 +322,35 @@ void removeStaleTemporaries(const std::string& directory) {
   }
 }
 
+/// Command-line output options over the scene's; throws std::invalid_argument naming the option.
+void applyExportOptions(const RunOptions& o, engine::FrameExportSettings& s) {
+  if (o.images) s.images.enabled = true;
+  if (!o.camera.empty()) {
+    if (o.camera != "follow" && o.camera != "rest")
+      throw std::invalid_argument("--camera: expected follow or rest, got '" + o.camera + "'");
+    s.images.camera = o.camera == "rest" ? engine::FrameCamera::Rest : engine::FrameCamera::Follow;
+    s.images.enabled = true;
+  }
+  if (!o.video.empty()) {
+    std::stringstream list(o.video);
+    for (std::string format; std::getline(list, format, ',');) {
+      if (format == "mp4") s.video.mp4 = true;
+      else if (format == "gif") s.video.gif = true;
+      else throw std::invalid_argument("--video: expected mp4, gif or mp4,gif, got '" + o.video + "'");
+    }
+    s.images.enabled = true;
+  }
+  if (o.textureSize < 0 || o.textureSize > 16384)
+    throw std::invalid_argument("--texture: expected a size in [1, 16384], got " + std::to_string(o.textureSize));
+  if (o.textureSize > 0) {
+    s.texture.enabled = true;
+    s.texture.width = s.texture.height = o.textureSize;
+  }
+  if (o.textureEveryFrame) s.texture.enabled = s.texture.everyFrame = true;
+  if (o.gltf) s.gltf.enabled = true;
+  if (o.gltfEveryFrame) s.gltf.enabled = s.gltf.everyFrame = true;
+}
+
 int runScene(const RunOptions& options) {
   engine::SceneDef scene;
   try {
@@ -339,6 +403,17 @@ int runScene(const RunOptions& options) {
   outputs.ply.comment = "blot run " + options.scenePath;
   outputs.preview = scene.outputs.preview;
   const engine::FrameWriter writer(*engine, outputs);
+  engine::FrameExportSettings exportSettings{scene.outputs.images, scene.outputs.video, scene.outputs.texture,
+                                             scene.outputs.gltf};
+  std::unique_ptr<engine::FrameExporter> exporter;
+  try {
+    applyExportOptions(options, exportSettings);
+    std::filesystem::create_directories(directory);
+    exporter = std::make_unique<engine::FrameExporter>(exportSettings, directory, scene.name, *engine);
+  } catch (const std::exception& e) {
+    std::cerr << "blot run: error: " << e.what() << "\n";
+    return 1;
+  }
 
   nlohmann::json plyPaths = nlohmann::json::array();
   std::string lastGood = "(none)";
@@ -373,18 +448,24 @@ int runScene(const RunOptions& options) {
                                  std::to_string(engine->stepCount()) + " internal steps");
       firstFrame = c.frame + 1;
       checkpointState = c.stateFile;
-      for (int frame = 0; frame <= c.frame; ++frame)  // frames already on disk
+      for (int frame = 0; frame <= c.frame; ++frame) {  // frames already on disk
         if (every > 0 && (frame % every == 0)) plyPaths.push_back(lastGood = writer.plyPath(frame));
+        exporter->adoptFrame(frame, frame == frames);
+      }
       std::cerr << "blot run: resuming after frame " << c.frame << " from " << c.stateFile << "\n";
     } catch (const std::exception& e) {
       std::cerr << "blot run: error: cannot resume in " << directory << ": " << e.what() << "\n";
       return 1;
     }
-  } else if (every > 0) {
-    writeFrame(0);
+  } else {
+    if (every > 0) writeFrame(0);
+    exporter->writeFrame(0, *engine, frames == 0);
   }
 
   Progress progress(frames, options.quiet);
+  progress.expectEncoding(exporter->encodeFrames() + (frames - firstFrame + 1) / std::max(1, exportSettings.images.every) *
+                                                         ((exportSettings.video.mp4 ? 1 : 0) + (exportSettings.video.gif ? 1 : 0)),
+                          0.05);
   const auto start = std::chrono::steady_clock::now();
   for (int frame = firstFrame; frame <= frames; ++frame) {
     const stain::StepReport report = engine->advanceSteps(scene.outputs.stepsPerFrame);
@@ -411,6 +492,13 @@ int runScene(const RunOptions& options) {
       return 3;
     }
     if (every > 0 && (frame % every == 0 || frame == frames)) writeFrame(frame);
+    try {
+      exporter->writeFrame(frame, *engine, frame == frames);
+    } catch (const std::exception& e) {
+      progress.interrupt();
+      std::cerr << "blot run: error: frame " << frame << " outputs: " << e.what() << "\n";
+      return 1;
+    }
     if (options.checkpointEvery > 0 && frame % options.checkpointEvery == 0 && frame < frames) {
       try {
         writeCheckpoint(*engine, directory, frame, checkpointState);
@@ -423,6 +511,12 @@ int runScene(const RunOptions& options) {
     }
     progress.update(frame, engine->time(), engine->statistics().stepsPerSecond);
     if (options.killAfterFrame > 0 && frame == options.killAfterFrame) ::kill(::getpid(), SIGKILL);
+  }
+  try {
+    exporter->finish([&](const std::string& video, int done, int total) { progress.encoding(video, done, total); });
+  } catch (const std::exception& e) {
+    std::cerr << "blot run: error: video: " << e.what() << "\n";
+    return 1;
   }
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
@@ -458,7 +552,10 @@ int runScene(const RunOptions& options) {
       {"terms_ran_steps", termStepsJson(s)},
       {"last_step_terms", stain::describeTerms(s.lastProfile)},
       {"mass_budget_kg", engine::massBudgetJson(s.massBudget)},
-      {"outputs", {{"directory", directory}, {"ply", plyPaths}, {"preview", previewPath}, {"preview_rest_shape", restPreviewPath}, {"summary", summaryPath}}}};
+      {"outputs", {{"directory", directory}, {"ply", plyPaths}, {"preview", previewPath}, {"preview_rest_shape", restPreviewPath}, {"summary", summaryPath},
+                   {"images", exporter->files().images}, {"videos", exporter->files().videos},
+                   {"textures", exporter->files().colorTextures}, {"density_maps", exporter->files().densityMaps},
+                   {"gltf", exporter->files().gltf}}}};
   const std::string summaryText = summary.dump(2) + "\n";
   stain::writeFileAtomically(summaryPath, summaryText.data(), summaryText.size());  // every write checked
   std::cout << summaryText;
@@ -476,6 +573,14 @@ void registerRunCommand(CLI::App& app, int& exitCode) {
   command->add_option("--out", options->outputDirectory, "Output folder (default: the scene's outputs.directory)");
   command->add_option("--threads", options->threads, "threads of the engine's steps (default: the scene's \"threads\", else OpenMP's default)");
   command->add_flag("--quiet", options->quiet, "No progress output");
+  command->add_flag("--images", options->images, "A PNG per frame, <out>/<name>_frame_<k>.png (scene: outputs.images)");
+  command->add_option("--camera", options->camera, "Frame images: follow (world view following the cloth) or rest");
+  command->add_option("--video", options->video, "mp4, gif or mp4,gif: videos of the frame images (needs ffmpeg on PATH)");
+  command->add_option("--texture", options->textureSize,
+                      "Bake the final stain into the mesh's UVs at NxN texels: <name>_color.png, <name>_density.png");
+  command->add_flag("--texture-every-frame", options->textureEveryFrame, "Bake the texture for every written frame");
+  command->add_flag("--gltf", options->gltf, "glTF 2.0 binary of the final frame, <out>/<name>.glb");
+  command->add_flag("--gltf-every-frame", options->gltfEveryFrame, "A .glb per frame, <out>/<name>_<k>.glb");
   command->add_option("--checkpoint-every", options->checkpointEvery,
                       "Save the whole state every N frames to <out>/checkpoint_<frame>.state (0: never)");
   command->add_flag("--resume", options->resume,

@@ -692,6 +692,48 @@ void parseOutputs(ObjectReader& r, SceneOutputs& o) {
       r.context().fail(p.path("up"), "expected a non-zero direction not parallel to view_direction");
     p.finish();
   }
+  if (const json* images = r.find("images")) {
+    ObjectReader p(r.context(), *images, r.path("images"));
+    SceneImages& s = o.images;
+    s.enabled = p.boolean("enabled", true);
+    s.every = p.integer("every", s.every, closed(1, 1000000));
+    s.width = p.integer("width", s.width, closed(16, 8192));
+    s.height = p.integer("height", s.height, closed(16, 8192));
+    s.supersampling = p.integer("supersampling", s.supersampling, closed(1, 4));
+    s.camera = static_cast<FrameCamera>(p.choice("camera", int(s.camera), {"follow", "rest"}));
+    s.viewDirection = p.vector3("view_direction", s.viewDirection);
+    if (!(s.viewDirection.norm() > 0)) r.context().fail(p.path("view_direction"), "expected a non-zero direction");
+    s.projection = static_cast<Projection>(p.choice("projection", int(s.projection), {"perspective", "orthographic"}));
+    s.up = p.vector3("up", s.up);
+    if (p.find("up") != nullptr && !(s.up.cross(s.viewDirection).norm() > 1e-6 * s.up.norm() * s.viewDirection.norm()))
+      r.context().fail(p.path("up"), "expected a non-zero direction not parallel to view_direction");
+    p.finish();
+  }
+  if (const json* video = r.find("video")) {
+    ObjectReader p(r.context(), *video, r.path("video"));
+    o.video.mp4 = p.boolean("mp4", true);
+    o.video.gif = p.boolean("gif", o.video.gif);
+    o.video.fps = p.number("fps", o.video.fps, closed(1, 240));
+    p.finish();
+    if (o.video.mp4 || o.video.gif) o.images.enabled = true;  // the video is made of the frame images
+  }
+  if (const json* texture = r.find("texture")) {
+    ObjectReader p(r.context(), *texture, r.path("texture"));
+    SceneTexture& t = o.texture;
+    t.enabled = p.boolean("enabled", true);
+    t.everyFrame = p.boolean("every_frame", t.everyFrame);
+    t.width = p.integer("width", t.width, closed(1, 16384));
+    t.height = p.integer("height", t.height, closed(1, 16384));
+    t.padding = p.integer("padding", t.padding, closed(0, 256));
+    t.densityScale = p.number("density_scale", t.densityScale, leftOpen(0, 1e6));
+    p.finish();
+  }
+  if (const json* gltf = r.find("gltf")) {
+    ObjectReader p(r.context(), *gltf, r.path("gltf"));
+    o.gltf.enabled = p.boolean("enabled", true);
+    o.gltf.everyFrame = p.boolean("every_frame", o.gltf.everyFrame);
+    p.finish();
+  }
   r.finish();
 }
 
@@ -788,13 +830,37 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
   if (const json* display = r.find("display")) {
     ObjectReader d(ctx, *display, "display");
     const int pigment = d.choice("pigment", 0, {"wine", "coffee", "ink"});
-    const Eigen::Vector3d cloth = d.vector3("cloth_color", Eigen::Vector3d(0.93, 0.91, 0.87), closed(0, 1));
-    d.finish();
+    const Eigen::Vector3d cloth = d.vector3("cloth_color", kDefaultClothColor.matrix(), closed(0, 1));
     def.colors = stainColorMapping(static_cast<PigmentPreset>(pigment), cloth.array());
+    // A custom pigment: its absorbance directly, or the (linear) colour the
+    // stain has on this cloth at pigment_color_density of solute.
+    const bool byAbsorbance = d.find("pigment_absorbance") != nullptr, byColor = d.find("pigment_color") != nullptr;
+    if (byAbsorbance && (byColor || d.find("pigment") != nullptr))
+      ctx.fail("display.pigment_absorbance", "give one of pigment, pigment_absorbance, pigment_color");
+    if (byColor && d.find("pigment") != nullptr)
+      ctx.fail("display.pigment_color", "give one of pigment, pigment_absorbance, pigment_color");
+    if (byAbsorbance)
+      def.colors.soluteAbsorbance = d.vector3("pigment_absorbance", Eigen::Vector3d::Zero(), closed(0, 1e6)).array();
+    const double density = d.number("pigment_color_density", 1.0, leftOpen(0, 1e6));
+    if (byColor) {
+      const Eigen::Vector3d color = d.vector3("pigment_color", Eigen::Vector3d::Zero(), leftOpen(0, 1));
+      for (int c = 0; c < 3; ++c) {
+        if (!(color[c] <= cloth[c]))
+          ctx.fail("display.pigment_color", "channel " + std::to_string(c) + " is " + formatNumber(color[c]) +
+                                                ", expected at most the cloth's " + formatNumber(cloth[c]) +
+                                                " (a pigment only absorbs)");
+        def.colors.soluteAbsorbance[c] = -std::log(color[c] / cloth[c]) / density;  // Beer–Lambert solved for ε
+      }
+    } else if (d.find("pigment_color_density") != nullptr) {
+      ctx.fail("display.pigment_color_density", "only meaningful with pigment_color");
+    }
+    d.finish();
   }
   if (const json* outputs = r.find("outputs")) {
     ObjectReader o(ctx, *outputs, "outputs");
     parseOutputs(o, scene.outputs);
+    if (scene.outputs.texture.enabled && def.mesh.vertexUVs.rows() == 0)
+      ctx.fail("outputs.texture", "the mesh has no UVs to bake into (use a mesh file with UVs or a \"patch\")");
   }
   r.finish();
   if (scene.outputs.directory.empty()) scene.outputs.directory = "out/" + scene.name;

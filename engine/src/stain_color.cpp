@@ -11,6 +11,9 @@
 // "clean" and "stained" colours cannot do: that was the rejected alternative,
 // along with colour maps of one density (no physical meaning, no mixing of
 // free and absorbed solute). The clamp only matters for negative densities.
+// Colours are linear (reflectance); the writers sRGB-encode them. The presets
+// were first tuned on display values; in linear light the same pictures need
+// about 2.2 times the absorbance (x^2.2 ≈ the sRGB decode), hence the numbers.
 #include <blot/engine/stain_color.h>
 
 #include <algorithm>
@@ -29,11 +32,11 @@ double densityAt(const Eigen::VectorXd& density, Eigen::Index i) {
 Eigen::Array3d pigmentAbsorbance(PigmentPreset preset) {
   switch (preset) {
     case PigmentPreset::Wine:
-      return {0.35, 1.6, 1.1};  // absorbs green strongly, blue less: red-purple
+      return {0.77, 3.5, 2.4};  // absorbs green strongly, blue less: red-purple
     case PigmentPreset::Coffee:
-      return {0.45, 0.8, 1.4};  // absorbs blue most, red least: brown
+      return {1.0, 1.8, 3.1};  // absorbs blue most, red least: brown
     case PigmentPreset::Ink:
-      return {1.7, 1.2, 0.35};  // absorbs red and green: blue-black
+      return {3.7, 2.6, 0.77};  // absorbs red and green: blue-black
   }
   throw std::invalid_argument("pigmentAbsorbance: unknown preset");
 }

@@ -241,10 +241,38 @@ TEST_F(PlyFrameWriterTest, BinaryFrameHoldsEveryPropertyExactly) {
   EXPECT_EQ(ply.format, "binary_little_endian");
   EXPECT_NE(std::find(ply.comments.begin(), ply.comments.end(), "frame: 0"), ply.comments.end());
   expectFrameBytes(ply, frame, PlyScalarType::Float32);
-  // Colours are rounded to nearest: 0.2 * 255 = 51, 0.8 * 255 = 204, 0.5 * 255 -> 128.
-  EXPECT_EQ(frame.vertexColors(1, 0), 51);
-  EXPECT_EQ(frame.vertexColors(1, 1), 204);
-  EXPECT_EQ(frame.vertexColors(1, 2), 128);
+  // Linear colours become sRGB bytes, rounded to nearest:
+  // 255 · srgbEncode(0.2) = 123.55, (0.8) = 231.11, (0.5) = 187.52.
+  EXPECT_EQ(frame.vertexColors(1, 0), 124);
+  EXPECT_EQ(frame.vertexColors(1, 1), 231);
+  EXPECT_EQ(frame.vertexColors(1, 2), 188);
+}
+
+// Normals and UVs go right after x y z; stain::loadMesh (like Blender's and
+// MeshLab's readers) reads u v back as the mesh's UVs.
+TEST_F(PlyFrameWriterTest, NormalsAndUvsFollowThePositionsAndReadBackAsUvs) {
+  PlyFrame frame = octahedronFrame();
+  const Eigen::Index n = frame.vertexPositions.rows();
+  Eigen::MatrixX3d normals = frame.vertexPositions.rowwise().normalized();
+  Eigen::MatrixX2d uvs(n, 2);
+  for (Eigen::Index v = 0; v < n; ++v) uvs.row(v) << 0.125 * v, 1.0 - 0.0625 * v;
+  std::vector<PlyVertexAttribute> attributes = normalAndUvAttributes(normals, uvs);
+  attributes.insert(attributes.end(), frame.vertexAttributes.begin(), frame.vertexAttributes.end());
+  frame.vertexAttributes = attributes;
+  writePlyFrame(path("uv.ply"), frame);
+  const ReadPly ply = readPly(path("uv.ply"));
+  expectFrameBytes(ply, frame, PlyScalarType::Float32);
+  const stain::TriangleMesh mesh = stain::loadMesh(path("uv.ply"));
+  ASSERT_EQ(mesh.vertexUVs.rows(), n);
+  for (Eigen::Index v = 0; v < n; ++v) {
+    EXPECT_EQ(mesh.vertexUVs(v, 0), uvs(v, 0)) << v;  // exact in float32
+    EXPECT_EQ(mesh.vertexUVs(v, 1), uvs(v, 1)) << v;
+  }
+  std::ifstream in(path("uv.ply"));
+  std::string header((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(header.find("property float z\nproperty float nx\nproperty float ny\nproperty float nz\n"
+                        "property float u\nproperty float v\n"),
+            std::string::npos);
 }
 
 TEST_F(PlyFrameWriterTest, AsciiFrameRoundTripsExactly) {

@@ -2,6 +2,7 @@
 // coverage, depth order, clipping, perspective-correct interpolation,
 // wireframe, lines and points, framing, and determinism.
 #include <blot/engine/renderer.h>
+#include <blot/engine/color_space.h>
 
 #include <gtest/gtest.h>
 
@@ -15,11 +16,9 @@ namespace {
 constexpr int kByteTolerance = 1;
 constexpr double kPi = 3.14159265358979323846;
 
+// Shading is linear; images hold sRGB bytes (color_space.h).
 Rgba8 toRgba(const Color& color) {
-  const auto byte = [](double v) {
-    return static_cast<std::uint8_t>(std::lround(std::min(std::max(v, 0.0), 1.0) * 255.0));
-  };
-  return Rgba8{byte(color.x()), byte(color.y()), byte(color.z()), 255};
+  return Rgba8{linearToSrgbByte(color.x()), linearToSrgbByte(color.y()), linearToSrgbByte(color.z()), 255};
 }
 
 void expectNear(Rgba8 actual, Rgba8 expected, int tolerance, const std::string& where) {
@@ -241,7 +240,8 @@ TEST(Renderer, EdgeCoverageIsAntialiasedBySupersampling) {
   faces << 0, 1, 2, 0, 2, 3;
   const Image image = renderMesh(positions, faces, Eigen::MatrixX3d::Ones(4, 3), camera, settings);
   EXPECT_EQ(image.pixel(31, 32).r, 0);
-  EXPECT_NEAR(image.pixel(32, 32).r, 127.5, 0.5 + kByteTolerance);
+  // Half the samples: linear 0.5, averaged before the sRGB encoding (188, not 128).
+  EXPECT_NEAR(image.pixel(32, 32).r, linearToSrgbByte(0.5), kByteTolerance);
   EXPECT_EQ(image.pixel(33, 32).r, 255);
 }
 
@@ -312,7 +312,7 @@ TEST(Renderer, GeometryBehindTheCameraIsClipped) {
   settings.diffuse = 0.0;
   const Image image =
       renderMesh(positions, faces, Eigen::MatrixX3d::Constant(4, 3, 0.5), camera, settings);
-  const Rgba8 floor{128, 128, 128, 255};
+  const Rgba8 floor = toRgba(Color::Constant(0.5));
   EXPECT_EQ(image.pixel(32, 60), floor);                        // below the horizon
   EXPECT_EQ(image.pixel(32, 4), toRgba(settings.background));   // sky
   EXPECT_EQ(image.pixel(2, 62), floor);                         // floor reaches the corner
@@ -508,8 +508,10 @@ TEST(Renderer, NonFiniteColoursShowMagenta) {
   colors(1, 2) = std::nan("");
   const Image image = renderMesh(trianglePositions(0.0), oneTriangle(), colors, camera, settings);
   // Only vertex 1 is bad: its corner is magenta, the opposite corner grey.
-  expectNear(pixelAt(image, camera, {0.75, -0.58, 0.0}), Rgba8{240, 8, 240, 255}, 16, "bad corner");
-  expectNear(pixelAt(image, camera, {0.0, 0.75, 0.0}), Rgba8{128, 128, 128, 255}, 10, "good corner");
+  // Near the bad corner the colour is nearly (1, 0, 1); the sRGB encoding
+  // lifts the little grey left in green (linear 0.03 -> byte ~48).
+  expectNear(pixelAt(image, camera, {0.75, -0.58, 0.0}), Rgba8{245, 24, 245, 255}, 30, "bad corner");
+  expectNear(pixelAt(image, camera, {0.0, 0.75, 0.0}), toRgba(Color::Constant(0.5)), 10, "good corner");
 }
 
 TEST(Renderer, RejectsBadInput) {

@@ -17,6 +17,11 @@ namespace {
 const char* const kMinimal = R"({"mesh": {"patch": {"size": [1, 1], "resolution": [10, 10]}},
                                  "cloth": {"source": "static"}})";
 
+std::string withAbsorbance() {
+  return R"({"mesh": {"patch": {"size": [1, 1], "resolution": [4, 4]}}, "cloth": {"source": "static"},
+             "display": {"pigment_absorbance": [0.5, 2, 4]}})";
+}
+
 std::string withCloth(const std::string& cloth) {
   return R"({"mesh": {"patch": {"size": [1, 1], "resolution": [10, 10]}}, "cloth": )" + cloth + "}";
 }
@@ -270,7 +275,15 @@ INSTANTIATE_TEST_SUITE_P(
         BadScene{"duplicate nested key", withExtra(R"("outputs": {"frames": 2, "frames": 3})"), "outputs.frames",
                  "duplicate key"},
         BadScene{"duplicate key in an array element", withExtra(R"("drops": [{"vertex": 1}, {"vertex": 1, "vertex": 2}])"),
-                 "drops[1].vertex", "duplicate key"}),
+                 "drops[1].vertex", "duplicate key"},
+        BadScene{"pigment colour brighter than the cloth", withExtra(R"("display": {"pigment_color": [0.9, 0.1, 0.1]})"),
+                 "display.pigment_color", "at most the cloth's"},
+        BadScene{"two pigments", withExtra(R"("display": {"pigment": "ink", "pigment_color": [0.5, 0.1, 0.1]})"),
+                 "display.pigment_color", "give one of"},
+        BadScene{"texture without UVs", R"({"mesh": {"icosphere": {"radius": 1}}, "cloth": {"source": "static"}, "outputs": {"texture": {}}})",
+                 "outputs.texture", "no UVs"},
+        BadScene{"images camera", withExtra(R"("outputs": {"images": {"camera": "top"}})"), "outputs.images.camera",
+                 "\"follow\", \"rest\""}),
     [](const ::testing::TestParamInfo<BadScene>& param) {
       std::string name = param.param.label;
       for (char& ch : name)
@@ -442,6 +455,21 @@ TEST(SceneFuzzCorpus, EverySeedParsesOrFailsWithASceneErrorNamingTheSource) {
   }
   EXPECT_GE(files, 12);
   EXPECT_GE(parsed, 8) << "the corpus should hold valid scenes too";
+}
+
+// A custom pigment colour: the stain at pigment_color_density has exactly
+// that (linear) colour on the scene's cloth (Beer–Lambert solved for ε).
+TEST(Scene, CustomPigmentColourIsReachedAtItsDensity) {
+  const SceneDef scene = parseScene(R"({"mesh": {"patch": {"size": [1, 1], "resolution": [4, 4]}},
+      "cloth": {"source": "static"},
+      "display": {"cloth_color": [0.8, 0.8, 0.7], "pigment_color": [0.6, 0.2, 0.05], "pigment_color_density": 0.5}})",
+                                    "pigment.json");
+  const Eigen::Array3d c = stainColor(scene.engine.colors, 0, 0.5, 0, 0);
+  EXPECT_NEAR(c[0], 0.6, 1e-14);
+  EXPECT_NEAR(c[1], 0.2, 1e-14);
+  EXPECT_NEAR(c[2], 0.05, 1e-14);
+  const SceneDef direct = parseScene(withAbsorbance(), "absorbance.json");
+  EXPECT_TRUE((direct.engine.colors.soluteAbsorbance == Eigen::Array3d(0.5, 2, 4)).all());
 }
 
 }  // namespace

@@ -76,7 +76,7 @@ TEST(StainColor, WaterDarkensALittleAndNegativeDensitiesAreClamped) {
   const Eigen::Array3d dry = stainColor(mapping, 0.0, 0.0, 0.0, 0.0);
   const Eigen::Array3d wet = stainColor(mapping, 4.0, 0.0, 0.0, 0.0);
   EXPECT_TRUE((wet < dry).all());
-  EXPECT_TRUE((wet > 0.6 * dry).all());  // wet cloth is darker, not black
+  EXPECT_TRUE((wet > 0.5 * dry).all());  // wet cloth is darker, not black (linear reflectance)
   const Eigen::Array3d negative = stainColor(mapping, 0.0, -10.0, 0.0, 0.0);
   EXPECT_TRUE((negative <= 1.0).all());
   EXPECT_TRUE((negative >= 0.0).all());

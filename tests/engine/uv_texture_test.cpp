@@ -2,6 +2,7 @@
 // exact for linear fields), coverage follows the UV triangles, the gutter is
 // exactly `padding` texels wide, and bad input names the argument.
 #include <blot/engine/uv_texture.h>
+#include <blot/engine/color_space.h>
 #include <blot/stain/geometry/mesh_primitives.h>
 
 #include <gtest/gtest.h>
@@ -17,7 +18,8 @@ Eigen::Vector3d linearField(const Eigen::Vector2d& uv) {
   return {uv.x(), uv.y(), 0.5 * uv.x() + 0.25 * uv.y() + 0.1};
 }
 
-int byteOf(double c) { return static_cast<int>(std::lround(std::min(1.0, std::max(0.0, c)) * 255.0)); }
+// The bake interpolates linear colour and stores sRGB bytes.
+int byteOf(double c) { return linearToSrgbByte(c); }
 
 TEST(UvTexture, LinearFieldOnAGridIsReproducedAtEveryTexel) {
   const stain::TriangleMesh grid = stain::gridMesh(7, 5, 2.0, 1.0);
@@ -64,6 +66,7 @@ TEST(UvTexture, CoverageAndGutterFollowTheTriangle) {
   options.width = options.height = 40;
   options.padding = 3;
   const Image texture = bakeVertexColorsToUv(uvs, faces, colors, options);
+  const Rgba8 expected{linearToSrgbByte(0.2), linearToSrgbByte(0.4), linearToSrgbByte(0.6), 255};
   int covered = 0, gutter = 0;
   for (int y = 0; y < 40; ++y) {
     for (int x = 0; x < 40; ++x) {
@@ -73,10 +76,10 @@ TEST(UvTexture, CoverageAndGutterFollowTheTriangle) {
       if (inside) {
         ++covered;
         ASSERT_EQ(texel.a, 255) << "(" << x << ", " << y << ")";
-        EXPECT_EQ(texel, (Rgba8{51, 102, 153, 255}));
+        EXPECT_EQ(texel, expected);
       } else if (texel.a == 255) {
         ++gutter;
-        EXPECT_EQ(texel, (Rgba8{51, 102, 153, 255})) << "gutter texels copy a constant field";
+        EXPECT_EQ(texel, expected) << "gutter texels copy a constant field";
       }
     }
   }
@@ -136,6 +139,42 @@ TEST(UvTexture, BadInputNamesTheArgument) {
   UvBakeOptions tiny = options;
   tiny.width = 0;
   expectInvalid(uvs, faces, colors, tiny, "0x8");
+}
+
+}  // namespace
+}  // namespace blot::engine
+
+namespace blot::engine {
+namespace {
+
+// The 16-bit density map of a linear density field: every texel within half a
+// unit of 1/65535 of round(65535 σ/scale) at its centre, coverage 65535.
+TEST(UvTexture, DensityMapOfALinearFieldIsExactToOneUnit) {
+  const stain::TriangleMesh grid = stain::gridMesh(7, 5, 2.0, 1.0);
+  const double scale = 4.0;
+  Eigen::MatrixXd densities(grid.vertexUVs.rows(), 2);
+  for (Eigen::Index v = 0; v < densities.rows(); ++v) {
+    densities(v, 0) = 3.0 * grid.vertexUVs(v, 0) + 0.5 * grid.vertexUVs(v, 1);  // kg/m²
+    densities(v, 1) = 1.0 + 2.0 * grid.vertexUVs(v, 1);
+  }
+  UvBakeOptions options;
+  options.width = 50;
+  options.height = 30;
+  const Image16 map = densityMap(bakeVertexValuesToUv(grid.vertexUVs, grid.faces, densities, options), scale);
+  ASSERT_EQ(map.channels, 3);
+  int worst = 0;
+  for (int y = 0; y < map.height; ++y)
+    for (int x = 0; x < map.width; ++x) {
+      const Eigen::Vector2d p = texelCenterUv(x, y, map.width, map.height);
+      const double exact[2] = {3.0 * p.x() + 0.5 * p.y(), 1.0 + 2.0 * p.y()};
+      const std::uint16_t* t = map.samples.data() + (static_cast<std::size_t>(y) * map.width + x) * 3;
+      ASSERT_EQ(t[2], 65535);
+      for (int k = 0; k < 2; ++k)
+        worst = std::max(worst, std::abs(int(t[k]) - int(std::lround(65535.0 * exact[k] / scale))));
+    }
+  EXPECT_LE(worst, 1);
+  EXPECT_THROW(densityMap(bakeVertexValuesToUv(grid.vertexUVs, grid.faces, densities, options), 0.0),
+               std::invalid_argument);
 }
 
 }  // namespace

@@ -193,7 +193,11 @@ double blotEngine_GetTime(const blotEngine* engine);
 blotStatus blotEngine_CopyPositions(const blotEngine* engine, float* out, int capacity);
 /** Copies #V x 3 unit vertex normals, interleaved. */
 blotStatus blotEngine_CopyNormals(const blotEngine* engine, float* out, int capacity);
-/** Copies #V x 3 display colours (linear RGB in [0, 1], Beer–Lambert), interleaved. */
+/** Copies #V x 3 stain colours, interleaved: linear RGB in [0, 1] (Beer–Lambert
+    reflectance, not sRGB-encoded). Upload them to a linear (float or UNORM,
+    not _SRGB) vertex attribute; a renderer that writes to an sRGB target
+    encodes them, one that does not must apply the sRGB transfer function
+    (docs/rendering.md "Colour"). */
 blotStatus blotEngine_CopyColors(const blotEngine* engine, float* out, int capacity);
 /** Copies #V densities (kg/m²) of one kind (capacity >= #V). */
 blotStatus blotEngine_CopyDensities(const blotEngine* engine, blotDensity which, float* out, int capacity);

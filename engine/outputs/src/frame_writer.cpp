@@ -12,11 +12,15 @@ PlyFrame plyFrame(const Engine& e) {
   PlyFrame ply;
   ply.vertexPositions = e.positions();
   ply.faces = e.faces();
-  ply.vertexAttributes = {{"solvent", e.solvent(), PlyScalarType::Float32},
-                          {"solute", e.solute(), PlyScalarType::Float32},
-                          {"absorbed_solvent", e.absorbedSolvent(), PlyScalarType::Float32},
-                          {"absorbed_solute", e.absorbedSolute(), PlyScalarType::Float32},
-                          {"adsorbed_solute", e.adsorbedSolute(), PlyScalarType::Float32}};
+  // Normals and UVs first (after x y z) when the mesh has UVs; without UVs the file is as before.
+  if (e.definition().mesh.vertexUVs.rows() == e.vertexCount() && e.vertexCount() > 0)
+    ply.vertexAttributes = normalAndUvAttributes(e.normals(), e.definition().mesh.vertexUVs);
+  for (PlyVertexAttribute a : {PlyVertexAttribute{"solvent", e.solvent(), PlyScalarType::Float32},
+                               {"solute", e.solute(), PlyScalarType::Float32},
+                               {"absorbed_solvent", e.absorbedSolvent(), PlyScalarType::Float32},
+                               {"absorbed_solute", e.absorbedSolute(), PlyScalarType::Float32},
+                               {"adsorbed_solute", e.adsorbedSolute(), PlyScalarType::Float32}})
+    ply.vertexAttributes.push_back(a);
   for (auto& attribute : velocityAttributes(e.liquidWorldVelocities())) ply.vertexAttributes.push_back(attribute);
   for (auto& attribute : relativeVelocityAttributes(e.liquidVelocities())) ply.vertexAttributes.push_back(attribute);
   ply.vertexColors = vertexColorsToBytes(e.colors());

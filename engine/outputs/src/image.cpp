@@ -125,6 +125,9 @@ bool encodePng(const Image& image, std::vector<std::uint8_t>& out, PngStatus& st
                static_cast<png_uint_32>(image.height()), 8,
                image.channels() == 4 ? PNG_COLOR_TYPE_RGB_ALPHA : PNG_COLOR_TYPE_RGB,
                PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  // The bytes are sRGB-encoded (color_space.h): the sRGB chunk says so, with
+  // the gAMA 1/2.2 and cHRM (BT.709 primaries) that readers without sRGB support use.
+  png_set_sRGB_gAMA_and_cHRM(png, info, PNG_sRGB_INTENT_PERCEPTUAL);
   png_write_info(png, info);
   for (int y = 0; y < image.height(); ++y) {
     png_write_row(png, image.row(y));
@@ -183,6 +186,108 @@ bool decodePng(const std::vector<std::uint8_t>& bytes, Image& image, PngStatus& 
   return true;
 }
 
+// `rowBytes` (2 * width * channels bytes) and `texts` are the caller's, so no
+// destructor is skipped by libpng's longjmp.
+bool encodePng16(const Image16& image, std::vector<std::uint8_t>& out, PngStatus& status,
+                 const std::vector<std::string>* textPairs, std::uint8_t* rowBytes, std::vector<png_text>& texts) {
+  PngWriteBuffer buffer{&out};
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &status, pngError, pngWarning);
+  if (png == nullptr) return false;
+  png_infop info = png_create_info_struct(png);
+  if (info == nullptr || setjmp(png_jmpbuf(png))) {
+    png_destroy_write_struct(&png, &info);
+    return false;
+  }
+  png_set_write_fn(png, &buffer, pngWriteToBuffer, pngFlush);
+  static const int kColorTypes[5] = {0, PNG_COLOR_TYPE_GRAY, PNG_COLOR_TYPE_GRAY_ALPHA, PNG_COLOR_TYPE_RGB,
+                                     PNG_COLOR_TYPE_RGB_ALPHA};
+  png_set_IHDR(png, info, static_cast<png_uint_32>(image.width), static_cast<png_uint_32>(image.height), 16,
+               kColorTypes[image.channels], PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT,
+               PNG_FILTER_TYPE_DEFAULT);
+  // Data, not colour: gamma 1.0 (linear), no sRGB chunk.
+  png_set_gAMA_fixed(png, info, PNG_GAMMA_LINEAR);
+  if (textPairs != nullptr) {
+    for (std::size_t k = 0; k + 1 < textPairs->size(); k += 2) {
+      png_text t{};
+      t.compression = PNG_TEXT_COMPRESSION_NONE;
+      t.key = const_cast<char*>((*textPairs)[k].c_str());
+      t.text = const_cast<char*>((*textPairs)[k + 1].c_str());
+      texts.push_back(t);
+    }
+    if (!texts.empty()) png_set_text(png, info, texts.data(), static_cast<int>(texts.size()));
+  }
+  png_write_info(png, info);
+  // PNG stores 16-bit samples big-endian, whatever the host's byte order.
+  const std::size_t rowLength = static_cast<std::size_t>(image.width) * image.channels;
+  std::uint8_t* row = rowBytes;
+  for (int y = 0; y < image.height; ++y) {
+    const std::uint16_t* in = image.samples.data() + rowLength * y;
+    for (std::size_t k = 0; k < rowLength; ++k) {
+      row[2 * k] = static_cast<std::uint8_t>(in[k] >> 8);
+      row[2 * k + 1] = static_cast<std::uint8_t>(in[k] & 0xFF);
+    }
+    png_write_row(png, row);
+  }
+  png_write_end(png, info);
+  png_destroy_write_struct(&png, &info);
+  return true;
+}
+
+bool readPngInfoFrom(const std::vector<std::uint8_t>& bytes, PngFileInfo& result, PngStatus& status) {
+  PngReadBuffer buffer{&bytes, 0};
+  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &status, pngError, pngWarning);
+  if (png == nullptr) return false;
+  png_infop info = png_create_info_struct(png);
+  if (info == nullptr || setjmp(png_jmpbuf(png))) {
+    png_destroy_read_struct(&png, &info, nullptr);
+    return false;
+  }
+  png_set_read_fn(png, &buffer, pngReadFromBuffer);
+  png_read_info(png, info);
+  result.width = static_cast<int>(png_get_image_width(png, info));
+  result.height = static_cast<int>(png_get_image_height(png, info));
+  result.bitDepth = png_get_bit_depth(png, info);
+  result.channels = png_get_channels(png, info);
+  int intent = 0;
+  result.srgbIntent = png_get_sRGB(png, info, &intent) != 0 ? intent : -1;
+  double gamma = 0;
+  result.gamma = png_get_gAMA(png, info, &gamma) != 0 ? gamma : 0.0;
+  png_destroy_read_struct(&png, &info, nullptr);
+  return true;
+}
+
+// 16-bit files only; `image` and `row` belong to the caller (longjmp).
+bool decodePng16(const std::vector<std::uint8_t>& bytes, Image16& image, std::vector<std::uint8_t>& row,
+                 PngStatus& status) {
+  PngReadBuffer buffer{&bytes, 0};
+  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &status, pngError, pngWarning);
+  if (png == nullptr) return false;
+  png_infop info = png_create_info_struct(png);
+  if (info == nullptr || setjmp(png_jmpbuf(png))) {
+    png_destroy_read_struct(&png, &info, nullptr);
+    return false;
+  }
+  png_set_read_fn(png, &buffer, pngReadFromBuffer);
+  png_read_info(png, info);
+  if (png_get_bit_depth(png, info) != 16) png_error(png, "not a 16-bit PNG");
+  if (png_get_color_type(png, info) == PNG_COLOR_TYPE_PALETTE) png_error(png, "16-bit palette PNG");
+  if (png_get_interlace_type(png, info) != PNG_INTERLACE_NONE) png_error(png, "interlaced 16-bit PNG");
+  image.width = static_cast<int>(png_get_image_width(png, info));
+  image.height = static_cast<int>(png_get_image_height(png, info));
+  image.channels = png_get_channels(png, info);
+  const std::size_t rowLength = static_cast<std::size_t>(image.width) * image.channels;
+  image.samples.resize(rowLength * image.height);
+  row.resize(2 * rowLength);
+  for (int y = 0; y < image.height; ++y) {
+    png_read_row(png, row.data(), nullptr);
+    for (std::size_t k = 0; k < rowLength; ++k)
+      image.samples[rowLength * y + k] = static_cast<std::uint16_t>(row[2 * k] << 8 | row[2 * k + 1]);
+  }
+  png_read_end(png, nullptr);
+  png_destroy_read_struct(&png, &info, nullptr);
+  return true;
+}
+
 std::uint8_t blendChannel(std::uint8_t source, std::uint8_t target, std::uint8_t alpha) {
   const int value = source * alpha + target * (255 - alpha);
   return static_cast<std::uint8_t>((value + 127) / 255);
@@ -227,6 +332,14 @@ void Image::fill(Rgba8 color) {
   }
 }
 
+std::vector<std::uint8_t> encodePng(const Image& image) {
+  if (image.empty()) throw ImageError("encodePng: cannot encode an empty image");
+  std::vector<std::uint8_t> encoded;
+  PngStatus status;
+  if (!encodePng(image, encoded, status)) throw ImageError(std::string("encodePng: ") + status.message);
+  return encoded;
+}
+
 void writePng(const Image& image, const std::string& path) {
   if (image.empty()) throw ImageError(path + ": cannot write an empty image as PNG");
   std::vector<std::uint8_t> encoded;
@@ -255,6 +368,53 @@ Image readPng(const std::string& path) {
     throw ImageError(path + ": PNG decoding failed: " + status.message);
   }
   return image;
+}
+
+void writePng16(const Image16& image, const std::string& path, const std::vector<std::string>& text) {
+  if (image.width < 1 || image.height < 1 || image.channels < 1 || image.channels > 4 ||
+      image.samples.size() != static_cast<std::size_t>(image.width) * image.height * image.channels)
+    throw ImageError(path + ": 16-bit image must be at least 1x1 with 1-4 channels and width*height*channels samples");
+  if (text.size() % 2 != 0) throw ImageError(path + ": PNG text must come as key, value pairs");
+  std::vector<std::uint8_t> encoded;
+  PngStatus status;
+  std::vector<std::uint8_t> rowBytes(static_cast<std::size_t>(image.width) * image.channels * 2);
+  std::vector<png_text> texts;
+  texts.reserve(text.size() / 2);
+  if (!encodePng16(image, encoded, status, &text, rowBytes.data(), texts)) {
+    throw ImageError(path + ": PNG encoding failed: " + status.message);
+  }
+  try {
+    stain::writeFileAtomically(path, encoded.data(), encoded.size());
+  } catch (const std::runtime_error& error) {
+    throw ImageError(error.what());
+  }
+}
+
+Image16 readPng16(const std::string& path) {
+  std::ifstream file(path, std::ios::binary);
+  if (!file) throw ImageError(path + ": cannot open for reading");
+  const std::vector<std::uint8_t> bytes{std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>()};
+  if (bytes.size() < 8 || png_sig_cmp(bytes.data(), 0, 8) != 0) {
+    throw ImageError(path + ": not a PNG file (bad signature)");
+  }
+  Image16 image;
+  std::vector<std::uint8_t> row;
+  PngStatus status;
+  if (!decodePng16(bytes, image, row, status)) throw ImageError(path + ": PNG decoding failed: " + status.message);
+  return image;
+}
+
+PngFileInfo readPngInfo(const std::string& path) {
+  std::ifstream file(path, std::ios::binary);
+  if (!file) throw ImageError(path + ": cannot open for reading");
+  const std::vector<std::uint8_t> bytes{std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>()};
+  if (bytes.size() < 8 || png_sig_cmp(bytes.data(), 0, 8) != 0) {
+    throw ImageError(path + ": not a PNG file (bad signature)");
+  }
+  PngFileInfo info;
+  PngStatus status;
+  if (!readPngInfoFrom(bytes, info, status)) throw ImageError(path + ": PNG decoding failed: " + status.message);
+  return info;
 }
 
 void blit(Image& target, const Image& source, int x, int y) {

@@ -12,6 +12,8 @@
 // crash mid-frame leaves a truncated file with a valid-looking header).
 #include <blot/engine/ply_frame_writer.h>
 
+#include <blot/engine/color_space.h>
+
 #include <blot/stain/io/atomic_file.h>
 
 #include <algorithm>
@@ -193,13 +195,19 @@ std::vector<PlyVertexAttribute> relativeVelocityAttributes(const stain::RowVecto
           PlyVertexAttribute{"rel_vz", vertexVelocities.col(2), type}};
 }
 
+std::vector<PlyVertexAttribute> normalAndUvAttributes(const Eigen::MatrixX3d& vertexNormals,
+                                                      const Eigen::MatrixX2d& vertexUVs, PlyScalarType type) {
+  return {PlyVertexAttribute{"nx", vertexNormals.col(0), type}, PlyVertexAttribute{"ny", vertexNormals.col(1), type},
+          PlyVertexAttribute{"nz", vertexNormals.col(2), type}, PlyVertexAttribute{"u", vertexUVs.col(0), type},
+          PlyVertexAttribute{"v", vertexUVs.col(1), type}};
+}
+
 VertexColors8 vertexColorsToBytes(const Eigen::MatrixX3d& vertexColors) {
   VertexColors8 bytes(vertexColors.rows(), 3);
   for (Eigen::Index i = 0; i < vertexColors.rows(); ++i) {
     for (int k = 0; k < 3; ++k) {
       const double value = vertexColors(i, k);
-      const double clamped = std::isfinite(value) ? std::min(std::max(value, 0.0), 1.0) : 0.0;
-      bytes(i, k) = static_cast<std::uint8_t>(std::lround(clamped * 255.0));
+      bytes(i, k) = linearToSrgbByte(std::isfinite(value) ? value : 0.0);
     }
   }
   return bytes;

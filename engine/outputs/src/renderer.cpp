@@ -3,6 +3,8 @@
 // Design note: docs/design-notes.md, "engine/outputs/src/renderer.cpp".
 #include <blot/engine/renderer.h>
 
+#include <blot/engine/color_space.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -64,10 +66,8 @@ double projectionScale(const Camera& camera, int imageHeight) {
   return imageHeight / camera.orthographicHeight;
 }
 
-std::uint8_t toByte(double value) {
-  const double clamped = std::min(std::max(value, 0.0), 1.0);
-  return static_cast<std::uint8_t>(std::lround(clamped * 255.0));
-}
+// Samples are linear; the image holds sRGB bytes (color_space.h).
+std::uint8_t toByte(double value) { return linearToSrgbByte(value); }
 
 // Inside half-space a . (x, y, d) + b >= 0 in view coordinates.
 struct ClipPlane {

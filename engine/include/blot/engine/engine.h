@@ -90,7 +90,7 @@ struct EngineDef {
   /// this many before the next step still works, but allocates).
   int dropQueueCapacity = 64;
 
-  StainColorMapping colors;  ///< display colour (Beer–Lambert) of colors()
+  StainColorMapping colors;  ///< stain colour (Beer–Lambert, linear RGB) of colors()
 };
 
 /// Where a world point lands on the cloth (addDropAtPoint).
@@ -203,7 +203,7 @@ class Engine {
   /// Liquid velocity in the world (inertial) frame: the cloth's velocity plus
   /// liquidVelocities() (m/s).
   const Eigen::MatrixX3d& liquidWorldVelocities() const;
-  const Eigen::MatrixX3d& colors() const;      ///< display colour in [0, 1] (Beer–Lambert, stain_color.h)
+  const Eigen::MatrixX3d& colors() const;      ///< linear RGB in [0, 1] (Beer–Lambert, stain_color.h); files hold it sRGB-encoded
 
   double time() const;                 ///< simulated time (s)
   /// OpenMP threads of this engine's stain steps (EngineDef::stain.threads,

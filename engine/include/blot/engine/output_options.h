@@ -3,6 +3,8 @@
 /// engine core so that scenes parse without the outputs library; the writers
 /// that act on them are in blot_outputs (engine/outputs/).
 
+#include <Eigen/Core>
+
 namespace blot::engine {
 
 /// Camera projection of the PNG previews (Renderer).
@@ -16,5 +18,48 @@ inline constexpr double kMaxImageSamples = 1 << 26;   ///< width x height x supe
 
 /// Encoding of the PLY frames (PlyFrameWriter).
 enum class PlyFormat { BinaryLittleEndian, Ascii };
+
+/// Where a frame image's camera looks from.
+enum class FrameCamera {
+  /// World view: framed on frame 0's shape, then translated with the cloth's
+  /// centroid, so the cloth's motion (swing, wrinkles) shows but it stays in view.
+  Follow,
+  /// The current densities drawn on the rest (undeformed) shape, fixed camera.
+  Rest,
+};
+
+/// A PNG per frame (`<name>_frame_<k>.png`), and the video made of them.
+struct SceneImages {
+  bool enabled = false;
+  int every = 1;                  ///< write every this many frames (frame 0 and the last always)
+  int width = 640, height = 480;  ///< pixels
+  int supersampling = 2;
+  FrameCamera camera = FrameCamera::Follow;
+  Eigen::Vector3d viewDirection = Eigen::Vector3d(-0.3, -0.6, -1.0);
+  Eigen::Vector3d up = Eigen::Vector3d::Zero();  ///< zero: +z, or +y for a near-vertical view
+  Projection projection = Projection::Perspective;
+};
+
+/// Videos assembled from the frame images with ffmpeg (found on PATH).
+struct SceneVideo {
+  bool mp4 = false;  ///< <name>.mp4, H.264, yuv420p
+  bool gif = false;  ///< <name>.gif, palette per file
+  double fps = 24;
+};
+
+/// The stain baked into the mesh's UV layout (needs a mesh with UVs):
+/// `<name>_color[_<k>].png` (sRGB) and `<name>_density[_<k>].png` (16-bit, linear).
+struct SceneTexture {
+  bool enabled = false;
+  bool everyFrame = false;  ///< each written frame, or only the last
+  int width = 1024, height = 1024, padding = 4;
+  double densityScale = 5.0;  ///< kg/m² written as 65535 in the density map
+};
+
+/// glTF 2.0 binary files (`<name>.glb`, or `<name>_<k>.glb` per frame).
+struct SceneGltf {
+  bool enabled = false;
+  bool everyFrame = false;
+};
 
 }  // namespace blot::engine

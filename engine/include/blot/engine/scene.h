@@ -51,6 +51,10 @@ struct SceneOutputs {
   PlyFormat plyFormat = PlyFormat::BinaryLittleEndian;
   std::string directory;    ///< output folder; empty: "out/<scene file stem>"
   ScenePreview preview;
+  SceneImages images;
+  SceneVideo video;
+  SceneTexture texture;
+  SceneGltf gltf;
 };
 
 /// Plausibility limits of scene values (docs/scene-format.md): every number,

@@ -1,5 +1,6 @@
 #pragma once
-/// Display colour of stained cloth from the stain densities (Beer–Lambert).
+/// Colour of stained cloth from the stain densities (Beer–Lambert), linear RGB:
+/// the outputs sRGB-encode it when they write bytes (color_space.h).
 ///
 /// Per RGB channel c, with surface densities in kg/m² (the paper's σ):
 ///   colour_c = clamp( base_c · exp(−ε_solute,c · (σ_s + σ_s,p + σ_s,a))
@@ -19,13 +20,17 @@ namespace blot::engine {
 /// densities, σ_sat 2–8) gives a clearly visible stain.
 enum class PigmentPreset { Wine, Coffee, Ink };
 
+/// Linear reflectance of the default off-white cloth.
+inline const Eigen::Array3d kDefaultClothColor{0.848, 0.807, 0.729};
+
 struct StainColorMapping {
-  /// Reflectance of the dry, clean cloth per channel, [0, 1].
-  Eigen::Array3d clothColor{0.93, 0.91, 0.87};
+  /// Reflectance of the dry, clean cloth per channel, linear [0, 1] (the
+  /// default is sRGB (0.93, 0.91, 0.87), bytes (237, 232, 222), decoded).
+  Eigen::Array3d clothColor{kDefaultClothColor};
   /// ε_solute per channel, m²/kg (>= 0).
-  Eigen::Array3d soluteAbsorbance{0.35, 1.6, 1.1};
+  Eigen::Array3d soluteAbsorbance{0.77, 3.5, 2.4};
   /// ε_water per channel, m²/kg (>= 0): wet cloth looks darker.
-  Eigen::Array3d solventAbsorbance{0.06, 0.05, 0.045};
+  Eigen::Array3d solventAbsorbance{0.13, 0.11, 0.10};
 };
 
 /// ε_solute per channel (m²/kg) of a preset.
@@ -33,7 +38,7 @@ Eigen::Array3d pigmentAbsorbance(PigmentPreset preset);
 
 /// Mapping with the preset's pigment, the default wetness and `clothColor`.
 StainColorMapping stainColorMapping(PigmentPreset preset,
-                                    const Eigen::Array3d& clothColor = {0.93, 0.91, 0.87});
+                                    const Eigen::Array3d& clothColor = kDefaultClothColor);
 
 /// "wine", "coffee" or "ink" (exact, lower case). Throws std::invalid_argument
 /// listing the valid names otherwise.

@@ -1,7 +1,8 @@
 #pragma once
 /// 8-bit RGB / RGBA images: PNG files (written atomically), contact sheets and
 /// side-by-side comparisons with small text labels. Pixels are stored row-major,
-/// top row first, channels interleaved; values are display (sRGB) bytes.
+/// top row first, channels interleaved; values are sRGB-encoded bytes
+/// (color_space.h), and writePng marks them so with the sRGB chunk.
 #include <cstdint>
 #include <stdexcept>
 #include <string>
@@ -67,9 +68,37 @@ class Image {
 };
 
 /// Writes `image` as an 8-bit RGB or RGBA PNG, atomically (temporary file +
-/// rename). Output bytes depend only on the pixels (no timestamp). Throws
-/// ImageError on an empty image or a write failure.
+/// rename), with the sRGB chunk (rendering intent perceptual) and the gAMA
+/// (1/2.2) and cHRM chunks libpng pairs with it. Output bytes depend only on
+/// the pixels (no timestamp). Throws ImageError on an empty image or a write failure.
 void writePng(const Image& image, const std::string& path);
+/// The bytes writePng would write (e.g. to embed in a glTF file).
+std::vector<std::uint8_t> encodePng(const Image& image);
+
+/// 16-bit samples, 1 (grey), 2 (grey + alpha), 3 (RGB) or 4 (RGBA) channels,
+/// row-major, top row first: data maps (e.g. stain densities), not colours.
+struct Image16 {
+  int width = 0, height = 0, channels = 4;
+  std::vector<std::uint16_t> samples;  ///< width * height * channels
+};
+
+/// Writes a 16-bit PNG atomically, marked linear (gAMA 1.0, no sRGB chunk),
+/// with `text` as tEXt key/value pairs (even count: key, value, key, value…).
+/// Throws ImageError naming the path on a malformed image or a write failure.
+void writePng16(const Image16& image, const std::string& path, const std::vector<std::string>& text = {});
+
+/// Reads a 16-bit, non-interlaced PNG (grey, grey+alpha, RGB, RGBA) exactly;
+/// throws ImageError naming the path for any other file.
+Image16 readPng16(const std::string& path);
+
+/// What a PNG file says about itself (header and colour-space chunks).
+struct PngFileInfo {
+  int width = 0, height = 0, bitDepth = 0, channels = 0;
+  int srgbIntent = -1;  ///< the sRGB chunk's rendering intent (0-3), -1 when the file has none
+  double gamma = 0;     ///< the gAMA chunk's file gamma (0.45455 for sRGB, 1 for linear), 0 when none
+};
+/// Reads the header and colour chunks of a PNG; throws ImageError naming the path.
+PngFileInfo readPngInfo(const std::string& path);
 
 /// Reads a PNG of any colour type and depth into 8-bit RGB (or RGBA when the
 /// file has alpha or transparency): palette and grey expanded, 16-bit reduced.

@@ -58,8 +58,16 @@ std::vector<PlyVertexAttribute> velocityAttributes(const stain::RowVectors3& ver
 std::vector<PlyVertexAttribute> relativeVelocityAttributes(const stain::RowVectors3& vertexVelocities,
                                                            PlyScalarType type = PlyScalarType::Float32);
 
-/// Converts colours in [0, 1] (#V by 3, clamped; non-finite becomes 0) to bytes,
-/// rounding to nearest.
+/// The attributes "nx", "ny", "nz" (unit normals) and "u", "v" (texture
+/// coordinates, v up) that DCC importers (Blender, MeshLab, Houdini) read as
+/// normals and UVs; `blot run` writes them first, after x y z, when the mesh has UVs.
+std::vector<PlyVertexAttribute> normalAndUvAttributes(const Eigen::MatrixX3d& vertexNormals,
+                                                      const Eigen::MatrixX2d& vertexUVs,
+                                                      PlyScalarType type = PlyScalarType::Float32);
+
+/// Converts linear colours in [0, 1] (#V by 3, clamped; non-finite becomes 0)
+/// to sRGB-encoded bytes, round(255 · srgbEncode(c)) (color_space.h): PLY
+/// readers (Blender, MeshLab) take uchar colours as sRGB.
 VertexColors8 vertexColorsToBytes(const Eigen::MatrixX3d& vertexColors);
 
 /// Writes `frame` to `path` atomically. Throws std::invalid_argument when the

@@ -19,7 +19,8 @@
 
 namespace blot::engine {
 
-/// Linear colour, each channel in [0, 1]; written to images as round(255 c).
+/// Linear colour, each channel in [0, 1]; written to images sRGB-encoded,
+/// round(255 · srgbEncode(c)) (color_space.h).
 using Color = Eigen::Vector3d;
 
 /// A look-at camera. Screen x points along forward x up, screen y along up.
