@@ -441,6 +441,28 @@ TEST(EngineTest, BuildsFromSceneJsonWithFabricPatches) {
   EXPECT_LT(engine->statistics().massBudget.soluteError(), 1e-12);
 }
 
+TEST(EngineTest, FabricGivesTheWeftOfPatternedFacesAndNoneOnIsotropicOnes) {
+  const std::string json = R"({
+    "mesh": {"patch": {"size": [0.4, 0.4], "resolution": [8, 8]}},
+    "cloth": {"source": "static"},
+    "fabric": {"patches": [{"tensor": [[0.005, 0], [0, 0.001]], "weft": [1, 1, 0]}]},
+    "time_step": 0.01})";
+  std::unique_ptr<Engine> engine = Engine::fromSceneJson(json);
+  const stain::FabricField& fabric = engine->fabric();
+  ASSERT_EQ(fabric.weftDirections.rows(), engine->faces().rows());
+  const Eigen::Vector3d diagonal = Eigen::Vector3d(1, 1, 0).normalized();
+  for (int f = 0; f < fabric.weftDirections.rows(); ++f)  // flat patch: the constraint everywhere, up to sign
+    EXPECT_NEAR(std::abs(fabric.weftDirections.row(f).dot(diagonal)), 1.0, 1e-9) << "face " << f;
+  const stain::FabricField& used = engine->surface().stain().geometry().fabric();  // the field the stain runs on
+  EXPECT_TRUE(fabric.weftDirections == used.weftDirections);
+  EXPECT_TRUE(fabric.densityTensors == used.densityTensors);
+
+  EngineDef isotropic = rotatingPatch(6);
+  Engine plain(isotropic);
+  EXPECT_EQ(plain.fabric().weftDirections.rows(), plain.faces().rows());
+  EXPECT_EQ(plain.fabric().weftDirections.cwiseAbs().maxCoeff(), 0.0);
+}
+
 TEST(EngineTest, StatisticsCountTheStepsEachTermRanIn) {
   Engine engine(rotatingPatch());
   ASSERT_EQ(engine.advanceSteps(20).status, stain::StepStatus::Ok);

@@ -218,6 +218,9 @@ class Engine {
   EngineStatistics statistics() const;
   const coupling::CoupledSurface& surface() const { return *surface_; }
   const stain::SurfaceTopology& topology() const { return *topology_; }
+  /// Per-face fabric the stain runs on: tensors (m²/s) and unit weft directions
+  /// in the rest shape (zero rows on isotropic faces, which have no weft).
+  const stain::FabricField& fabric() const { return fabric_; }
   /// FNV-1a over every simulation array (positions, velocities, densities,
   /// time): equal hashes mean (to 64 bits) bit-identical state.
   std::uint64_t stateHash() const;
