@@ -256,6 +256,9 @@ TEST(CApiTest, TheErrorStringLivesUntilTheNextFailure) {
   // Saving into a folder that does not exist is an I/O error too.
   EXPECT_EQ(blotEngine_Save(engine, "/nonexistent/dir/x.state"), BLOT_ERROR_IO);
   EXPECT_NE(std::string(blotGetLastError()).find("/nonexistent/dir/x.state"), std::string::npos) << blotGetLastError();
+  blotDestroyEngine(engine);
+}
+
 // Frame times the engine cannot use and state files that are not its own
 // are statuses, and the engine steps normally afterwards.
 TEST(CApiTest, AbsurdFrameTimesAndTamperedStatesAreRefusedAndTheEngineStaysUsable) {
