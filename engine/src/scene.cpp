@@ -582,7 +582,42 @@ void parseFabric(ObjectReader& r, const stain::TriangleMesh& mesh, EngineDef& de
 
 // ---------------------------------------------------------------- liquid, physics, drops
 
-void parseLiquid(ObjectReader& r, stain::LiquidParameters& l) {
+/// What a scene's liquid sets beyond stain::LiquidParameters: the drops'
+/// solute fraction (for `mass`), the pigment (unless `display` names one) and
+/// the factors on the fabric's diffusivities.
+struct LiquidChoice {
+  const LiquidPreset* preset = nullptr;
+  double soluteFraction = -1;  ///< < 0: none given, a drop's `mass` is an error
+  double wickingFactor = 1, viscosityFactor = 1;
+};
+
+const LiquidPreset& presetByName(const Context& ctx, const json& value, const std::string& key) {
+  if (!value.is_string())
+    ctx.fail(key, "expected a liquid name (one of " + liquidPresetNames() + "), got " + describe(value));
+  try {
+    return liquidPresetFromName(value.get<std::string>());
+  } catch (const std::invalid_argument& e) {
+    ctx.fail(key, e.what());
+  }
+}
+
+void applyPreset(const LiquidPreset& preset, stain::LiquidParameters& l, LiquidChoice& choice) {
+  choice.preset = &preset;
+  choice.soluteFraction = preset.soluteFraction;
+  choice.wickingFactor = liquidWickingFactor(preset);
+  choice.viscosityFactor = liquidViscosityFactor(preset);
+  l.liquidDensity = preset.density;
+  l.evaporationRate = preset.evaporationRate;
+}
+
+// A preset fills in its values first; every key given explicitly wins.
+void parseLiquid(ObjectReader& r, stain::LiquidParameters& l, LiquidChoice& choice) {
+  if (const json* preset = r.find("preset")) applyPreset(presetByName(r.context(), *preset, r.path("preset")), l, choice);
+  choice.soluteFraction = r.number("solute_fraction", choice.soluteFraction < 0 ? 0.0 : choice.soluteFraction,
+                                   closed(0, 1));
+  if (!r.has("solute_fraction") && choice.preset == nullptr) choice.soluteFraction = -1;
+  choice.wickingFactor = r.number("wicking_factor", choice.wickingFactor, positive());
+  choice.viscosityFactor = r.number("viscosity_factor", choice.viscosityFactor, nonNegative());
   l.absorptionRate = r.number("absorption_rate", l.absorptionRate, nonNegative());
   l.saturationDensity = r.number("saturation_density", l.saturationDensity, positive());
   l.desorptionRate = r.number("desorption_rate", l.desorptionRate, nonNegative());
@@ -615,7 +650,7 @@ void parsePhysics(ObjectReader& r, stain::PhysicsSwitches& s) {
   r.finish();
 }
 
-TimedDrop parseDrop(ObjectReader& r, const stain::TriangleMesh& mesh) {
+TimedDrop parseDrop(ObjectReader& r, const stain::TriangleMesh& mesh, double soluteFraction) {
   TimedDrop t;
   stain::DropDef& d = t.drop;
   d.centerVertex = vertexOrPoint(r, mesh, false);
@@ -627,6 +662,17 @@ TimedDrop parseDrop(ObjectReader& r, const stain::TriangleMesh& mesh) {
     d.centerVertex = -1;
   }
   d.radius = r.number("radius", d.radius, positive());
+  if (r.has("mass")) {
+    // The whole drop, split by the liquid's solute fraction.
+    if (r.has("solvent_mass") || r.has("solute_mass"))
+      r.context().fail(r.path("mass"), "give either \"mass\" or \"solvent_mass\" and \"solute_mass\", not both");
+    if (soluteFraction < 0)
+      r.context().fail(r.path("mass"), "needs the liquid's solute fraction: set \"liquid\" to a preset (" +
+                                           liquidPresetNames() + ") or give liquid.solute_fraction");
+    const double mass = r.number("mass", 0.0, nonNegative());
+    d.soluteMass = soluteFraction * mass;
+    d.solventMass = mass - d.soluteMass;
+  }
   d.solventMass = r.number("solvent_mass", d.solventMass, nonNegative());
   d.soluteMass = r.number("solute_mass", d.soluteMass, nonNegative());
   // Without a world velocity the drop lands at rest on the cloth.
@@ -793,9 +839,28 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
     ObjectReader f(ctx, *fabric, "fabric");
     parseFabric(f, def.mesh, def);
   }
+  LiquidChoice liquidChoice;
   if (const json* liquid = r.find("liquid")) {
-    ObjectReader l(ctx, *liquid, "liquid");
-    parseLiquid(l, def.stain.liquid);
+    if (liquid->is_string()) {
+      applyPreset(presetByName(ctx, *liquid, "liquid"), def.stain.liquid, liquidChoice);
+    } else {
+      ObjectReader l(ctx, *liquid, "liquid");
+      parseLiquid(l, def.stain.liquid, liquidChoice);
+    }
+    // The fabric's diffusivities are its values with water; the liquid scales
+    // them (Washburn: wicking ∝ γ/μ; the film's momentum diffusion ∝ μ/ρ).
+    def.diffusivity *= liquidChoice.wickingFactor;
+    def.viscosity *= liquidChoice.viscosityFactor;
+    for (std::size_t i = 0; i < def.fabricPatches.size(); ++i) {
+      stain::FabricPatch& patch = def.fabricPatches[i];
+      if (!patch.pattern) {
+        patch.tensor *= liquidChoice.wickingFactor;
+      } else if (def.fabricPatchDiffusivities[i] > 0) {
+        def.fabricPatchDiffusivities[i] *= liquidChoice.wickingFactor;
+      } else if (liquidChoice.wickingFactor != 1) {
+        def.fabricPatchDiffusivities[i] = liquidChoice.wickingFactor * 0.5 * def.fabricPatchEffectiveTensors[i].trace();
+      }
+    }
   }
   if (const json* physics = r.find("physics")) {
     ObjectReader p(ctx, *physics, "physics");
@@ -820,18 +885,22 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
   const json& drops = r.array("drops");
   for (std::size_t i = 0; i < drops.size(); ++i) {
     ObjectReader d(ctx, drops[i], indexPath("drops", i));
-    def.drops.push_back(parseDrop(d, def.mesh));
+    def.drops.push_back(parseDrop(d, def.mesh, liquidChoice.soluteFraction));
   }
   const json& held = r.array("held_regions");
   for (std::size_t i = 0; i < held.size(); ++i) {
     ObjectReader h(ctx, held[i], indexPath("held_regions", i));
     def.heldRegions.push_back(parseHeldRegion(h, def.mesh));
   }
+  // A liquid preset's own pigment unless the display names another.
+  if (liquidChoice.preset != nullptr) def.colors.soluteAbsorbance = liquidSoluteAbsorbance(*liquidChoice.preset);
   if (const json* display = r.find("display")) {
     ObjectReader d(ctx, *display, "display");
     const int pigment = d.choice("pigment", 0, {"wine", "coffee", "ink"});
     const Eigen::Vector3d cloth = d.vector3("cloth_color", kDefaultClothColor.matrix(), closed(0, 1));
+    const Eigen::Array3d presetAbsorbance = def.colors.soluteAbsorbance;
     def.colors = stainColorMapping(static_cast<PigmentPreset>(pigment), cloth.array());
+    if (liquidChoice.preset != nullptr && d.find("pigment") == nullptr) def.colors.soluteAbsorbance = presetAbsorbance;
     // A custom pigment: its absorbance directly, or the (linear) colour the
     // stain has on this cloth at pigment_color_density of solute.
     const bool byAbsorbance = d.find("pigment_absorbance") != nullptr, byColor = d.find("pigment_color") != nullptr;

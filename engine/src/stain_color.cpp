@@ -19,6 +19,7 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <vector>
 
 namespace blot::engine {
 namespace {
@@ -65,6 +66,68 @@ const char* pigmentPresetName(PigmentPreset preset) {
       return "ink";
   }
   return "unknown";
+}
+
+// Liquid presets at 20 °C. Sources (docs/rendering.md, "Liquid presets", has
+// the full references; "choice" marks a value picked, not measured):
+// - water: ρ, μ, γ from the CRC Handbook of Chemistry and Physics (998.2 kg/m³,
+//   1.002 mPa s, 72.75 mN/m).
+// - evaporation (all four, the water value): Carrier's equation as given in
+//   the ASHRAE Handbook (HVAC Applications, "Natatoriums") for still air,
+//   W = 0.089 (p_w − p_a) / Y: 20 °C water into 20 °C, 50 % RH air,
+//   0.089 · (2.34 − 1.17) kPa / 2454 kJ/kg ≈ 4.2e-5 kg/(m² s). Wine's ethanol
+//   evaporates faster at first; ignored (choice).
+// - wine: a dry red, 13 % vol. Density 994 (dry reds 990–997, OIV); μ 1.6 mPa s
+//   (10 wt% ethanol–water 1.5 mPa s, Khattab et al. 2012, plus the extract:
+//   choice); γ 46 mN/m (10 wt% ethanol–water 48, Vázquez et al. 1995; red
+//   wines measure a little lower); solute = dry extract 25 g/L (red wines
+//   20–35 g/L, OIV) → 0.025; A(1 cm) at 620/520/420 nm = 1.2/5.0/3.5, a young
+//   red within Glories' (1984) ranges (colour intensity ≈ 10, hue 0.7: choice).
+// - coffee: filter brew at SCA's Golden Cup strength, 1.15–1.35 % TDS → 0.0125;
+//   ρ 1003 (water plus the solids: estimate); μ 1.03 mPa s and γ 65 mN/m
+//   (choices near water's: the brew is dilute, its melanoidins weakly
+//   surface-active); A(1 cm) = 1.0/1.8/3.1 (choice: brown, blue absorbed most).
+// - ink: blue-black fountain-pen ink, water with about 3 % dye (choice; inks
+//   are 1–5 %), ρ 1010, μ 1.2 mPa s, γ 45 mN/m (choices: surfactant-bearing
+//   water), A(1 cm) = 11/7.8/2.3 (choice: opaque in a cuvette, blue-black).
+const std::vector<LiquidPreset>& liquidPresets() {
+  static const std::vector<LiquidPreset> presets{
+      {"water", 998.2, 1.002e-3, 0.07275, 0.0, 4.2e-5, {0.0, 0.0, 0.0}},
+      {"wine", 994.0, 1.6e-3, 0.046, 0.025, 4.2e-5, {1.2, 5.0, 3.5}},
+      {"coffee", 1003.0, 1.03e-3, 0.065, 0.0125, 4.2e-5, {1.0, 1.8, 3.1}},
+      {"ink", 1010.0, 1.2e-3, 0.045, 0.03, 4.2e-5, {11.0, 7.8, 2.3}},
+  };
+  return presets;
+}
+
+std::string liquidPresetNames() {
+  std::string names;
+  for (const LiquidPreset& p : liquidPresets()) names += (names.empty() ? "" : ", ") + std::string(p.name);
+  return names;
+}
+
+const LiquidPreset& liquidPresetFromName(const std::string& name) {
+  for (const LiquidPreset& p : liquidPresets())
+    if (name == p.name) return p;
+  throw std::invalid_argument("unknown liquid \"" + name + "\" (expected one of " + liquidPresetNames() + ")");
+}
+
+Eigen::Array3d liquidSoluteAbsorbance(const LiquidPreset& liquid) {
+  if (liquid.soluteFraction <= 0) return Eigen::Array3d::Zero();
+  // A film of σ kg/m² of liquid is σ/ρ metres thick and holds f·σ of solute;
+  // light crosses it twice: 2 ln10 · A/(0.01 m) · σ/ρ = ε · f σ.
+  const double perPath = 2.0 * std::log(10.0) / (0.01 * liquid.density * liquid.soluteFraction);
+  return liquid.absorbance1cm * perPath;
+}
+
+double liquidWickingFactor(const LiquidPreset& liquid) {
+  const LiquidPreset& water = liquidPresets().front();
+  return (liquid.surfaceTension / water.surfaceTension) * (water.viscosity / liquid.viscosity);
+}
+
+double liquidViscosityFactor(const LiquidPreset& liquid) {
+  const LiquidPreset& water = liquidPresets().front();
+  return (liquid.viscosity / liquid.density) / (water.viscosity / water.density);
 }
 
 Eigen::Array3d stainColor(const StainColorMapping& mapping, double solvent, double solute,

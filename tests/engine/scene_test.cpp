@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -209,7 +210,7 @@ INSTANTIATE_TEST_SUITE_P(
                  "cloth.pins[2].vertex", "expected an integer in [0, 121), got 9000"},
         BadScene{"unknown top-level key", withExtra(R"("tme_step": 0.01)"), "tme_step", "unknown key"},
         BadScene{"unknown nested key", withExtra(R"("liquid": {"absorption": 0.1})"), "liquid.absorption",
-                 "unknown key (expected one of: absorption_rate"},
+                 "unknown key (expected one of: preset, solute_fraction, wicking_factor, viscosity_factor, absorption_rate"},
         BadScene{"wrong type", withExtra(R"("time_step": "fast")"), "time_step", "expected a number in [1e-06, 1], got a string"},
         BadScene{"negative time step", withExtra(R"("time_step": -0.01)"), "time_step", "got -0.01"},
         BadScene{"bad enum", withExtra(R"("coupling": "both")"), "coupling", "expected one of \"one-way\", \"two-way\""},
@@ -280,6 +281,18 @@ INSTANTIATE_TEST_SUITE_P(
                  "display.pigment_color", "at most the cloth's"},
         BadScene{"two pigments", withExtra(R"("display": {"pigment": "ink", "pigment_color": [0.5, 0.1, 0.1]})"),
                  "display.pigment_color", "give one of"},
+        BadScene{"unknown liquid", withExtra(R"("liquid": {"preset": "milk"})"), "liquid.preset",
+                 "unknown liquid \"milk\" (expected one of water, wine, coffee, ink)"},
+        BadScene{"unknown liquid shorthand", withExtra(R"("liquid": "blood")"), "liquid",
+                 "unknown liquid \"blood\" (expected one of water, wine, coffee, ink)"},
+        BadScene{"liquid name not a string", withExtra(R"("liquid": {"preset": 3})"), "liquid.preset",
+                 "expected a liquid name (one of water, wine, coffee, ink), got 3"},
+        BadScene{"drop mass without a liquid", withExtra(R"("drops": [{"vertex": 1, "mass": 5e-5}])"), "drops[0].mass",
+                 "needs the liquid's solute fraction"},
+        BadScene{"drop mass and solute mass", withExtra(R"("liquid": "wine", "drops": [{"vertex": 1, "mass": 5e-5, "solute_mass": 1e-6}])"),
+                 "drops[0].mass", "not both"},
+        BadScene{"solute fraction above 1", withExtra(R"("liquid": {"preset": "ink", "solute_fraction": 2})"),
+                 "liquid.solute_fraction", "[0, 1]"},
         BadScene{"texture without UVs", R"({"mesh": {"icosphere": {"radius": 1}}, "cloth": {"source": "static"}, "outputs": {"texture": {}}})",
                  "outputs.texture", "no UVs"},
         BadScene{"images camera", withExtra(R"("outputs": {"images": {"camera": "top"}})"), "outputs.images.camera",
@@ -470,6 +483,90 @@ TEST(Scene, CustomPigmentColourIsReachedAtItsDensity) {
   EXPECT_NEAR(c[2], 0.05, 1e-14);
   const SceneDef direct = parseScene(withAbsorbance(), "absorbance.json");
   EXPECT_TRUE((direct.engine.colors.soluteAbsorbance == Eigen::Array3d(0.5, 2, 4)).all());
+}
+
+// Liquid presets: each sets the documented values (stain_color.cpp, docs/rendering.md).
+TEST(Scene, LiquidPresetSetsItsDocumentedValues) {
+  const std::string base = R"({"mesh": {"patch": {"size": [0.1, 0.1], "resolution": [4, 4]}},
+      "cloth": {"source": "static"}, "fabric": {"diffusivity": 1e-4, "viscosity": 1e-5},
+      "drops": [{"vertex": 12, "radius": 0.01, "mass": 5e-5}], )";
+  struct Expected {
+    const char* name;
+    double density, soluteFraction, wicking, viscosity;
+    Eigen::Array3d absorbance;
+  };
+  // ε = 2 ln10 A(1 cm) / (0.01 m · ρ · f); wicking (γ/γ_w)(μ_w/μ); viscosity (μ/ρ)/(μ_w/ρ_w).
+  const double ln10 = std::log(10.0);
+  const Expected expected[] = {
+      {"water", 998.2, 0.0, 1.0, 1.0, {0, 0, 0}},
+      {"wine", 994.0, 0.025, (0.046 / 0.07275) * (1.002 / 1.6), (1.6 / 994.0) / (1.002 / 998.2),
+       Eigen::Array3d(1.2, 5.0, 3.5) * 2 * ln10 / (0.01 * 994.0 * 0.025)},
+      {"coffee", 1003.0, 0.0125, (0.065 / 0.07275) * (1.002 / 1.03), (1.03 / 1003.0) / (1.002 / 998.2),
+       Eigen::Array3d(1.0, 1.8, 3.1) * 2 * ln10 / (0.01 * 1003.0 * 0.0125)},
+      {"ink", 1010.0, 0.03, (0.045 / 0.07275) * (1.002 / 1.2), (1.2 / 1010.0) / (1.002 / 998.2),
+       Eigen::Array3d(11.0, 7.8, 2.3) * 2 * ln10 / (0.01 * 1010.0 * 0.03)},
+  };
+  for (const Expected& e : expected) {
+    SCOPED_TRACE(e.name);
+    for (const std::string liquid : {std::string("\"") + e.name + "\"", std::string(R"({"preset": ")") + e.name + "\"}"}) {
+      const SceneDef scene = parseScene(base + R"("liquid": )" + liquid + "}", "liquid.json");
+      const EngineDef& def = scene.engine;
+      EXPECT_DOUBLE_EQ(def.stain.liquid.liquidDensity, e.density);
+      EXPECT_DOUBLE_EQ(def.stain.liquid.evaporationRate, 4.2e-5);
+      ASSERT_EQ(def.drops.size(), 1u);
+      EXPECT_NEAR(def.drops[0].drop.soluteMass, e.soluteFraction * 5e-5, 1e-20);
+      EXPECT_NEAR(def.drops[0].drop.solventMass + def.drops[0].drop.soluteMass, 5e-5, 1e-20);
+      EXPECT_NEAR(def.diffusivity, 1e-4 * e.wicking, 1e-18);
+      EXPECT_NEAR(def.viscosity, 1e-5 * e.viscosity, 1e-18);
+      for (int c = 0; c < 3; ++c) EXPECT_NEAR(def.colors.soluteAbsorbance[c], e.absorbance[c], 1e-9 * (1 + e.absorbance[c]));
+    }
+  }
+  // Wine's measured hue: green absorbed most, then blue, red least.
+  const Eigen::Array3d wine = liquidSoluteAbsorbance(liquidPresetFromName("wine"));
+  EXPECT_GT(wine[1], wine[2]);
+  EXPECT_GT(wine[2], wine[0]);
+  // A pipette drop of wine (0.05 ml spread over 1.5 cm) leaves a visible stain:
+  // σ_solute = 0.025 · 0.05 g / (π 7.5 mm²); green dims to about half.
+  const double solute = 0.025 * 5e-5 / (M_PI * 0.0075 * 0.0075);
+  StainColorMapping mapping;
+  mapping.soluteAbsorbance = wine;
+  const Eigen::Array3d c = stainColor(mapping, 0, solute, 0, 0);
+  EXPECT_GT(c[1] / kDefaultClothColor[1], 0.4);
+  EXPECT_LT(c[1] / kDefaultClothColor[1], 0.65);
+}
+
+TEST(Scene, ExplicitKeysOverrideTheLiquidPreset) {
+  const SceneDef scene = parseScene(R"({"mesh": {"patch": {"size": [0.1, 0.1], "resolution": [4, 4]}},
+      "cloth": {"source": "static"}, "fabric": {"diffusivity": 1e-4, "viscosity": 1e-5,
+        "patches": [{"tensor": [[2e-4, 0], [0, 1e-4]]}]},
+      "liquid": {"preset": "coffee", "evaporation_rate": 0.02, "liquid_density": 1100, "solute_fraction": 0.1,
+                 "wicking_factor": 2},
+      "drops": [{"vertex": 12, "mass": 1e-4}, {"vertex": 3, "solvent_mass": 3e-5, "solute_mass": 2e-5}],
+      "display": {"pigment": "ink"}})",
+                                    "override.json");
+  const EngineDef& def = scene.engine;
+  EXPECT_DOUBLE_EQ(def.stain.liquid.evaporationRate, 0.02);
+  EXPECT_DOUBLE_EQ(def.stain.liquid.liquidDensity, 1100);
+  EXPECT_NEAR(def.drops[0].drop.soluteMass, 1e-5, 1e-20);
+  EXPECT_NEAR(def.drops[0].drop.solventMass, 9e-5, 1e-20);
+  EXPECT_DOUBLE_EQ(def.drops[1].drop.soluteMass, 2e-5);
+  EXPECT_DOUBLE_EQ(def.drops[1].drop.solventMass, 3e-5);
+  // The wicking factor scales the patch tensor; the viscosity keeps coffee's factor.
+  ASSERT_EQ(def.fabricPatches.size(), 1u);
+  EXPECT_NEAR(def.fabricPatches[0].tensor(0, 0), 4e-4, 1e-18);
+  EXPECT_NEAR(def.fabricPatches[0].tensor(1, 1), 2e-4, 1e-18);
+  EXPECT_NEAR(def.viscosity, 1e-5 * liquidViscosityFactor(liquidPresetFromName("coffee")), 1e-18);
+  EXPECT_TRUE((def.colors.soluteAbsorbance == pigmentAbsorbance(PigmentPreset::Ink)).all());
+  // Without display keys naming a pigment, the preset's stays (a cloth colour alone keeps it).
+  const SceneDef keeps = parseScene(R"({"mesh": {"patch": {"size": [0.1, 0.1], "resolution": [4, 4]}},
+      "cloth": {"source": "static"}, "liquid": "ink", "display": {"cloth_color": [0.5, 0.5, 0.5]}})",
+                                    "keeps.json");
+  EXPECT_TRUE((keeps.engine.colors.soluteAbsorbance == liquidSoluteAbsorbance(liquidPresetFromName("ink"))).all());
+  EXPECT_DOUBLE_EQ(keeps.engine.colors.clothColor[0], 0.5);
+  // No liquid key: the defaults of before (no factor on the fabric).
+  const SceneDef plain = parseScene(kMinimal, "plain.json");
+  EXPECT_DOUBLE_EQ(plain.engine.diffusivity, 0.01);
+  EXPECT_DOUBLE_EQ(plain.engine.stain.liquid.liquidDensity, 1000);
 }
 
 }  // namespace

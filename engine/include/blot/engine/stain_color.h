@@ -45,6 +45,40 @@ StainColorMapping stainColorMapping(PigmentPreset preset,
 PigmentPreset pigmentPresetFromName(const std::string& name);
 const char* pigmentPresetName(PigmentPreset preset);
 
+/// A liquid by its measured properties (docs/rendering.md, "Liquid presets",
+/// gives each value's source and says which are choices). A scene's
+/// `liquid.preset` sets the density, the evaporation rate, the drops' solute
+/// fraction (a drop's `mass`), the pigment absorbance and the factors on the
+/// fabric's diffusivities; explicit keys override each.
+struct LiquidPreset {
+  const char* name;
+  double density;           ///< ρ at 20 °C (kg/m³)
+  double viscosity;         ///< dynamic viscosity μ at 20 °C (Pa s)
+  double surfaceTension;    ///< γ at 20 °C (N/m)
+  double soluteFraction;    ///< solute (dissolved and suspended solids) per kg of liquid
+  double evaporationRate;   ///< K_evap of a wet surface in still room air (kg/(m² s))
+  /// Base-10 absorbance of a 1 cm path of the liquid per linear RGB channel,
+  /// read at about 620, 520 and 420 nm.
+  Eigen::Array3d absorbance1cm;
+};
+
+/// The built-in liquids: water, wine (red), coffee (brewed), ink (blue-black).
+const std::vector<LiquidPreset>& liquidPresets();
+/// The preset called `name` (exact, lower case); throws std::invalid_argument
+/// naming the value and the accepted names otherwise.
+const LiquidPreset& liquidPresetFromName(const std::string& name);
+/// "water, wine, coffee, ink".
+std::string liquidPresetNames();
+/// ε_solute (m²/kg of solute) of the liquid: Beer–Lambert through the film
+/// twice (in and out), ε_c = 2 ln10 · A_c / (0.01 m · ρ · soluteFraction);
+/// zero for a liquid without solute.
+Eigen::Array3d liquidSoluteAbsorbance(const LiquidPreset& liquid);
+/// Washburn's law (L² = γ r cosθ t / (2μ)): the wicking diffusivity scales with
+/// γ/μ; relative to water, at an equal contact angle.
+double liquidWickingFactor(const LiquidPreset& liquid);
+/// Kinematic viscosity μ/ρ relative to water's: the film's velocity diffusivity.
+double liquidViscosityFactor(const LiquidPreset& liquid);
+
 /// Colour of one vertex. Densities in kg/m². A negative density (a limiter
 /// not yet applied) can brighten a channel, which the clamp bounds at 1;
 /// non-finite input gives non-finite output (the renderer shows it magenta).
