@@ -191,7 +191,9 @@ def run_one(task: Dict[str, Any]) -> Dict[str, Any]:
         if error:
             result["status"], result["error"] = "failed", error
         else:
-            result["rest_positions"] = np.array(engine.rest_positions)
+            # C order, as after the JSON round trip of an isolated run: numpy's
+            # sums depend on the layout in the last bits, and tables must not.
+            result["rest_positions"] = np.ascontiguousarray(engine.rest_positions)
             result["faces"] = engine.faces
             result["areas"] = engine.vertex_areas
             result["field"] = _field(engine, task.get("field", "total_solute"))
