@@ -23,6 +23,7 @@ int main(int argc, char** argv) {
   blot::cli::registerDemoCommand(app, exitCode);
   blot::cli::registerHomogenizeCommand(app, exitCode);
   blot::cli::registerFigureCommand(app, exitCode);
+  blot::cli::registerSweepCommand(app, exitCode);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

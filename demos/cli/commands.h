@@ -27,5 +27,6 @@ void registerDemoCommand(CLI::App& app, int& exitCode);
 void registerHomogenizeCommand(CLI::App& app, int& exitCode);
 void registerRunCommand(CLI::App& app, int& exitCode);
 void registerFigureCommand(CLI::App& app, int& exitCode);  ///< `blot figure`: multi-run paper figures (figures.cpp)
+void registerSweepCommand(CLI::App& app, int& exitCode);   ///< `blot sweep`: runs python/blot/sweeps.py (sweep.cpp)
 
 }  // namespace blot::cli

@@ -1,0 +1,33 @@
+"""Blot for Python: the stain engine (C++, pybind11) and speed-against-accuracy sweeps.
+
+    import blot
+    e = blot.Engine.from_scene_file("assets/scenes/two_way_flag.json")
+    e.advance_steps(60)
+    e.solute            # read-only numpy view of the engine's buffer (no copy)
+    e.statistics()      # counters, per-stage times (ms), the mass budget (kg)
+
+Arrays (python/README.md, "Arrays: views or copies"): positions, normals,
+the five densities, velocities, world_velocities, colors, rest_positions and
+uvs are read-only views of the engine's own buffers; each keeps the engine
+alive. faces, vertex_areas, load_mesh() and homogenize() return copies.
+
+blot.sweep(...) (blot.sweeps) runs parameter sweeps (docs/sweeps.md).
+"""
+import json as _json
+
+from ._blot import (AUTO_SUBDIVISIONS, Engine, MeshError, PatternError, SceneError, StepError,  # noqa: F401
+                    homogenize, load_mesh)
+
+__all__ = ["Engine", "SceneError", "MeshError", "StepError", "PatternError", "load_mesh", "homogenize", "AUTO_SUBDIVISIONS",
+           "sweep"]
+
+
+def _from_dict(scene, base_directory=".", source_name="<dict>", patch_resolution=0):
+    """An engine from a scene as a Python dict (the JSON of docs/scene-format.md)."""
+    return Engine.from_scene_json(_json.dumps(scene), base_directory=base_directory, source_name=source_name,
+                                  patch_resolution=patch_resolution)
+
+
+Engine.from_dict = staticmethod(_from_dict)
+
+from .sweeps import sweep  # noqa: E402  (after Engine.from_dict, which the runs use)
