@@ -348,6 +348,7 @@ SurfaceHit Engine::nearestSurfacePoint(const Eigen::Vector3d& point) const {
 // ------------------------------------------------------------------ views
 
 void Engine::publishViews() {
+  surface_->stain().completeGeometry();  // the views read every vertex's frame
   const stain::ExtrinsicGeometry& ex = surface_->stain().geometry().extrinsic();
   const stain::StainState& s = surface_->stain().state();
   for (int i = 0; i < s.vertexCount(); ++i) {

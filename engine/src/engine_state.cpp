@@ -18,8 +18,9 @@ namespace blot::engine {
 namespace {
 
 constexpr char kMagic[8] = {'B', 'L', 'O', 'T', 'S', 'T', 'A', 'T'};
-constexpr std::uint32_t kVersion = 4;  // 2: field lists; 3: drops carry relativeVelocity and velocityIsWorld;
-                                       // 4: the run counters (drops applied, refreshes, term steps)
+constexpr std::uint32_t kVersion = 5;  // 2: field lists; 3: drops carry relativeVelocity and velocityIsWorld;
+                                       // 4: the run counters (drops applied, refreshes, term steps);
+                                       // 5: geometry without previousRotations, with nextSlotKind
 
 /// True for a type with a field list (a visit member).
 template <typename T, typename = void>

@@ -158,9 +158,15 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   initialVelocities_ = RowVectors3::Zero(n, 3);
   evaporatedMass_ = Vector::Zero(n);
   threads_ = resolvedThreads(def_.threads);
+  geometry_.setVertexRefresh(def_.geometryVertices);
 }
 
 StainSolver::~StainSolver() = default;
+
+void StainSolver::completeGeometry() {
+  const ThreadScope threads(threads_);
+  geometry_.prepareAllVertices();
+}
 
 void StainSolver::setThreadCount(int threads) {
   if (threads < 0)
@@ -177,6 +183,7 @@ void StainSolver::setInitialMotion(const RowVectors3& positions, const RowVector
   // to t with frames fitted to it. The first step then sets t − h from v(0).
   geometry_.refreshExtrinsic(positions, 1.0);
   geometry_.refreshExtrinsic(positions, 1.0);
+  geometry_.prepareAllVertices();  // the coupling and the views read p(0)'s frames before a step
   initialVelocities_ = velocities;
 }
 
@@ -339,6 +346,12 @@ bool StainSolver::checkStage(Stage stage, StepReport& report) {
 
 void StainSolver::addDrop(const DropDef& drop) {
   undoable_ = false;
+  // Every vertex's frame and ω: u is turned below wherever it is stored, and
+  // the drop lands on vertices that may be outside the last band.
+  {
+    const ThreadScope threads(threads_);
+    geometry_.prepareAllVertices();
+  }
   // The drop's world velocity is made relative to the surface here; u is
   // blended in the current frames (nextFrames), so a state kept in the last
   // step's midpoint frames is turned there and back (exact rotations).
@@ -383,10 +396,14 @@ void StainSolver::prepareBand() {
   // (liquid_band.h). A whole-mesh direct velocity solve reads u everywhere,
   // so then the band (and the extension) covers the mesh.
   markWetVertices(def_.liquid.wetThreshold, state_, band_);
+  // The per-vertex geometry where this step reads it (the wet set now, each
+  // ring as the band grows) and where the coupling does (traces of liquid).
+  geometry_.prepareVertices(band_.dampVertices);
   if (band_.wetCount() == 0) {
     profile_.wetVertices = profile_.haloVertices = profile_.bandVertices = 0;
     return;
   }
+  geometry_.prepareVertices(band_.vertices);
   keepBackup();
   const PhysicsSwitches& on = ctx_.switches;
   // u of the wet vertices into F^t first (the discrete frame change), so the
@@ -400,7 +417,7 @@ void StainSolver::prepareBand() {
   inputs.surfaceMoved = surfaceMoved_;
   const bool directVelocitySolve = on.velocityDiffusion && !systems_.vectorIterative();
   inputs.extraRings = directVelocitySolve ? state_.vertexCount() : 0;
-  growLiquidBand(inputs, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), band_, state_);
+  growLiquidBand(inputs, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), band_, state_, &geometry_);
   profile_.wetVertices = band_.wetCount();
   profile_.haloVertices = band_.haloCount;
   profile_.bandVertices = band_.size();
@@ -513,14 +530,12 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
       return report;
     }
   }
-  const ExtrinsicGeometry& e = geometry_.extrinsic();
-  const bool surfaceMoved = !(e.previousPositions == e.positions && e.positions == e.nextPositions);
-  if (geometry_.rotationFitStats().fittedVertices > 0) {
+  const bool surfaceMoved = geometry_.surfaceMoved();
+  if (geometry_.fittedRefresh()) {
     profile_.markRan(StepTerm::RotationFits);
   } else if (rigidRotation != nullptr && surfaceMoved) {
     profile_.markRan(StepTerm::RigidFrames);
   }
-  profile_.geometryVertices = surfaceMoved ? state_.vertexCount() : 0;
   profile_.markRan(Stage::Geometry);
   surfaceMoved_ = surfaceMoved;
   // The terms as if liquid is there; the band (advanceStages) switches the
@@ -551,6 +566,7 @@ StepReport StainSolver::advanceStages() {
     ScopedTimer t(profile_.milliseconds[static_cast<size_t>(Stage::LiquidBand)]);
     prepareBand();
   }
+  profile_.geometryVertices = surfaceMoved_ ? geometry_.preparedVertexCount() : 0;
   if (band_.wetCount() == 0) ctx_.switches = activeTerms(surfaceMoved_, false);  // nothing to act on
   const StepContext& ctx = ctx_;
   const PhysicsSwitches& on = ctx.switches;  // the terms this step runs (activeTerms)

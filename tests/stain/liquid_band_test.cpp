@@ -6,8 +6,11 @@
 #include <blot/stain/geometry/mesh_primitives.h>
 #include <blot/stain/stain_solver.h>
 
+#include "waving_flag_motion.h"
+
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <vector>
@@ -383,6 +386,148 @@ TEST(LiquidBand, BandIsWetFirstThenRingByRingAndCountedInTheProfile) {
   }
   // Extended velocities: the drop's uniform velocity, carried unchanged on a flat sheet.
   for (const int i : vertices) EXPECT_LT((relativeWorld(solver, i) - Vector3(1, 0, 0)).norm(), 1e-12) << i;
+}
+
+
+// ------------------------------------------- geometry on the band only
+
+/// Exact equality of every state field, on every vertex.
+void expectSameState(const StainState& a, const StainState& b, int step) {
+  EXPECT_TRUE(a.solvent == b.solvent) << "step " << step;
+  EXPECT_TRUE(a.solute == b.solute) << "step " << step;
+  EXPECT_TRUE(a.absorbedSolvent == b.absorbedSolvent) << "step " << step;
+  EXPECT_TRUE(a.absorbedSolute == b.absorbedSolute) << "step " << step;
+  EXPECT_TRUE(a.adsorbedSolute == b.adsorbedSolute) << "step " << step;
+  EXPECT_TRUE(a.velocities == b.velocities) << "step " << step;
+  EXPECT_EQ(a.evaporatedSolvent, b.evaporatedSolvent) << "step " << step;
+}
+
+/// Every per-vertex geometry value the stages read, on the band (exact).
+void expectSameBandGeometry(const StainSolver& band, const StainSolver& full, int step) {
+  const ExtrinsicGeometry& a = band.geometry().extrinsic();
+  const ExtrinsicGeometry& b = full.geometry().extrinsic();
+  int checked = 0;
+  for (const int i : band.bandVertices()) {
+    const size_t k = static_cast<size_t>(i);
+    ASSERT_TRUE(band.geometry().vertexPrepared(i)) << "step " << step << " vertex " << i;
+    ASSERT_TRUE(a.frames[k] == b.frames[k] && a.nextFrames[k] == b.nextFrames[k] &&
+                a.kabschRotations[k] == b.kabschRotations[k])
+        << "step " << step << " vertex " << i;
+    ASSERT_TRUE(a.vertexNormals.row(i) == b.vertexNormals.row(i) &&
+                a.vertexAccelerations.row(i) == b.vertexAccelerations.row(i) &&
+                a.vertexAngularVelocities.row(i) == b.vertexAngularVelocities.row(i))
+        << "step " << step << " vertex " << i;
+    ++checked;
+  }
+  EXPECT_EQ(checked, band.profile().bandVertices);
+}
+
+// A drop thrown across a waving (deforming, now and then re-metricked) flag,
+// a second one landing later on the dry side: the step whose per-vertex
+// geometry is computed on the band only gives bitwise the state of the step
+// that computes it on every vertex, on every step, while computing it on a
+// fraction of the mesh; the liquid leaves the first step's band (new
+// vertices enter the band from the dry side) and the geometry follows it.
+TEST(LiquidBand, BandRestrictedGeometryGivesTheFullGeometryStepOnADeformingFlag) {
+  const TriangleMesh mesh = gridMesh(80, 40, 1.2, 0.6);
+  const int n = static_cast<int>(mesh.vertexPositions.rows());
+  const SurfaceTopology topology(mesh.faces, n);
+  const FabricField fabric = isotropicFabricField(static_cast<int>(mesh.faces.rows()), 2e-4, 2e-4);
+  StainSolverDef onBand;  // every term on
+  onBand.liquid.evaporationRate = 0.002;
+  StainSolverDef everywhere = onBand;
+  everywhere.geometryVertices = VertexRefresh::AllVertices;
+  StainSolver band(topology, mesh.vertexPositions, fabric, onBand);
+  StainSolver full(topology, mesh.vertexPositions, fabric, everywhere);
+  const double h = 0.01, dt = 1e-6;
+  const RowVectors3 v0 = (wavingPositions(mesh, dt) - wavingPositions(mesh, -dt)) / (2 * dt);
+  for (StainSolver* s : {&band, &full}) s->setInitialMotion(wavingPositions(mesh, 0.0), v0);
+  DropDef drop;
+  drop.centerPoint = Vector3(0.3, 0.3, 0.0);
+  drop.radius = 0.06;
+  drop.solventMass = 2e-3;
+  drop.soluteMass = 4e-4;
+  drop.velocity = Vector3(2.0, 0.5, 0.0);
+  for (StainSolver* s : {&band, &full}) s->addDrop(drop);
+  expectSameState(band.state(), full.state(), 0);
+
+  std::vector<char> firstBand(static_cast<size_t>(n), 0);
+  int rebuilds = 0, firstShare = 0;
+  bool leftFirstBand = false;
+  for (int step = 1; step <= 40; ++step) {
+    if (step == 25) {  // a drop far from the first, onto vertices the band never reached
+      DropDef second = drop;
+      second.centerPoint = Vector3(1.0, 0.45, 0.0);
+      second.velocity = Vector3(-1.0, 0.0, 0.0);
+      for (StainSolver* s : {&band, &full}) s->addDrop(second);
+      expectSameState(band.state(), full.state(), step);
+    }
+    const RowVectors3 next = wavingPositions(mesh, step * h);
+    const StepReport a = band.step(h, next);
+    const StepReport b = full.step(h, next);
+    ASSERT_EQ(a.status, StepStatus::Ok) << a.message;
+    ASSERT_EQ(b.status, StepStatus::Ok) << b.message;
+    expectSameState(band.state(), full.state(), step);
+    expectSameBandGeometry(band, full, step);
+    if (HasFatalFailure()) return;
+    rebuilds += band.profile().intrinsicRefreshes;
+    EXPECT_EQ(band.profile().intrinsicRefreshes, full.profile().intrinsicRefreshes);
+    EXPECT_EQ(full.profile().geometryVertices, n);
+    // The band and the traces of liquid, nothing else.
+    EXPECT_GE(band.profile().geometryVertices, band.profile().bandVertices);
+    EXPECT_LE(band.profile().geometryVertices, band.profile().bandVertices + n / 20) << "step " << step;
+    if (step == 1) firstShare = band.profile().geometryVertices;
+    if (step == 1)
+      for (const int i : band.bandVertices()) firstBand[static_cast<size_t>(i)] = 1;
+    for (int k = 0; k < band.profile().wetVertices; ++k)
+      leftFirstBand |= firstBand[static_cast<size_t>(band.bandVertices()[static_cast<size_t>(k)])] == 0;
+  }
+  EXPECT_TRUE(leftFirstBand) << "the liquid never left the first step's band";
+  EXPECT_GT(rebuilds, 0) << "the waving flag should trip the strain test";
+  EXPECT_LT(firstShare, n / 5) << "the first step's band-restricted geometry covered a fifth of the mesh";
+  // A snapshot holds every vertex's values: restored into a fresh solver, the
+  // next steps stay bitwise with the full-geometry run.
+  StainSolver restored(topology, mesh.vertexPositions, fabric, onBand);
+  restored.restore(band.snapshot());
+  for (int step = 41; step <= 44; ++step) {
+    const RowVectors3 next = wavingPositions(mesh, step * h);
+    ASSERT_EQ(restored.step(h, next).status, StepStatus::Ok);
+    ASSERT_EQ(full.step(h, next).status, StepStatus::Ok);
+    expectSameState(restored.state(), full.state(), step);
+  }
+}
+
+// The same with a band past the parallel threshold (a drop over most of a
+// 3,700-vertex flag): 1 and 2 threads give the same bits as the full geometry.
+TEST(LiquidBand, BandRestrictedGeometryIsBitIdenticalForOneAndTwoThreads) {
+  const TriangleMesh mesh = gridMesh(90, 40, 1.2, 0.6);
+  const int n = static_cast<int>(mesh.vertexPositions.rows());
+  const SurfaceTopology topology(mesh.faces, n);
+  const FabricField fabric = isotropicFabricField(static_cast<int>(mesh.faces.rows()), 2e-4, 2e-4);
+  StainSolverDef one;
+  one.threads = 1;
+  StainSolverDef two = one;
+  two.threads = 2;
+  StainSolverDef reference = one;
+  reference.geometryVertices = VertexRefresh::AllVertices;
+  StainSolver a(topology, mesh.vertexPositions, fabric, one);
+  StainSolver b(topology, mesh.vertexPositions, fabric, two);
+  StainSolver c(topology, mesh.vertexPositions, fabric, reference);
+  DropDef drop;
+  drop.centerPoint = Vector3(0.6, 0.3, 0.0);
+  drop.radius = 0.4;
+  drop.velocity = Vector3(1.0, 0.0, 0.0);
+  for (StainSolver* s : {&a, &b, &c}) {
+    s->setInitialMotion(wavingPositions(mesh, 0.0), RowVectors3::Zero(n, 3));
+    s->addDrop(drop);
+  }
+  for (int step = 1; step <= 6; ++step) {
+    const RowVectors3 next = wavingPositions(mesh, step * 0.01);
+    for (StainSolver* s : {&a, &b, &c}) ASSERT_EQ(s->step(0.01, next).status, StepStatus::Ok);
+    ASSERT_GT(a.profile().geometryVertices, 2048);  // the parallel prepare ran
+    expectSameState(a.state(), b.state(), step);
+    expectSameState(a.state(), c.state(), step);
+  }
 }
 
 }  // namespace

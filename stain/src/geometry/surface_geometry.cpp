@@ -107,15 +107,27 @@ bool newtonRotation(const Matrix3& covariance, Eigen::Quaterniond& q, Matrix3& R
   return false;
 }
 
-// U^{t+h} guessed from U^t and U^{t−h} at constant angular velocity.
-// The product of unit quaternions is unit to rounding; one Newton step for
-// 1/√|q|² (factor (3 − |q|²)/2) removes that rounding without a square root,
-// so the norm cannot drift over many steps of warm starts.
-Eigen::Quaterniond extrapolateRotation(const Eigen::Quaterniond& previous,
-                                       const Eigen::Quaterniond& current) {
-  const Eigen::Quaterniond guess = current * previous.conjugate() * current;
-  const double factor = 0.5 * (3.0 - guess.squaredNorm());
-  return Eigen::Quaterniond(factor * guess.coeffs());
+// Newton's starting rotation for a ring with normal direction `normal`
+// (unnormalised, |normal|² = normalSquared) and reference edge `edge` (to the
+// first ring neighbour): the rotation taking the rest frame F̄ (normal, edge
+// in its tangent plane) onto the same frame built from these. Exact for a
+// rigidly moved ring; off by the ring's shear otherwise (Newton converges in
+// 2–4 iterations from there). A function of the slot's positions only, so a
+// fit gives the same bits whichever vertices were fitted before. Identity
+// where the frame is degenerate (Newton or the SVD then decide).
+Eigen::Quaterniond frameGuess(const Vector3& normal, double normalSquared, const Vector3& edge, const Matrix3& restFrame) {
+  if (!(normalSquared > 0.0)) return Eigen::Quaterniond::Identity();
+  const Vector3 z = normal * (1.0 / std::sqrt(normalSquared));
+  Vector3 y = z.cross(edge);
+  const double length = y.norm();
+  if (!(length > 1e-12 * edge.norm())) return Eigen::Quaterniond::Identity();
+  y /= length;
+  Matrix3 frame;
+  frame.col(0) = y.cross(z);
+  frame.col(1) = y;
+  frame.col(2) = z;
+  const Eigen::Quaterniond q(Matrix3(frame * restFrame.transpose()));
+  return q.normalized();
 }
 
 void checkRows(Eigen::Index rows, Eigen::Index expected, const char* what) {
@@ -232,9 +244,11 @@ SurfaceGeometry::SurfaceGeometry(const SurfaceTopology& topology, const RowVecto
     restEdgeFrameNormals_.row(e) << a.col(0).dot(normal), a.col(1).dot(normal), b.col(0).dot(normal),
         b.col(1).dot(normal);
   }
-  dynamic_.previousRotations.assign(static_cast<size_t>(n), Eigen::Quaterniond::Identity());
-  dynamic_.rotations = dynamic_.previousRotations;
-  dynamic_.nextRotations = dynamic_.previousRotations;
+  dynamic_.rotations.assign(static_cast<size_t>(n), Eigen::Quaterniond::Identity());
+  dynamic_.nextRotations = dynamic_.rotations;
+  restNormals_ = ex.vertexNormals;
+  preparedAt_.assign(static_cast<size_t>(n), refreshIndex_);
+  preparedCount_ = n;
 
   refreshIntrinsic();
 }
@@ -247,6 +261,13 @@ void SurfaceGeometry::setPreviousPositions(const RowVectors3& previous) {
   dynamic_.extrinsic.rigid = false;
   dynamic_.unchangedRefreshes = 0;
   dynamic_.lastH = 0;
+  currentEqualsPrevious_ = true;
+  nextEqualsCurrent_ = previous == dynamic_.extrinsic.nextPositions;
+}
+
+void SurfaceGeometry::setVertexRefresh(VertexRefresh mode) {
+  vertexRefresh_ = mode;
+  if (mode == VertexRefresh::AllVertices) prepareAllVertices();
 }
 
 void SurfaceGeometry::refreshIntrinsic() {
@@ -305,12 +326,13 @@ bool SurfaceGeometry::refreshExtrinsicWith(const RowVectors3& nextPositions, dou
   checkRows(nextPositions.rows(), n, "nextPositions");
   if (!(h > 0) || !std::isfinite(h)) throw std::invalid_argument("SurfaceGeometry: h must be finite and positive");
   ExtrinsicGeometry& ex = dynamic_.extrinsic;
+  rotationFitStats_ = RotationFitStats();
 
   const bool unchanged = nextPositions == ex.nextPositions;
   if (unchanged && dynamic_.unchangedRefreshes >= 2) {
-    // t − h, t and t + h all hold these positions already; ω = p̈ = 0.
+    // t − h, t and t + h all hold these positions already; ω = p̈ = 0, and
+    // every vertex prepared since the last shift keeps its values.
     dynamic_.lastH = h;
-    rotationFitStats_ = RotationFitStats();
     return dynamic_.maxEdgeStrain > strainTolerance_;
   }
   const double previousH = dynamic_.lastH > 0 ? dynamic_.lastH : h;
@@ -323,154 +345,264 @@ bool SurfaceGeometry::refreshExtrinsicWith(const RowVectors3& nextPositions, dou
   ex.frames.swap(ex.nextFrames);
   ex.rigid = ex.nextRigid;
   ex.vertexNormals.swap(dynamic_.nextNormals);
-  dynamic_.previousRotations.swap(dynamic_.rotations);
   dynamic_.rotations.swap(dynamic_.nextRotations);
+  currentRule_ = nextRule_;
+  currentEqualsPrevious_ = nextEqualsCurrent_;
+  nextEqualsCurrent_ = unchanged;
+  ++refreshIndex_;
+  preparedCount_ = 0;
+  rates_ = RateRule();
+  rates_.h = h;
+  rates_.previousH = previousH;
+  rates_.still = unchanged;
 
-  const bool uniform = previousH == h;
+  if (unchanged) {
+    // The surface did not move over [t, t + h]: U, frames and normals at t + h
+    // are those at t (same rule, same positions); only p̈ may still be
+    // non-zero (the surface just stopped).
+    ex.nextRigid = ex.rigid;
+    ++dynamic_.unchangedRefreshes;
+  } else {
+    dynamic_.unchangedRefreshes = 0;
+    if (rigidRotation != nullptr) {
+      // Known rigid motion: U_i = R for every vertex (the Kabsch fit of a rigid
+      // motion), normals R n̄ (n̄ = F̄ z), no fits, and no strain to measure.
+      // When U^t was one rotation for every vertex too, the rotation vector of
+      // U^tᵀ U^{t+h} is one vector: computed once.
+      ex.nextRigid = true;
+      nextRule_.kind = SlotKind::Rigid;
+      nextRule_.matrix = *rigidRotation;
+      nextRule_.rotation = Eigen::Quaterniond(*rigidRotation);
+      if (currentRule_.kind != SlotKind::Fitted) {
+        rates_.shared = true;
+        rates_.sharedAxis = rotationVector(currentRule_.rotation.conjugate() * nextRule_.rotation);
+      }
+    } else {
+      ex.nextRigid = false;
+      nextRule_ = SlotRule();
+      nextRule_.kind = SlotKind::Fitted;
+      // The strain test, per edge (the fits are per vertex and may not run).
+      const Eigen::Matrix<int, Eigen::Dynamic, 2>& edges = topology.edgeVertices();
+      const int edgeCount = topology.edgeCount();
+      const double* x = ex.nextPositions.data();
+      const double* y = x + n;
+      const double* z = y + n;
+      const double* inverseBuilt = dynamic_.inverseBuiltSquaredLengths.data();
+      double maxRatio = 1.0, minRatio = 1.0;
+#pragma omp parallel for schedule(static) if (edgeCount >= 4 * kMinParallelVertices) \
+    reduction(max : maxRatio) reduction(min : minRatio)
+      for (int e = 0; e < edgeCount; ++e) {
+        const int a = edges(e, 0), b = edges(e, 1);
+        const double dx = x[b] - x[a], dy = y[b] - y[a], dz = z[b] - z[a];
+        const double ratio = (dx * dx + dy * dy + dz * dz) * inverseBuilt[e];
+        maxRatio = std::max(maxRatio, ratio);
+        minRatio = std::min(minRatio, ratio);
+      }
+      dynamic_.maxEdgeStrain = std::max(std::sqrt(maxRatio) - 1.0, 1.0 - std::sqrt(minRatio));
+    }
+  }
+  dynamic_.nextSlotKind = static_cast<int>(nextRule_.kind);
+  if (vertexRefresh_ == VertexRefresh::AllVertices) prepareAllVertices();
+  return dynamic_.maxEdgeStrain > strainTolerance_;
+}
+
+void SurfaceGeometry::evaluateSlot(const SlotRule& rule, const RowVectors3& positions, int i,
+                                   Eigen::Quaterniond& rotation, Matrix3& frame, RowVectors3& normals,
+                                   Matrix3& fit, FitCounts& counts) const {
+  const size_t k = static_cast<size_t>(i);
+  const Matrix3& restFrame = dynamic_.extrinsic.restFrames[k];
+  if (rule.kind == SlotKind::Rest) {
+    rotation = Eigen::Quaterniond::Identity();
+    frame = restFrame;
+    normals.row(i) = restNormals_.row(i);
+    fit = Matrix3::Identity();
+    return;
+  }
+  if (rule.kind == SlotKind::Rigid) {
+    rotation = rule.rotation;
+    fit = rule.matrix;
+    frame.noalias() = rule.matrix * restFrame;
+    normals.row(i) = frame.col(2).transpose();
+    return;
+  }
+  const SurfaceTopology& topology = *topology_;
+  const std::vector<int>& offsets = topology.ringOffsets();
+  const std::vector<int>& neighbors = topology.ringNeighbors();
+  const int n = topology.vertexCount();
+  const double* x = positions.data();
+  const double* y = x + n;
+  const double* z = y + n;
+  const int begin = offsets[k], end = offsets[k + 1];
+  const double xi = x[i], yi = y[i], zi = z[i];
+  Matrix3 covariance = Matrix3::Zero();
+  Vector3 normalSum = Vector3::Zero();
+  Vector3 first = Vector3::Zero(), previous = Vector3::Zero();
+  for (int m = begin; m < end; ++m) {
+    const size_t mk = static_cast<size_t>(m);
+    const int j = neighbors[mk];
+    const Vector3 e(x[j] - xi, y[j] - yi, z[j] - zi);
+    covariance.noalias() += e * restRingEdges_[mk].transpose();
+    if (m == begin) {
+      first = e;
+    } else {
+      normalSum += previous.cross(e);
+    }
+    previous = e;
+  }
+  if (!topology.vertexIsBoundary()[k]) normalSum += previous.cross(first);  // the ring's closing face
+  const double normalSquared = normalSum.squaredNorm();
+
+  Matrix3 U;
+  Eigen::Quaterniond q = frameGuess(normalSum, normalSquared, first, restFrame);
+  int iterations = 0;
+  const bool useSvd = rotationFitMethod_ == RotationFitMethod::Svd;
+  const bool converged = !useSvd && newtonRotation(covariance, q, U, iterations);
+  if (!converged) {
+    U = rotationFromCovariance(covariance);
+    q = Eigen::Quaterniond(U);
+    if (!useSvd) ++counts.fallbacks;
+  }
+  if (!useSvd) counts.iterations += iterations;
+  ++counts.fitted;
+  rotation = q;
+  fit = U;
+  frame.noalias() = U * restFrame;
+  // A fully folded fan has no normal: take the fitted frame's.
+  if (normalSquared > 0.0) {
+    normals.row(i) = (normalSum * (1.0 / std::sqrt(normalSquared))).transpose();
+  } else {
+    normals.row(i) = frame.col(2).transpose();
+  }
+}
+
+void SurfaceGeometry::prepareInto(DynamicState& d, int i, bool currentValid, FitCounts& counts) const {
+  const size_t k = static_cast<size_t>(i);
+  ExtrinsicGeometry& ex = d.extrinsic;
+  if (!currentValid) {
+    Matrix3 unused;
+    evaluateSlot(currentRule_, ex.positions, i, d.rotations[k], ex.frames[k], ex.vertexNormals,
+                 rates_.still ? ex.kabschRotations[k] : unused, counts);
+  }
+  if (rates_.still) {
+    d.nextRotations[k] = d.rotations[k];
+    ex.nextFrames[k] = ex.frames[k];
+    d.nextNormals.row(i) = ex.vertexNormals.row(i);
+    ex.vertexAngularVelocities.row(i).setZero();
+  } else {
+    evaluateSlot(nextRule_, ex.nextPositions, i, d.nextRotations[k], ex.nextFrames[k], d.nextNormals,
+                 ex.kabschRotations[k], counts);
+    // ω_i: (F^t)ᵀ F^{t+h} = F̄ᵀ (U^tᵀ U^{t+h}) F̄, whose rotation vector is F̄ᵀ
+    // times that of U^tᵀ U^{t+h}.
+    const Vector3 restAxis =
+        rates_.shared ? rates_.sharedAxis : rotationVector(d.rotations[k].conjugate() * d.nextRotations[k]);
+    ex.vertexAngularVelocities.row(i) = (ex.restFrames[k].transpose() * restAxis * (1.0 / rates_.h)).transpose();
+  }
+  // p̈_i^t by the centred second difference.
+  const double h = rates_.h, previousH = rates_.previousH;
   const double invH = 1.0 / h, invHSquared = 1.0 / (h * h), invPreviousH = 1.0 / previousH;
   const double secondDifferenceScale = 2.0 / (h + previousH);
   const RowVectors3& p0 = ex.previousPositions;
   const RowVectors3& p1 = ex.positions;
   const RowVectors3& p2 = ex.nextPositions;
-  RowVectors3& accelerations = ex.vertexAccelerations;
-  RowVectors3& angularVelocities = ex.vertexAngularVelocities;
-  // p̈_i^t, identical in both branches below.
-  auto acceleration = [&](int i) {
-    for (int c = 0; c < 3; ++c) {
-      accelerations(i, c) =
-          uniform ? (p2(i, c) - 2.0 * p1(i, c) + p0(i, c)) * invHSquared
-                  : secondDifferenceScale *
-                        ((p2(i, c) - p1(i, c)) * invH - (p1(i, c) - p0(i, c)) * invPreviousH);
-    }
-  };
-
-  // ω_i: (F^t)ᵀ F^{t+h} = F̄ᵀ (U^tᵀ U^{t+h}) F̄, whose rotation vector is F̄ᵀ
-  // times that of U^tᵀ U^{t+h}.
-  auto angularVelocity = [&](int i) {
-    const size_t k = static_cast<size_t>(i);
-    const Vector3 restAxis = rotationVector(dynamic_.rotations[k].conjugate() * dynamic_.nextRotations[k]);
-    angularVelocities.row(i) = (ex.restFrames[k].transpose() * restAxis * invH).transpose();
-  };
-
-  if (unchanged) {
-    // The surface did not move over [t, t + h]: U, frames and normals at t + h
-    // are those at t; only p̈ may still be non-zero (the surface just stopped).
-#pragma omp parallel for schedule(static) if (n >= kMinParallelVertices)
-    for (int i = 0; i < n; ++i) {
-      const size_t k = static_cast<size_t>(i);
-      dynamic_.nextRotations[k] = dynamic_.rotations[k];
-      ex.nextFrames[k] = ex.frames[k];
-      dynamic_.nextNormals.row(i) = ex.vertexNormals.row(i);
-      angularVelocities.row(i).setZero();
-      acceleration(i);
-    }
-    ex.nextRigid = ex.rigid;
-    ++dynamic_.unchangedRefreshes;
-    rotationFitStats_ = RotationFitStats();
-    return dynamic_.maxEdgeStrain > strainTolerance_;
+  for (int c = 0; c < 3; ++c) {
+    ex.vertexAccelerations(i, c) =
+        previousH == h
+            ? (p2(i, c) - 2.0 * p1(i, c) + p0(i, c)) * invHSquared
+            : secondDifferenceScale * ((p2(i, c) - p1(i, c)) * invH - (p1(i, c) - p0(i, c)) * invPreviousH);
   }
-  dynamic_.unchangedRefreshes = 0;
-  rotationFitStats_ = RotationFitStats();
+}
 
-  if (rigidRotation != nullptr) {
-    // Known rigid motion: U_i = R for every vertex (the Kabsch fit of a rigid
-    // motion), normals R n̄ (n̄ = F̄ z), no fits, and no strain to measure.
-    // When U^t was one rotation for every vertex too (the previous refresh was
-    // rigid), the rotation vector of U^tᵀ U^{t+h} is one vector: computed once
-    // (an atan2 and a quaternion product per vertex were a third of this loop).
-    ex.nextRigid = true;
-    const Matrix3& R = *rigidRotation;
-    const Eigen::Quaterniond q(R);
-    const Eigen::Quaterniond shared = dynamic_.rotations.empty() ? q : dynamic_.rotations[0];
-    const Vector3 sharedAxis = rotationVector(shared.conjugate() * q);
-#pragma omp parallel for schedule(static) if (n >= kMinParallelVertices)
-    for (int i = 0; i < n; ++i) {
-      const size_t k = static_cast<size_t>(i);
-      const Eigen::Quaterniond& previous = dynamic_.rotations[k];
-      const Matrix3& restFrame = ex.restFrames[k];
-      if (previous.coeffs() == shared.coeffs()) {
-        angularVelocities.row(i) = (restFrame.transpose() * sharedAxis * invH).transpose();  // as angularVelocity(i)
-      } else {
-        angularVelocity(i);
-      }
-      dynamic_.nextRotations[k] = q;
-      ex.kabschRotations[k] = R;
-      ex.nextFrames[k].noalias() = R * restFrame;
-      dynamic_.nextNormals.row(i) = ex.nextFrames[k].col(2).transpose();
-      acceleration(i);
-    }
-    return dynamic_.maxEdgeStrain > strainTolerance_;
-  }
+void SurfaceGeometry::prepareOne(int i, FitCounts& counts) {
+  unsigned& stamp = preparedAt_[static_cast<size_t>(i)];
+  if (stamp == refreshIndex_) return;
+  prepareInto(dynamic_, i, stamp + 1 == refreshIndex_, counts);
+  stamp = refreshIndex_;
+}
 
-  ex.nextRigid = false;
-  const std::vector<int>& offsets = topology.ringOffsets();
-  const std::vector<int>& neighbors = topology.ringNeighbors();
-  const std::vector<int>& ringEdges = topology.ringEdges();
-  const std::vector<char>& isBoundary = topology.vertexIsBoundary();
-  const bool useSvd = rotationFitMethod_ == RotationFitMethod::Svd;
-  const double* x = p2.data();
-  const double* y = x + n;
-  const double* z = y + n;
-  double maxRatio = 1.0, minRatio = 1.0;
+void SurfaceGeometry::addCounts(const FitCounts& counts) {
+  rotationFitStats_.fittedVertices += counts.fitted;
+  rotationFitStats_.newtonIterations += counts.iterations;
+  rotationFitStats_.svdFallbacks += counts.fallbacks;
+}
+
+void SurfaceGeometry::prepareVertices(const int* vertices, int count) {
+  const int n = topology_->vertexCount();
+  for (int k = 0; k < count; ++k)
+    if (vertices[k] < 0 || vertices[k] >= n)
+      throw std::invalid_argument("SurfaceGeometry::prepareVertices: vertex " + std::to_string(vertices[k]) +
+                                  " out of range [0, " + std::to_string(n) + ")");
+  int fitted = 0, fallbacks = 0, prepared = 0;
   long iterations = 0;
-  int fallbacks = 0;
-
-#pragma omp parallel for schedule(static) if (n >= kMinParallelVertices) \
-    reduction(max : maxRatio) reduction(min : minRatio) reduction(+ : iterations, fallbacks)
-  for (int i = 0; i < n; ++i) {
-    const size_t k = static_cast<size_t>(i);
-    const int begin = offsets[k], end = offsets[k + 1];
-    const double xi = x[i], yi = y[i], zi = z[i];
-    Matrix3 covariance = Matrix3::Zero();
-    Vector3 normalSum = Vector3::Zero();
-    Vector3 first = Vector3::Zero(), previous = Vector3::Zero();
-    for (int m = begin; m < end; ++m) {
-      const size_t mk = static_cast<size_t>(m);
-      const int j = neighbors[mk];
-      const Vector3 e(x[j] - xi, y[j] - yi, z[j] - zi);
-      covariance.noalias() += e * restRingEdges_[mk].transpose();
-      if (m == begin) {
-        first = e;
-      } else {
-        normalSum += previous.cross(e);
-      }
-      previous = e;
-      // Every edge is seen from both ends; max and min do not mind.
-      const double ratio = e.squaredNorm() * dynamic_.inverseBuiltSquaredLengths(ringEdges[mk]);
-      maxRatio = std::max(maxRatio, ratio);
-      minRatio = std::min(minRatio, ratio);
-    }
-    if (!isBoundary[k]) normalSum += previous.cross(first);  // the ring's closing face
-    const double normalSquared = normalSum.squaredNorm();
-    // A fully folded fan has no normal: keep the one at t rather than a NaN.
-    if (normalSquared > 0.0) {
-      dynamic_.nextNormals.row(i) = (normalSum * (1.0 / std::sqrt(normalSquared))).transpose();
-    } else {
-      dynamic_.nextNormals.row(i) = ex.vertexNormals.row(i);
-    }
-
-    Matrix3 U;
-    Eigen::Quaterniond q = extrapolateRotation(dynamic_.previousRotations[k], dynamic_.rotations[k]);
-    int vertexIterations = 0;
-    const bool converged = !useSvd && newtonRotation(covariance, q, U, vertexIterations);
-    if (!converged) {
-      U = rotationFromCovariance(covariance);
-      q = Eigen::Quaterniond(U);
-      if (!useSvd) ++fallbacks;
-    }
-    iterations += vertexIterations;
-    dynamic_.nextRotations[k] = q;
-    ex.kabschRotations[k] = U;
-    ex.nextFrames[k].noalias() = U * ex.restFrames[k];
-    angularVelocity(i);
-    acceleration(i);
+  // Repeated ids would race: the parallel loop is for lists without repeats
+  // (the band), which is what large lists are.
+#pragma omp parallel for schedule(static) if (count >= kMinParallelVertices) \
+    reduction(+ : fitted, fallbacks, iterations, prepared)
+  for (int k = 0; k < count; ++k) {
+    const int i = vertices[k];
+    if (preparedAt_[static_cast<size_t>(i)] == refreshIndex_) continue;
+    FitCounts counts;
+    prepareOne(i, counts);
+    fitted += counts.fitted;
+    fallbacks += counts.fallbacks;
+    iterations += counts.iterations;
+    ++prepared;
   }
+  preparedCount_ += prepared;
+  addCounts(FitCounts{fitted, iterations, fallbacks});
+}
 
-  dynamic_.maxEdgeStrain = std::max(std::sqrt(maxRatio) - 1.0, 1.0 - std::sqrt(minRatio));
-  rotationFitStats_.fittedVertices = n;
-  rotationFitStats_.newtonIterations = useSvd ? 0 : iterations;
-  rotationFitStats_.svdFallbacks = fallbacks;
-  return dynamic_.maxEdgeStrain > strainTolerance_;
+void SurfaceGeometry::prepareAllVertices() {
+  const int n = topology_->vertexCount();
+  int fitted = 0, fallbacks = 0, prepared = 0;
+  long iterations = 0;
+#pragma omp parallel for schedule(static) if (n >= kMinParallelVertices) \
+    reduction(+ : fitted, fallbacks, iterations, prepared)
+  for (int i = 0; i < n; ++i) {
+    if (preparedAt_[static_cast<size_t>(i)] == refreshIndex_) continue;
+    FitCounts counts;
+    prepareOne(i, counts);
+    fitted += counts.fitted;
+    fallbacks += counts.fallbacks;
+    iterations += counts.iterations;
+    ++prepared;
+  }
+  preparedCount_ += prepared;
+  addCounts(FitCounts{fitted, iterations, fallbacks});
+}
+
+SurfaceGeometry::DynamicState SurfaceGeometry::dynamicState() const {
+  DynamicState d = dynamic_;
+  const int n = topology_->vertexCount();
+  FitCounts counts;
+  for (int i = 0; i < n; ++i) {
+    const unsigned stamp = preparedAt_[static_cast<size_t>(i)];
+    if (stamp != refreshIndex_) prepareInto(d, i, stamp + 1 == refreshIndex_, counts);
+  }
+  return d;
+}
+
+void SurfaceGeometry::restoreDynamicState(const DynamicState& s) {
+  dynamic_ = s;
+  const ExtrinsicGeometry& ex = dynamic_.extrinsic;
+  // A saved state has every vertex's values (dynamicState): only the t + h
+  // slot's rule is needed for later refreshes.
+  std::fill(preparedAt_.begin(), preparedAt_.end(), refreshIndex_);
+  preparedCount_ = topology_->vertexCount();
+  nextRule_ = SlotRule();
+  if (s.nextSlotKind == static_cast<int>(SlotKind::Rigid) && !ex.kabschRotations.empty()) {
+    nextRule_.kind = SlotKind::Rigid;
+    nextRule_.rotation = dynamic_.nextRotations[0];
+    nextRule_.matrix = ex.kabschRotations[0];
+  } else if (s.nextSlotKind == static_cast<int>(SlotKind::Fitted)) {
+    nextRule_.kind = SlotKind::Fitted;
+  } else if (s.nextSlotKind != static_cast<int>(SlotKind::Rest)) {
+    throw std::invalid_argument("SurfaceGeometry: nextSlotKind " + std::to_string(s.nextSlotKind) +
+                                ", expected 0 (rest), 1 (rigid) or 2 (fitted)");
+  }
+  currentRule_ = nextRule_;  // every t slot is valid: never evaluated
+  rates_ = RateRule();
+  currentEqualsPrevious_ = ex.previousPositions == ex.positions;
+  nextEqualsCurrent_ = ex.positions == ex.nextPositions;
 }
 
 FabricField isotropicFabricField(int faceCount, double densityDiffusivity, double viscosity) {

@@ -20,6 +20,7 @@ void clearBand(LiquidBand& band) {
   }
   band.vertices.clear();
   band.ringEnds.clear();
+  band.dampVertices.clear();
   band.rings = band.reachRings = band.haloCount = 0;
   band.speedBound = 0;
 }
@@ -40,6 +41,8 @@ void LiquidBand::resize(int vertexCount) {
   vertices.reserve(n);
   ringEnds.clear();
   ringEnds.reserve(n + 1);
+  dampVertices.clear();
+  dampVertices.reserve(n);
   levels.assign(n, -1);
   wetMask.assign(n, 0);
   haloMask.assign(n, 0);
@@ -56,8 +59,10 @@ void markWetVertices(double wetThreshold, const StainState& state, LiquidBand& b
   const int n = state.vertexCount();
   for (int i = 0; i < n; ++i) {
     if (!(state.solvent[i] > wetThreshold || state.absorbedSolvent[i] > wetThreshold ||
-          state.solute[i] > wetThreshold))
+          state.solute[i] > wetThreshold)) {
+      if (state.solvent[i] + state.solute[i] > 0) band.dampVertices.push_back(i);
       continue;
+    }
     const size_t k = static_cast<size_t>(i);
     band.vertices.push_back(i);
     band.levels[k] = 0;
@@ -69,7 +74,7 @@ void markWetVertices(double wetThreshold, const StainState& state, LiquidBand& b
 
 void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topology,
                     const IntrinsicGeometry& intrinsic, const ExtrinsicGeometry& extrinsic, LiquidBand& band,
-                    StainState& state) {
+                    StainState& state, SurfaceGeometry* toPrepare) {
   const int n = topology.vertexCount();
   const std::vector<int>& offsets = topology.ringOffsets();
   const std::vector<int>& neighbors = topology.ringNeighbors();
@@ -143,6 +148,7 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
       closed = true;
       break;
     }
+    if (toPrepare != nullptr) toPrepare->prepareVertices(band.vertices.data() + end, ringEnd - end);
     for (int k = end; k < ringEnd; ++k) {
       const int i = band.vertices[static_cast<size_t>(k)];
       const size_t ii = static_cast<size_t>(i);

@@ -34,6 +34,13 @@ struct StainSolverDef {
   /// Stages below their size threshold run serial whatever the count, and
   /// the results are bit-identical for any count.
   int threads = 0;
+  /// Where the per-vertex extrinsic geometry (normals, rotation fits, frames,
+  /// p̈, ω) is computed each step. OnDemand: on the liquid band and the
+  /// vertices with a trace of liquid (LiquidBand::dampVertices), nothing on
+  /// a dry step; addDrop, setInitialMotion and completeGeometry compute the
+  /// rest. AllVertices: every vertex every step, the reference: the state
+  /// after any step is bitwise the same in both modes.
+  VertexRefresh geometryVertices = VertexRefresh::OnDemand;
 };
 
 /// Totals for the mass budget (kg). solute* sum to addedSolute; solvent
@@ -142,7 +149,11 @@ class StainSolver {
   const std::vector<int>& bandVertices() const { return band_.vertices; }
   const LiquidBand& band() const { return band_; }
   StainState& mutableState() { return state_; }
+  /// The geometry: in VertexRefresh::OnDemand its per-vertex extrinsic values
+  /// are this step's only where SurfaceGeometry::vertexPrepared (the band);
+  /// completeGeometry() computes them on every vertex (for views and outputs).
   const SurfaceGeometry& geometry() const { return geometry_; }
+  void completeGeometry();
   const StepProfile& profile() const { return profile_; }
   const StainSolverDef& definition() const { return def_; }
   /// Threads the steps use (≥ 1; StainSolverDef::threads resolved), and a new

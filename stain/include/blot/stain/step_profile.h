@@ -48,7 +48,7 @@ bool parseStage(const std::string& name, Stage& stage);
 /// to act on (no wet vertex, a surface that did not move) stays clear.
 /// stageOf(term) is the stage it belongs to.
 enum class StepTerm : unsigned {
-  RotationFits = 1u << 0,        ///< Geometry: a rotation fit per vertex (all #V)
+  RotationFits = 1u << 0,        ///< Geometry: a rotation fit per vertex (on the geometryVertices)
   RigidFrames = 1u << 1,         ///< Geometry: a known rigid motion, no fits (all #V)
   IntrinsicRebuild = 1u << 2,    ///< Geometry: metric rebuilt, the strain passed the tolerance (all #V)
   Factorization = 1u << 3,       ///< Diffuse: a numeric factorization, at the first direct solve after new values
@@ -97,7 +97,8 @@ struct StepProfile {
   int bandVertices = 0;
   int bandRings = 0;               ///< rings of the band beyond the wet set
   int reachRings = 0;              ///< rings liquid and foot points can move this step (R)
-  int geometryVertices = 0;        ///< vertices the extrinsic refresh recomputed (#V, 0 if the surface did not move)
+  int geometryVertices = 0;        ///< vertices whose extrinsic geometry the step computed (the band and
+                                   ///< traces of liquid; #V in VertexRefresh::AllVertices; 0 if the surface did not move)
   int advectionVertices = 0;       ///< vertices density advection worked on (wet + sub-step halo, or #V)
   int densityDiffusionVertices = 0;   ///< rows of the density solve (Krylov support, #V if direct)
   int velocityDiffusionVertices = 0;  ///< rows of the velocity solve (band less its outer ring, #V if direct)

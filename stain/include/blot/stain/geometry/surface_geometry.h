@@ -147,15 +147,24 @@ inline Vector3 dualEdgeNormal(const SurfaceTopology& topology, const RowVectors3
 
 /// How refreshExtrinsic fits the per-vertex rotations U_i.
 enum class RotationFitMethod {
-  WarmStartedNewton,  ///< default: Newton on SO(3) from U_i extrapolated in time, SVD fallback
+  WarmStartedNewton,  ///< default: Newton on SO(3) from the rotation of the vertex's normal and
+                      ///< reference edge (a guess that depends on this slot's positions only), SVD fallback
   Svd                 ///< exact 3x3 SVD at every vertex (the reference; several times slower)
 };
 
-/// Counters of the last refreshExtrinsic's rotation fits (for profiles and tests).
+/// Counters of the rotation fits since the last refreshExtrinsic (for profiles
+/// and tests): in VertexRefresh::OnDemand, the fits of the vertices prepared so far.
 struct RotationFitStats {
   int fittedVertices = 0;      ///< vertices whose U_i was fitted (0 when the mesh did not move)
   long newtonIterations = 0;   ///< total Newton iterations over those vertices
   int svdFallbacks = 0;        ///< vertices where Newton did not converge and SVD decided
+};
+
+/// Which vertices a refresh computes the per-vertex extrinsic values of
+/// (normals, U_i, frames at t and t + h, p̈_i, ω_i).
+enum class VertexRefresh {
+  AllVertices,  ///< default: every vertex, inside refreshExtrinsic*
+  OnDemand      ///< only the vertices passed to prepareVertices since the refresh (the liquid band)
 };
 
 class SurfaceGeometry {
@@ -186,6 +195,35 @@ class SurfaceGeometry {
   /// caller guarantees rigidity (checked only in BLOT_VALIDATE builds); R must
   /// be a rotation matrix (std::invalid_argument otherwise).
   bool refreshExtrinsicRigid(const RowVectors3& nextPositions, const Matrix3& rotation, double h);
+  /// In VertexRefresh::OnDemand a refresh only shifts the positions and runs
+  /// the strain test (O(#E), allocation-free); the per-vertex values of
+  /// ExtrinsicGeometry (vertexNormals, frames, nextFrames, kabschRotations,
+  /// vertexAccelerations, vertexAngularVelocities) hold this refresh's values
+  /// only on the vertices prepared since it, and stale ones elsewhere. Each
+  /// value is a function of the positions (or the rigid rotation) of its time
+  /// slot alone, the rotation fits included (Newton from a guess built from the
+  /// vertex's own normal and reference edge), so a prepared vertex holds
+  /// bitwise what AllVertices computes, whatever was prepared before.
+  void setVertexRefresh(VertexRefresh mode);
+  VertexRefresh vertexRefresh() const { return vertexRefresh_; }
+  /// Computes this refresh's per-vertex values on vertices[0, count) (ids in
+  /// [0, #V), repeats allowed; already prepared ones cost a compare). Uses
+  /// OpenMP threads from kMinParallelVertices; allocates nothing.
+  void prepareVertices(const int* vertices, int count);
+  void prepareVertices(const std::vector<int>& vertices) {
+    prepareVertices(vertices.data(), static_cast<int>(vertices.size()));
+  }
+  void prepareAllVertices();
+  bool vertexPrepared(int vertex) const { return preparedAt_[static_cast<size_t>(vertex)] == refreshIndex_; }
+  /// Vertices prepared since the last refresh that moved the surface (all
+  /// of them in AllVertices mode).
+  int preparedVertexCount() const { return preparedCount_; }
+  /// Whether positions at t − h, t and t + h are not all equal (the surface
+  /// moved over the last two steps), without comparing the arrays.
+  bool surfaceMoved() const { return !(currentEqualsPrevious_ && nextEqualsCurrent_); }
+  /// Whether the last refresh's t + h slot is fitted (a deforming refresh).
+  bool fittedRefresh() const { return nextRule_.kind == SlotKind::Fitted && !nextEqualsCurrent_; }
+
   /// Rebuilds the intrinsic tier from the current positions (t + h).
   void refreshIntrinsic();
   /// max_e |ℓ_e(t+h)/ℓ_e,built − 1| from the last refreshExtrinsic.
@@ -215,11 +253,15 @@ class SurfaceGeometry {
     IntrinsicGeometry intrinsic;
     ExtrinsicGeometry extrinsic;
     RowVectors3 nextNormals;
-    std::vector<Eigen::Quaterniond> previousRotations, rotations, nextRotations;
+    std::vector<Eigen::Quaterniond> rotations, nextRotations;
     Vector inverseBuiltSquaredLengths;
     double maxEdgeStrain = 0;
     double lastH = 0;
     int unchangedRefreshes = 2;
+    /// How the t + h slot's values follow from its inputs: 0 the rest shape's
+    /// (constructor), 1 one rotation for every vertex (nextRotations[0],
+    /// kabschRotations[0]), 2 fitted to nextPositions.
+    int nextSlotKind = 0;
     /// Every field, once (save/load and the state hash are built on it).
     template <class Visitor> void visit(Visitor& v) { fields(*this, v); }
     template <class Visitor> void visit(Visitor& v) const { fields(*this, v); }
@@ -228,23 +270,50 @@ class SurfaceGeometry {
       s.intrinsic.visit(v);
       s.extrinsic.visit(v);
       v.field("nextNormals", s.nextNormals);
-      v.field("previousRotations", s.previousRotations);
       v.field("rotations", s.rotations);
       v.field("nextRotations", s.nextRotations);
       v.field("inverseBuiltSquaredLengths", s.inverseBuiltSquaredLengths);
       v.field("maxEdgeStrain", s.maxEdgeStrain);
       v.field("lastH", s.lastH);
       v.field("unchangedRefreshes", s.unchangedRefreshes);
+      v.field("nextSlotKind", s.nextSlotKind);
     }
   };
-  /// Copy of the dynamic state (allocates).
-  DynamicState dynamicState() const { return dynamic_; }
+  /// Copy of the dynamic state with every vertex's values computed (allocates;
+  /// O(#V) rotation fits in OnDemand mode).
+  DynamicState dynamicState() const;
   /// Restores a dynamic state taken from a geometry on the same topology
   /// (the caller checks sizes; StainSolver::restore does).
-  void restoreDynamicState(const DynamicState& s) { dynamic_ = s; }
+  void restoreDynamicState(const DynamicState& s);
 
  private:
   bool refreshExtrinsicWith(const RowVectors3& nextPositions, double h, const Matrix3* rigidRotation);
+  // How a time slot's per-vertex values follow from its inputs.
+  enum class SlotKind { Rest, Rigid, Fitted };
+  struct SlotRule {
+    SlotKind kind = SlotKind::Rest;
+    Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();  // Rigid: U_i for every i
+    Matrix3 matrix = Matrix3::Identity();                          // ... and its matrix, as given
+  };
+  // What this refresh's ω_i and p̈_i follow from.
+  struct RateRule {
+    bool still = true;      // p(t + h) == p(t): ω = 0
+    double h = 1, previousH = 1;
+    bool shared = false;    // U^t one rotation for every vertex: one rotation vector
+    Vector3 sharedAxis = Vector3::Zero();
+  };
+  struct FitCounts {
+    int fitted = 0;
+    long iterations = 0;
+    int fallbacks = 0;
+  };
+  // Computes one slot's values of vertex i from `rule` and that slot's positions.
+  void evaluateSlot(const SlotRule& rule, const RowVectors3& positions, int i, Eigen::Quaterniond& rotation,
+                    Matrix3& frame, RowVectors3& normals, Matrix3& fit, FitCounts& counts) const;
+  // This refresh's values of vertex i into d; currentValid: d's t slot of i is up to date.
+  void prepareInto(DynamicState& d, int i, bool currentValid, FitCounts& counts) const;
+  void prepareOne(int i, FitCounts& counts);
+  void addCounts(const FitCounts& counts);
 
   const SurfaceTopology* topology_;
   RowVectors3 restPositions_;
@@ -262,6 +331,17 @@ class SurfaceGeometry {
   EdgeFrameNormals restEdgeFrameNormals_;  // #E by 4, see restEdgeFrameNormals()
   RotationFitMethod rotationFitMethod_ = RotationFitMethod::WarmStartedNewton;
   RotationFitStats rotationFitStats_;
+  // Lazy per-vertex values: vertex i holds this refresh's values iff
+  // preparedAt_[i] == refreshIndex_ (bumped by every refresh that shifts the
+  // slots); its t slot is still valid iff preparedAt_[i] == refreshIndex_ − 1.
+  VertexRefresh vertexRefresh_ = VertexRefresh::AllVertices;
+  std::vector<unsigned> preparedAt_;
+  unsigned refreshIndex_ = 1;
+  int preparedCount_ = 0;
+  SlotRule currentRule_, nextRule_;
+  RateRule rates_;
+  bool currentEqualsPrevious_ = true, nextEqualsCurrent_ = true;  // p(t) == p(t − h), p(t + h) == p(t)
+  RowVectors3 restNormals_;  // the rest shape's vertex normals (SlotKind::Rest)
 };
 
 /// Best rotation (Kabsch, via SVD of the 3x3 covariance) taking the rest

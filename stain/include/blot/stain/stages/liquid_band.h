@@ -45,6 +45,10 @@ struct LiquidBand {
   /// VelocityAdvectionScratch::ringTransports on purpose: the band is built
   /// before the advection and must not depend on its scratch.
   ComplexVector ringTransports;
+  /// Vertices not in the wet set whose free density σ_f + σ_s is > 0 (a
+  /// trace below wetThreshold), in index order: no stage works on them, but
+  /// the coupling reads their frames (their relative momentum).
+  std::vector<int> dampVertices;
   double minEdgeLength = 0;  ///< ℓ_min over the mesh (m), intrinsic
   int preparedRebuildCount = -1;  ///< IntrinsicGeometry::rebuildCount of the tables (−1: never)
 
@@ -71,6 +75,7 @@ struct LiquidBandInputs {
 /// Level 0 of the band: the vertices holding liquid (σ_f, σ_s or σ_p above
 /// wetThreshold), in index order. Resets the previous band (O(previous band)
 /// for the masks, O(#V) for the scan). Call after the sources of the step.
+/// Also lists the band's dampVertices (same scan).
 void markWetVertices(double wetThreshold, const StainState& state, LiquidBand& band);
 
 /// Grows the band marked by markWetVertices ring by ring and extends the
@@ -96,8 +101,13 @@ void markWetVertices(double wetThreshold, const StainState& state, LiquidBand& b
 /// relative to the cloth carried by the connection. On a static surface the
 /// second term vanishes. state.velocities are read in F^t (after the half
 /// frame rotation of the discrete frame change).
+///
+/// toPrepare: when given (its extrinsic() is `extrinsic`), each new ring's
+/// vertices are prepared (SurfaceGeometry::prepareVertices) before their
+/// frames and p̈ are read, so a geometry in VertexRefresh::OnDemand computes
+/// exactly the band; the wet set must be prepared by the caller.
 void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topology,
                     const IntrinsicGeometry& intrinsic, const ExtrinsicGeometry& extrinsic, LiquidBand& band,
-                    StainState& state);
+                    StainState& state, SurfaceGeometry* toPrepare = nullptr);
 
 }  // namespace blot::stain
