@@ -23,6 +23,7 @@
 #include <blot/stain/content_hash.h>
 #include <blot/stain/io/atomic_file.h>
 #include <blot/stain/io/bounded_read.h>
+#include <blot/stain/thread_limit.h>
 #include <blot/stain/io/strict_json.h>
 
 #include <nlohmann/json.hpp>
@@ -103,7 +104,7 @@ struct Checkpoint {
   std::uint64_t fileHash = 0;  // of the state file's bytes, checked before Engine::load parses them
 };
 
-constexpr int kMaxThreads = 1024;  // --threads
+using stain::kMaxThreads;  // --threads
 
 /// The hash over checkpoint.json's own fields ("record_hash"): an edited
 /// frame number or file name is refused, not resumed from.

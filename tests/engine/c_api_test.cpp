@@ -310,3 +310,24 @@ TEST(CApiTest, AbsurdFrameTimesAndTamperedStatesAreRefusedAndTheEngineStaysUsabl
 }
 
 }  // namespace
+
+namespace {
+
+// The thread limit of the scene key and `blot run --threads` holds here too:
+// 10,000 threads would start 10,000 OpenMP threads at the next step.
+TEST(CApiTest, ThreadCountBeyondTheLimitIsAnInvalidArgumentNamingTheRange) {
+  blotEngine* engine = nullptr;
+  ASSERT_EQ(blotCreateEngineFromSceneJson(kScene, nullptr, &engine), BLOT_OK) << blotGetLastError();
+  for (int threads : {1025, 10000, -1}) {
+    EXPECT_EQ(blotEngine_SetThreadCount(engine, threads), BLOT_ERROR_INVALID_ARGUMENT);
+    EXPECT_EQ(std::string(blotGetLastError()),
+              "blotEngine_SetThreadCount: StainSolver::setThreadCount: expected a count in [0, 1024], got " +
+                  std::to_string(threads));
+  }
+  EXPECT_EQ(blotEngine_SetThreadCount(engine, 1024), BLOT_OK);
+  EXPECT_EQ(blotEngine_SetThreadCount(engine, 1), BLOT_OK);
+  EXPECT_EQ(blotEngine_Step(engine, 0.02), BLOT_OK) << blotGetLastError();
+  blotDestroyEngine(engine);
+}
+
+}  // namespace
