@@ -331,3 +331,26 @@ TEST(CApiTest, ThreadCountBeyondTheLimitIsAnInvalidArgumentNamingTheRange) {
 }
 
 }  // namespace
+
+// The fuzz_capi target (tests/fuzz/capi_fuzz.cpp) compiled into this test: its
+// seed corpus replays through the fuzzer's oracle (which aborts on a finding)
+// in the normal and the sanitized builds.
+#include "../fuzz/capi_fuzz.cpp"
+
+namespace {
+
+TEST(CApiFuzzCorpus, EverySeedKeepsTheCApiContract) {
+  namespace fs = std::filesystem;
+  const fs::path folder = fs::path(BLOT_TEST_DATA_DIR) / ".." / "fuzz" / "corpus" / "capi";
+  ASSERT_TRUE(fs::is_directory(folder)) << folder;
+  int files = 0;
+  for (const auto& entry : fs::directory_iterator(folder)) {
+    std::ifstream in(entry.path(), std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    ++files;
+    LLVMFuzzerTestOneInput(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size());
+  }
+  EXPECT_GE(files, 8);
+}
+
+}  // namespace
