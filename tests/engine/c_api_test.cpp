@@ -13,6 +13,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 namespace {
@@ -327,6 +328,38 @@ TEST(CApiTest, ThreadCountBeyondTheLimitIsAnInvalidArgumentNamingTheRange) {
   EXPECT_EQ(blotEngine_SetThreadCount(engine, 1024), BLOT_OK);
   EXPECT_EQ(blotEngine_SetThreadCount(engine, 1), BLOT_OK);
   EXPECT_EQ(blotEngine_Step(engine, 0.02), BLOT_OK) << blotGetLastError();
+  blotDestroyEngine(engine);
+}
+
+// Found by fuzz_capi: C lets any int through an enum parameter, and loading
+// (blotDensity)-1 as the enum in C++ was undefined behaviour (UBSan: "load of
+// value 4294967295, which is not a valid value for type 'blotDensity'").
+TEST(CApiTest, EnumArgumentsOutsideTheEnumeratorsAreInvalidArguments) {
+  const auto asEnum = [](auto&& sample, int value) {
+    std::remove_reference_t<decltype(sample)> out;
+    std::memcpy(&out, &value, sizeof out);
+    return out;
+  };
+  blotEngine* engine = nullptr;
+  ASSERT_EQ(blotCreateEngineFromSceneJson(kScene, nullptr, &engine), BLOT_OK) << blotGetLastError();
+  std::vector<float> out(static_cast<std::size_t>(blotEngine_GetVertexCount(engine)));
+  for (int kind : {-1, 5, 1 << 30}) {
+    EXPECT_EQ(blotEngine_CopyDensities(engine, asEnum(BLOT_DENSITY_SOLVENT, kind), out.data(), static_cast<int>(out.size())),
+              BLOT_ERROR_INVALID_ARGUMENT);
+    EXPECT_EQ(std::string(blotGetLastError()), "blotEngine_CopyDensities: unknown density " + std::to_string(kind));
+  }
+  std::vector<double> positions = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  std::vector<int32_t> faces = {0, 1, 2};
+  blotEngineDef def = blotDefaultEngineDef();
+  def.positions = positions.data();
+  def.vertexCount = 3;
+  def.faces = faces.data();
+  def.faceCount = 1;
+  def.source = asEnum(BLOT_MOTION_STATIC, -1);
+  blotEngine* refused = nullptr;
+  EXPECT_EQ(blotCreateEngine(&def, &refused), BLOT_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(refused, nullptr);
+  EXPECT_EQ(std::string(blotGetLastError()), "blotCreateEngine: source -1: expected a blotMotionSource");
   blotDestroyEngine(engine);
 }
 
