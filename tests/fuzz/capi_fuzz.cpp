@@ -20,6 +20,8 @@
 // scene parser has its own target, fuzz_scene).
 #include <blot/blot.h>
 
+#include "capi_enum_shim.h"
+
 #include <unistd.h>
 
 #include <algorithm>
@@ -68,16 +70,6 @@ const double kRadius[] = {0.05, 0.02, 0.1, 0.0, -0.05, 1e-300, 1.0, 1e6, 1e300, 
 const int kSteps[] = {1, 2, 4, 0, -1, INT_MIN};
 const int kThreads[] = {1, 0, 2, -1, 1025, INT_MAX, INT_MIN};
 const char* const kPresets[] = {nullptr, "", "plain", "twill-2-1", "no-such-weave", "plain\n"};
-
-/// An enum argument holding any int, as a C caller may pass it (a C++ cast
-/// to a value outside the enumerators would itself be undefined).
-template <typename Enum>
-Enum fromInt(int value) {
-  static_assert(sizeof(Enum) == sizeof(int), "C enums are int-sized");
-  Enum out;
-  std::memcpy(&out, &value, sizeof out);
-  return out;
-}
 
 /// Checks one status against blot.h's contract.
 void check(blotStatus status) {
@@ -131,7 +123,7 @@ blotEngine* create(Bytes& in, std::vector<double>& positions, std::vector<std::i
   def.faceCount = static_cast<int>(faces.size() / 3);
   const unsigned source = in.byte();
   const int sources[] = {0, 1, 2, 0, 1, 2, 3, -1};  // 3 and -1 are not sources
-  def.source = fromInt<blotMotionSource>(sources[source % 8]);
+  blotTestSetMotionSource(&def, sources[source % 8]);
   def.cloth.twoWay = (source >> 7) & 1;
   def.cloth.substeps = (source & 0x08) ? 1 : 2;
   def.cloth.positionIterations = (source & 0x10) ? 1 : 2;
@@ -208,7 +200,7 @@ void copyOut(Bytes& in, blotEngine* engine) {
     case 5: status = blotEngine_CopyNormals(null ? nullptr : engine, out, capacity); break;
     case 6: {
       const int kinds[] = {0, 1, 2, 3, 4, 5, -1};
-      status = blotEngine_CopyDensities(engine, fromInt<blotDensity>(in.pick(kinds)), out, capacity);
+      status = blotTestCopyDensitiesOfKind(engine, in.pick(kinds), out, capacity);
       break;
     }
     case 7: status = blotEngine_CopyFaces(engine, null ? nullptr : ints.data(), capacity); break;
