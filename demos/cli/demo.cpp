@@ -10,6 +10,7 @@
 
 #include <blot/engine/engine.h>
 #include <blot/engine/frame_writer.h>
+#include <blot/engine/output_options.h>
 #include <blot/engine/scene.h>
 #include <blot/engine/stain_color.h>
 
@@ -21,6 +22,7 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -57,6 +59,37 @@ struct DemoOptions {
   double timeStep = 0;    // s; 0: the scene's
   double diffusivity = 0; // m²/s; 0: the scene's
 };
+
+/// The contact sheet holds every frame's preview in memory: at most this many
+/// frames after the initial one.
+constexpr int kMaxDemoFrames = 100;
+/// --steps-per-frame, as the scene key outputs.steps_per_frame.
+constexpr int kMaxStepsPerFrame = 1000000;
+
+/// An option that is 0 (the scene's value) or in [low, high] (low = 0: in
+/// (0, high]); the message names the value and the accepted range (CLI11
+/// prefixes the option's name).
+CLI::Validator zeroOr(double low, double high, const std::string& unit) {
+  std::ostringstream range;
+  range << "expected 0 (the scene's) or ";
+  if (low > 0) range << low << " to " << high << unit;
+  else range << "a positive value up to " << high << unit;
+  const std::string expected = range.str();
+  return CLI::Validator(
+      [=](std::string& text) -> std::string {
+        double value = 0;
+        try {
+          std::size_t used = 0;
+          value = std::stod(text, &used);
+          if (used != text.size()) return text + ": not a number; " + expected;
+        } catch (const std::exception&) {
+          return text + ": not a number; " + expected;
+        }
+        if (value == 0 || (value > 0 && value >= low && value <= high)) return "";
+        return text + ": " + expected;
+      },
+      "0 or [" + std::to_string(low) + ", " + std::to_string(high) + "]");
+}
 
 const Demo& findDemo(const std::string& name) {
   std::string known;
@@ -171,11 +204,17 @@ void registerDemoCommand(CLI::App& app, int& exitCode) {
   command->add_option("--output", options->outputDirectory, "Same as --out")->group("");
   command->add_option("--pigment", options->pigment, "wine, coffee or ink (default: the scene's)");
   command->add_option("--frames", options->frames, "Frames after the initial one (frames 0..N are written)")
-      ->capture_default_str();
-  command->add_option("--steps-per-frame", options->stepsPerFrame, "Internal steps per frame (default: the scene's)");
-  command->add_option("--dt", options->timeStep, "Internal time step, s (default: the scene's)");
+      ->capture_default_str()
+      ->check(CLI::Range(0, kMaxDemoFrames));
+  command->add_option("--steps-per-frame", options->stepsPerFrame, "Internal steps per frame (default: the scene's)")
+      ->check(CLI::Range(0, kMaxStepsPerFrame));
+  // The scene parser's plausibility limits (scene.h): a time step in
+  // [kMinTimeStep, 1] s, any number at most kMaxSceneMagnitude.
+  command->add_option("--dt", options->timeStep, "Internal time step, s (default: the scene's)")
+      ->check(zeroOr(engine::kMinTimeStep, 1, " s"));
   command->add_option("--diffusivity", options->diffusivity,
-                      "Mean diffusivity trace/2 of every fabric patch, m^2/s (default: the scene's)");
+                      "Mean diffusivity trace/2 of every fabric patch, m^2/s (default: the scene's)")
+      ->check(zeroOr(0, engine::kMaxSceneMagnitude, " m^2/s"));
   command->callback([options, &exitCode]() {
     try {
       exitCode = runDemo(*options);

@@ -23,6 +23,7 @@
 #include <blot/engine/engine.h>
 #include <blot/engine/frame_writer.h>
 #include <blot/engine/scene.h>
+#include <blot/stain/thread_limit.h>
 
 #include <nlohmann/json.hpp>
 #include <omp.h>
@@ -233,11 +234,16 @@ void registerFigureCommand(CLI::App& app, int& exitCode) {
   command->add_option("--scene", options->scenePath, "Base scene (default: the figure's file in assets/scenes/)")
       ->transform(assetPath());
   command->add_option("--out", options->outputDirectory, "Output folder (default: out/<figure>)");
-  command->add_option("--frames", options->frames, "Frames to run (default: the scene's outputs.frames)");
-  command->add_option("--width", options->width, "Pixels per panel")->capture_default_str();
+  command->add_option("--frames", options->frames, "Frames to run (default: the scene's outputs.frames)")
+      ->check(CLI::Range(0, 1000000));
+  // 2048: a square panel at the renderer's largest supersampling (4) keeps
+  // within its sample budget (output_options.h: 2048^2 x 4^2 = 2^26).
+  command->add_option("--width", options->width, "Pixels per panel (16 to 2048)")
+      ->capture_default_str()
+      ->check(CLI::Range(16, 2048));
   command->add_option("--threads", options->threads, "OpenMP threads (0: all cores, at most 1024)")
       ->capture_default_str()
-      ->check(CLI::Range(0, 1024));
+      ->check(CLI::Range(0, stain::kMaxThreads));
   command->callback([options, &exitCode]() {
     if (options->threads > 0) omp_set_num_threads(options->threads);
     try {

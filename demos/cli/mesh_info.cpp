@@ -12,6 +12,7 @@
 #include "commands.h"
 
 #include <blot/engine/image.h>
+#include <blot/engine/output_options.h>
 #include <blot/engine/renderer.h>
 #include <blot/stain/geometry/intrinsic_geometry.h>
 #include <blot/stain/io/mesh_io.h>
@@ -121,11 +122,13 @@ nlohmann::json meshSummary(const std::string& path, const stain::TriangleMesh& m
   return summary;
 }
 
+constexpr int kPreviewSupersampling = 3;
+
 void renderPreview(const MeshInfoOptions& options, const stain::TriangleMesh& mesh) {
   engine::RenderSettings settings;
   settings.width = options.width;
   settings.height = options.height;
-  settings.supersampling = 3;
+  settings.supersampling = kPreviewSupersampling;
   settings.background = {0.93, 0.94, 0.96};
   const engine::Camera camera = engine::framePoints(
       mesh.vertexPositions, vectorOption(options.view, "view"),
@@ -141,6 +144,17 @@ void renderPreview(const MeshInfoOptions& options, const stain::TriangleMesh& me
 }
 
 int runMeshInfo(const MeshInfoOptions& options) {
+  // The renderer's sample budget, checked before the mesh is read.
+  const double samples = double(options.width) * options.height * kPreviewSupersampling * kPreviewSupersampling;
+  if (!options.renderPath.empty() && samples > engine::kMaxImageSamples) {
+    std::cerr << "blot mesh-info: error: --width " << options.width << " x --height " << options.height
+              << ": the preview would take " << static_cast<long long>(samples) << " samples at supersampling "
+              << kPreviewSupersampling << ", more than the renderer's limit of "
+              << static_cast<long long>(engine::kMaxImageSamples) << " (at most "
+              << static_cast<long long>(engine::kMaxImageSamples / (kPreviewSupersampling * kPreviewSupersampling))
+              << " pixels)\n";
+    return 1;
+  }
   try {
     const stain::TriangleMesh mesh = stain::loadMesh(options.meshPath);
     nlohmann::json summary = meshSummary(options.meshPath, mesh);

@@ -23,6 +23,7 @@
 #include <blot/stain/content_hash.h>
 #include <blot/stain/io/atomic_file.h>
 #include <blot/stain/io/bounded_read.h>
+#include <blot/stain/thread_limit.h>
 #include <blot/stain/io/strict_json.h>
 
 #include <nlohmann/json.hpp>
@@ -54,6 +55,7 @@ struct RunOptions {
   int checkpointEvery = 0;  // frames between checkpoints; 0: none
   bool resume = false;      // continue from <out>/checkpoint.json
   int killAfterFrame = 0;   // testing only: SIGKILL this process after that frame
+  int killInWrite = 0;      // testing only: SIGKILL this process half-way through its n-th file write
   std::string injectFault;  // testing only: STAGE:STEP:VERTEX (Engine::injectFaultForTesting)
   // Artist outputs (override the scene's outputs; docs/rendering.md "blot run outputs").
   bool images = false;
@@ -103,7 +105,7 @@ struct Checkpoint {
   std::uint64_t fileHash = 0;  // of the state file's bytes, checked before Engine::load parses them
 };
 
-constexpr int kMaxThreads = 1024;  // --threads
+using stain::kMaxThreads;  // --threads
 
 /// The hash over checkpoint.json's own fields ("record_hash"): an edited
 /// frame number or file name is refused, not resumed from.
@@ -377,6 +379,11 @@ int runScene(const RunOptions& options) {
     std::cerr << "blot run: error: --kill-after-frame " << options.killAfterFrame << ": expected >= 0\n";
     return 1;
   }
+  if (options.killInWrite < 0) {
+    std::cerr << "blot run: error: --testing-kill-in-write " << options.killInWrite << ": expected >= 0\n";
+    return 1;
+  }
+  stain::killInWriteForTesting(options.killInWrite);
   if (options.threads > 0) scene.engine.stain.threads = options.threads;  // this engine's, not process-wide
   const int frames = options.frames > 0 ? options.frames : scene.outputs.frames;
   const std::string directory = options.outputDirectory.empty() ? scene.outputs.directory : options.outputDirectory;
@@ -588,6 +595,9 @@ void registerRunCommand(CLI::App& app, int& exitCode) {
   // Testing-only options: hidden from --help (an empty group).
   command->add_option("--kill-after-frame", options->killAfterFrame,
                       "Testing only: the process kills itself with SIGKILL after this frame")
+      ->group("");
+  command->add_option("--testing-kill-in-write", options->killInWrite,
+                      "Testing only: the process kills itself with SIGKILL half-way through its N-th file write")
       ->group("");
   command->add_option("--testing-inject-fault", options->injectFault,
                       "Testing only: STAGE:STEP:VERTEX puts a NaN after that stage of that internal step "

@@ -90,6 +90,18 @@ bool checkReadable(const char* function, const char* path, blotStatus& status) {
 
 Eigen::Vector3d vec3(const double v[3]) { return Eigen::Vector3d(v[0], v[1], v[2]); }
 
+/// A C enum argument as the int a C caller passed. C lets any int through an
+/// enum parameter, but in C++ loading a value outside the enumerators' range
+/// (e.g. (blotDensity)-1) is undefined, so the bytes are copied, not loaded
+/// as the enum.
+template <typename Enum>
+int enumValue(const Enum& value) {
+  static_assert(sizeof(Enum) == sizeof(int), "C enums are int-sized");
+  int raw = 0;
+  std::memcpy(&raw, &value, sizeof raw);
+  return raw;
+}
+
 void setVec3(double out[3], const Eigen::Vector3d& v) {
   for (int c = 0; c < 3; ++c) out[c] = v[c];
 }
@@ -125,11 +137,11 @@ blot::engine::EngineDef toEngineDef(const blotEngineDef& d) {
   for (int f = 0; f < d.faceCount; ++f)
     for (int c = 0; c < 3; ++c) def.mesh.faces(f, c) = d.faces[3 * f + c];
 
-  switch (d.source) {
+  switch (enumValue(d.source)) {
     case BLOT_MOTION_STATIC: def.source = MotionSource::Static; break;
     case BLOT_MOTION_RIGID: def.source = MotionSource::Rigid; break;
     case BLOT_MOTION_BULLET: def.source = MotionSource::Bullet; break;
-    default: throw std::invalid_argument("source " + std::to_string(int(d.source)) + ": expected a blotMotionSource");
+    default: throw std::invalid_argument("source " + std::to_string(enumValue(d.source)) + ": expected a blotMotionSource");
   }
   def.rigid.angularVelocity = vec3(d.rigidAngularVelocity);
   def.rigid.pivot = vec3(d.rigidPivot);
@@ -419,7 +431,8 @@ blotStatus blotEngine_CopyDensities(const blotEngine* engine, blotDensity which,
   if (engine == nullptr || out == nullptr) return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_CopyDensities: null argument");
   const blot::engine::Engine& e = *engine->engine;
   const Eigen::VectorXd* field = nullptr;
-  switch (which) {
+  const int kind = enumValue(which);
+  switch (kind) {
     case BLOT_DENSITY_SOLVENT: field = &e.solvent(); break;
     case BLOT_DENSITY_SOLUTE: field = &e.solute(); break;
     case BLOT_DENSITY_ABSORBED_SOLVENT: field = &e.absorbedSolvent(); break;
@@ -427,7 +440,7 @@ blotStatus blotEngine_CopyDensities(const blotEngine* engine, blotDensity which,
     case BLOT_DENSITY_ADSORBED_SOLUTE: field = &e.adsorbedSolute(); break;
   }
   if (field == nullptr)
-    return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_CopyDensities: unknown density " + std::to_string(int(which)));
+    return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_CopyDensities: unknown density " + std::to_string(kind));
   if (capacity < field->size())
     return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_CopyDensities: capacity " + std::to_string(capacity) +
                                                  ", need " + std::to_string(field->size()));

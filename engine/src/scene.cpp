@@ -11,6 +11,7 @@
 // dependency and still not know the mesh's vertex count.
 #include <blot/engine/scene.h>
 #include <blot/stain/io/bounded_read.h>
+#include <blot/stain/thread_limit.h>
 #include <blot/stain/io/mesh_io.h>
 #include <blot/stain/io/strict_json.h>
 #include <blot/stain/fabric/homogenization.h>
@@ -875,7 +876,7 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
   const double defaultStrainTolerance = def.source == MotionSource::Bullet ? kBulletStrainTolerance
                                                                           : def.stain.strainTolerance;
   def.stain.strainTolerance = r.number("strain_tolerance", defaultStrainTolerance, positive());
-  def.stain.threads = r.integer("threads", def.stain.threads, closed(0, 1024));
+  def.stain.threads = r.integer("threads", def.stain.threads, closed(0, stain::kMaxThreads));
   def.coupling = static_cast<coupling::CouplingMode>(r.choice("coupling", 0, {"one-way", "two-way"}));
   if (def.coupling == coupling::CouplingMode::TwoWay && def.source != MotionSource::Bullet)
     ctx.fail("coupling", std::string("\"two-way\" needs cloth.source \"bullet\", got \"") +

@@ -6,6 +6,7 @@
 #include <blot/stain/stages/film_pressure.h>
 #include <blot/stain/stages/interaction.h>
 #include <blot/stain/stain_solver.h>
+#include <blot/stain/thread_limit.h>
 
 #include <algorithm>
 #include <chrono>
@@ -125,7 +126,8 @@ const StainSolverDef& checkedDefinition(const StainSolverDef& def) {
   nonNegative("liquid.boundaryEvaporationFactor", liquid.boundaryEvaporationFactor);
   nonNegative("liquid.wetThreshold", liquid.wetThreshold);
   positive("liquid.liquidDensity", liquid.liquidDensity);
-  require(def.threads >= 0, "threads", def.threads, "a count >= 0 (0: the OpenMP default)");
+  const std::string threadRange = "a count in [0, " + std::to_string(kMaxThreads) + "] (0: the OpenMP default)";
+  require(def.threads >= 0 && def.threads <= kMaxThreads, "threads", def.threads, threadRange.c_str());
   for (int k = 0; k < 3; ++k)
     require(std::isfinite(def.gravity[k]), "gravity", def.gravity[k], "finite in every component");
   positive("strainTolerance", def.strainTolerance);
@@ -169,8 +171,9 @@ void StainSolver::completeGeometry() {
 }
 
 void StainSolver::setThreadCount(int threads) {
-  if (threads < 0)
-    throw std::invalid_argument("StainSolver::setThreadCount: expected a count >= 0, got " + std::to_string(threads));
+  if (threads < 0 || threads > kMaxThreads)
+    throw std::invalid_argument("StainSolver::setThreadCount: expected a count in [0, " + std::to_string(kMaxThreads) +
+                                "], got " + std::to_string(threads));
   threads_ = resolvedThreads(threads);
 }
 

@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include "../fuzz/capi_enum_shim.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -307,6 +309,78 @@ TEST(CApiTest, AbsurdFrameTimesAndTamperedStatesAreRefusedAndTheEngineStaysUsabl
   EXPECT_EQ(blotEngine_Step(engine, 0.01), BLOT_OK);
   std::remove(path.c_str());
   blotDestroyEngine(engine);
+}
+
+}  // namespace
+
+namespace {
+
+// The thread limit of the scene key and `blot run --threads` holds here too:
+// 10,000 threads would start 10,000 OpenMP threads at the next step.
+TEST(CApiTest, ThreadCountBeyondTheLimitIsAnInvalidArgumentNamingTheRange) {
+  blotEngine* engine = nullptr;
+  ASSERT_EQ(blotCreateEngineFromSceneJson(kScene, nullptr, &engine), BLOT_OK) << blotGetLastError();
+  for (int threads : {1025, 10000, -1}) {
+    EXPECT_EQ(blotEngine_SetThreadCount(engine, threads), BLOT_ERROR_INVALID_ARGUMENT);
+    EXPECT_EQ(std::string(blotGetLastError()),
+              "blotEngine_SetThreadCount: StainSolver::setThreadCount: expected a count in [0, 1024], got " +
+                  std::to_string(threads));
+  }
+  EXPECT_EQ(blotEngine_SetThreadCount(engine, 1024), BLOT_OK);
+  EXPECT_EQ(blotEngine_SetThreadCount(engine, 1), BLOT_OK);
+  EXPECT_EQ(blotEngine_Step(engine, 0.02), BLOT_OK) << blotGetLastError();
+  blotDestroyEngine(engine);
+}
+
+// Found by fuzz_capi: C lets any int through an enum parameter, and loading
+// (blotDensity)-1 as the enum in C++ was undefined behaviour (UBSan: "load of
+// value 4294967295, which is not a valid value for type 'blotDensity'").
+TEST(CApiTest, EnumArgumentsOutsideTheEnumeratorsAreInvalidArguments) {
+  blotEngine* engine = nullptr;
+  ASSERT_EQ(blotCreateEngineFromSceneJson(kScene, nullptr, &engine), BLOT_OK) << blotGetLastError();
+  std::vector<float> out(static_cast<std::size_t>(blotEngine_GetVertexCount(engine)));
+  for (int kind : {-1, 5, 1 << 30}) {
+    // Through a C shim: in C++ the value could not even be passed (capi_enum_shim.h).
+    EXPECT_EQ(blotTestCopyDensitiesOfKind(engine, kind, out.data(), static_cast<int>(out.size())),
+              BLOT_ERROR_INVALID_ARGUMENT);
+    EXPECT_EQ(std::string(blotGetLastError()), "blotEngine_CopyDensities: unknown density " + std::to_string(kind));
+  }
+  std::vector<double> positions = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  std::vector<int32_t> faces = {0, 1, 2};
+  blotEngineDef def = blotDefaultEngineDef();
+  def.positions = positions.data();
+  def.vertexCount = 3;
+  def.faces = faces.data();
+  def.faceCount = 1;
+  blotTestSetMotionSource(&def, -1);
+  blotEngine* refused = nullptr;
+  EXPECT_EQ(blotCreateEngine(&def, &refused), BLOT_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(refused, nullptr);
+  EXPECT_EQ(std::string(blotGetLastError()), "blotCreateEngine: source -1: expected a blotMotionSource");
+  blotDestroyEngine(engine);
+}
+
+}  // namespace
+
+// The fuzz_capi target (tests/fuzz/capi_fuzz.cpp) compiled into this test: its
+// seed corpus replays through the fuzzer's oracle (which aborts on a finding)
+// in the normal and the sanitized builds.
+#include "../fuzz/capi_fuzz.cpp"
+
+namespace {
+
+TEST(CApiFuzzCorpus, EverySeedKeepsTheCApiContract) {
+  namespace fs = std::filesystem;
+  const fs::path folder = fs::path(BLOT_TEST_DATA_DIR) / ".." / "fuzz" / "corpus" / "capi";
+  ASSERT_TRUE(fs::is_directory(folder)) << folder;
+  int files = 0;
+  for (const auto& entry : fs::directory_iterator(folder)) {
+    std::ifstream in(entry.path(), std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    ++files;
+    LLVMFuzzerTestOneInput(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size());
+  }
+  EXPECT_GE(files, 8);
 }
 
 }  // namespace

@@ -50,6 +50,44 @@ for limit in "6 $scene full" "2 $work/noframes.json summary"; do
   no_temporaries "$work/$3"
   [ -e "$work/$3/summary.json" ] && fail "a failed run wrote a summary"
 done
+# A real full disk (ENOSPC): a 24 KiB tmpfs (root with CAP_SYS_ADMIN, as in
+# CI; skipped with a message elsewhere) holds three 7 KB frames, the fourth
+# does not fit: exit 1 naming the file and the error, no temporary, no
+# summary, and the frames written before are those of a run with room.
+mkdir -p "$work/tiny"
+if mount -t tmpfs -o size=24k tmpfs "$work/tiny" 2> "$work/mount.err"; then
+  trap 'umount -l "$work/tiny" 2> /dev/null' EXIT
+  "$blot" run "$scene" --quiet --threads 1 --out "$work/roomy" > /dev/null 2>&1 || fail "run with room"
+  expect 1 "No space left on device" -- "$blot" run "$scene" --quiet --threads 1 --out "$work/tiny/out"
+  grep -q "tiny/out/small_000[0-9].ply: cannot write" "$work/err.txt" || { cat "$work/err.txt"; fail "ENOSPC message does not name the frame"; }
+  no_temporaries "$work/tiny/out"
+  [ -e "$work/tiny/out/summary.json" ] && fail "a run that hit ENOSPC wrote a summary"
+  kept=0
+  for f in "$work/tiny/out"/*.ply; do
+    cmp -s "$f" "$work/roomy/$(basename "$f")" || fail "$(basename "$f") written before the disk filled differs"
+    kept=$((kept + 1))
+  done
+  [ "$kept" -ge 2 ] || fail "only $kept frames before the disk filled"
+  umount -l "$work/tiny"; trap - EXIT
+  echo "ENOSPC: exit 1, $kept earlier frames intact"
+else
+  echo "SKIP ENOSPC: cannot mount a tmpfs here ($(cat "$work/mount.err"))"
+fi
+
+# The other commands' numeric options name the option, the value and the range.
+expect 105 "--frames: Value 101 not in range 0 to 100" -- "$blot" demo --frames 101 --out "$work/demo"
+expect 105 "--steps-per-frame: Value -1 not in range 0 to 1000000" -- "$blot" demo --steps-per-frame -1 --out "$work/demo"
+expect 105 "1e-300: expected 0 (the scene's) or 1e-06 to 1 s" -- "$blot" demo --dt 1e-300 --out "$work/demo"
+expect 105 "nan: expected 0 (the scene's) or 1e-06 to 1 s" -- "$blot" demo --dt nan --out "$work/demo"
+expect 105 "1e300: expected 0 (the scene's) or a positive value up to 1e+06 m^2/s" -- "$blot" demo --diffusivity 1e300 --out "$work/demo"
+expect 105 "-0.1: expected 0 (the scene's) or a positive value up to 1e+06 m^2/s" -- "$blot" demo --diffusivity -0.1 --out "$work/demo"
+[ -e "$work/demo" ] && fail "a refused demo created its output folder"
+expect 105 "--width: Value 100000 not in range 16 to 2048" -- "$blot" figure fig5 --width 100000 --out "$work/fig"
+expect 105 "--frames: Value -5 not in range 0 to 1000000" -- "$blot" figure fig5 --frames -5 --out "$work/fig"
+printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n' > "$work/tri.obj"
+expect 1 "--width 8192 x --height 8192: the preview would take" -- "$blot" mesh-info "$work/tri.obj" --render "$work/m.png" --width 8192 --height 8192
+[ -e "$work/m.png" ] && fail "a refused preview was written"
+
 # summary.json's place taken by a folder: an error, not a silent skip.
 mkdir -p "$work/dir/summary.json"
 expect 1 "summary.json: cannot write" -- "$blot" run "$scene" --quiet --threads 1 --out "$work/dir"

@@ -486,3 +486,46 @@ TEST(EngineTest, StatisticsCountTheStepsEachTermRanIn) {
 
 }  // namespace
 }  // namespace blot::engine
+
+// The fuzz_state target (tests/fuzz/state_fuzz.cpp) compiled into this test, so
+// its oracle replays the seed corpus in the normal and the sanitized builds.
+#include "../fuzz/state_fuzz.cpp"
+
+namespace blot::engine {
+namespace {
+
+// The seeds of fuzz_state are saved states of its engines: every one must
+// still load (a format change makes them stale, and the fuzzer would then
+// spend its time on the header). BLOT_UPDATE_FUZZ_SEEDS=1 rewrites them.
+TEST(StateFuzzCorpus, EverySeedLoadsAndPassesTheFuzzOracle) {
+  namespace fs = std::filesystem;
+  const fs::path folder = fs::path(BLOT_TEST_DATA_DIR) / ".." / "fuzz" / "corpus" / "state";
+  const std::string scratch = (fs::temp_directory_path() / "blot_state_fuzz_seed.state").string();
+  if (std::getenv("BLOT_UPDATE_FUZZ_SEEDS") != nullptr) {
+    fs::create_directories(folder);
+    for (const auto& [name, bytes] : fuzz::stateFuzzSeeds(scratch))
+      std::ofstream(folder / name, std::ios::binary).write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  }
+  ASSERT_TRUE(fs::is_directory(folder)) << folder;
+  int files = 0;
+  for (const auto& entry : fs::directory_iterator(folder)) {
+    std::ifstream in(entry.path(), std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    ASSERT_GE(bytes.size(), 2u) << entry.path();
+    ++files;
+    // The seed as a state file, loaded into a fresh engine of its kind.
+    std::ofstream(scratch, std::ios::binary | std::ios::trunc).write(bytes.data() + 1, static_cast<std::streamsize>(bytes.size() - 1));
+    Engine engine(fuzz::stateFuzzEngineDef(static_cast<unsigned char>(bytes[0]) % fuzz::kStateFuzzEngineCount));
+    EXPECT_NO_THROW(engine.load(scratch)) << entry.path() << ": stale seed; rerun with BLOT_UPDATE_FUZZ_SEEDS=1";
+    // And through the fuzz target's own checks (they abort on a finding).
+    LLVMFuzzerTestOneInput(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size());
+    // Every truncation of it is refused with a message naming the file.
+    for (std::size_t cut : {std::size_t(1), bytes.size() / 3, bytes.size() / 2, bytes.size() - 1})
+      LLVMFuzzerTestOneInput(reinterpret_cast<const std::uint8_t*>(bytes.data()), cut);
+  }
+  std::remove(scratch.c_str());
+  EXPECT_EQ(files, 3 * fuzz::kStateFuzzEngineCount);
+}
+
+}  // namespace
+}  // namespace blot::engine

@@ -1,6 +1,7 @@
 // Tests for blot::engine images: PNG round trips, atomic writes, the label
 // font, contact sheets and side-by-side composition.
 #include <blot/engine/image.h>
+#include <blot/engine/output_options.h>
 
 #include <gtest/gtest.h>
 
@@ -104,6 +105,61 @@ TEST_F(ImageTest, PngErrorsNameThePath) {
   EXPECT_THROW(writePng(Image(2, 2), path("no_such_dir/x.png")), ImageError);
   EXPECT_FALSE(fs::exists(path("no_such_dir")));
   EXPECT_THROW(writePng(Image(), path("empty.png")), ImageError);
+}
+
+/// The message of the ImageError `read` throws, or "" when it throws none.
+template <typename Read>
+std::string imageError(Read read) {
+  try {
+    read();
+  } catch (const ImageError& error) {
+    return error.what();
+  }
+  return "";
+}
+
+// Every PNG reader reads at most kPngFileByteLimit bytes: an endless file
+// (/dev/zero, about 5 s) after that many, a larger regular file (sparse: no disk used)
+// by its size before a byte; a folder by name. Each message names the path
+// and the limit.
+TEST_F(ImageTest, PngReadersRefuseEndlessAndOversizeFilesNamingTheLimit) {
+  const std::string limit = std::to_string(kPngFileByteLimit);
+  const std::string huge = path("huge.png");
+  {
+    std::ofstream file(huge, std::ios::binary);
+    file << "\x89PNG\r\n\x1a\n";
+  }
+  fs::resize_file(huge, kPngFileByteLimit + 1);
+  const std::string tooLarge = huge + ": the PNG file is " + std::to_string(kPngFileByteLimit + 1) +
+                               " bytes, more than the limit of " + limit + " bytes";
+  EXPECT_EQ(imageError([&] { readPng(huge); }), tooLarge);
+  EXPECT_EQ(imageError([&] { readPng16(huge); }), tooLarge);
+  EXPECT_EQ(imageError([&] { readPngInfo(huge); }), tooLarge);
+  // One endless read (the three share their reader; each costs a 512 MiB read).
+  const std::string endless = imageError([] { readPng16("/dev/zero"); });
+  EXPECT_EQ(endless.rfind("/dev/zero: the PNG file has more than the limit of " + limit + " bytes", 0), 0u) << endless;
+  EXPECT_EQ(imageError([&] { readPng(directory_.string()); }), directory_.string() + ": the PNG file is a directory");
+  EXPECT_EQ(imageError([&] { readPng16(path("missing.png")); }),
+            path("missing.png") + ": cannot open the PNG file: No such file or directory");
+}
+
+// A small file cannot declare a gigapixel image: wider or taller than
+// kMaxImageSide is refused by libpng's user limit before rows are allocated.
+TEST_F(ImageTest, PngReadersRefuseImagesWiderThanTheImageSideLimit) {
+  Image16 wide;
+  wide.width = kMaxImageSide + 1;
+  wide.height = 1;
+  wide.channels = 1;
+  wide.samples.assign(static_cast<std::size_t>(wide.width), 7);
+  writePng16(wide, path("wide.png"));
+  for (const std::string& message : {imageError([&] { readPng(path("wide.png")); }),
+                                     imageError([&] { readPng16(path("wide.png")); })})
+    EXPECT_EQ(message, path("wide.png") +
+                           ": PNG decoding failed: Invalid IHDR data (Image width exceeds user limit in IHDR)");
+  wide.width = kMaxImageSide;
+  wide.samples.resize(static_cast<std::size_t>(wide.width));
+  writePng16(wide, path("wide.png"));
+  EXPECT_EQ(readPng16(path("wide.png")).width, kMaxImageSide);
 }
 
 TEST(ImageBasics, ConstructorValidatesAndFills) {

@@ -3,11 +3,13 @@
 // previous version of the file intact, and the error names the path. The
 // failures are real: a target that is a directory (rename fails after the
 // temporary was written), a parent that is a file (the temporary cannot be
-// created), and a file-size limit (RLIMIT_FSIZE) that makes write() fail half
-// way, as a full disk would. Root ignores permission bits, so chmod is no
-// portable way to make a folder unwritable in CI.
+// created), a file-size limit (RLIMIT_FSIZE) that makes write() fail half
+// way, and a genuinely full filesystem (a 64 KiB tmpfs, ENOSPC) where the test
+// may mount one. Root ignores permission bits, so chmod is no portable way to
+// make a folder unwritable in CI.
 #include <blot/engine/image.h>
 #include <blot/engine/ply_frame_writer.h>
+#include <blot/stain/io/atomic_file.h>
 
 #include <gtest/gtest.h>
 
@@ -19,6 +21,9 @@
 #include <functional>
 #include <iterator>
 #include <string>
+#include <cerrno>
+#include <cstring>
+#include <sys/mount.h>
 #include <sys/resource.h>
 #include <unistd.h>
 #include <vector>
@@ -184,6 +189,89 @@ TEST_F(OutputFailureTest, RefusedFrameLeavesThePreviousFrameUntouched) {
   }
   EXPECT_EQ(fileBytes(path("frame_0002.ply")), good);
   EXPECT_EQ(entries(), std::vector<std::string>{"frame_0002.ply"});
+}
+
+/// A real full disk: a 64 KiB tmpfs mounted over a folder for the test's
+/// lifetime (needs root with CAP_SYS_ADMIN, as in CI's container; elsewhere
+/// the tests using it skip, saying why).
+class TinyFilesystem {
+ public:
+  explicit TinyFilesystem(const fs::path& folder) : folder_(folder) {
+    fs::create_directories(folder);
+    if (::mount("tmpfs", folder.c_str(), "tmpfs", MS_NOSUID | MS_NODEV, "size=64k,mode=0700") == 0)
+      mounted_ = true;
+    else
+      why_ = std::string("cannot mount a 64 KiB tmpfs on ") + folder.string() + ": " + std::strerror(errno);
+  }
+  ~TinyFilesystem() {
+    if (mounted_) ::umount2(folder_.c_str(), MNT_DETACH);
+  }
+  TinyFilesystem(const TinyFilesystem&) = delete;
+  TinyFilesystem& operator=(const TinyFilesystem&) = delete;
+  bool mounted() const { return mounted_; }
+  const std::string& why() const { return why_; }
+
+ private:
+  fs::path folder_;
+  bool mounted_ = false;
+  std::string why_;
+};
+
+std::vector<std::string> namesIn(const fs::path& folder) {
+  std::vector<std::string> names;
+  for (const auto& entry : fs::directory_iterator(folder)) names.push_back(entry.path().filename().string());
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+// ENOSPC for real: on a 64 KiB filesystem, earlier outputs written while it
+// had room, then writes that do not fit. Each fails with "No space left on
+// device" naming its file, leaves no temporary and no partial file, and every
+// earlier file is byte-identical and still reads back; once space is freed
+// the same write succeeds.
+TEST_F(OutputFailureTest, FullFilesystemFailsClearlyAndKeepsEarlierOutputs) {
+  const fs::path disk = directory_ / "disk";
+  TinyFilesystem tiny(disk);
+  if (!tiny.mounted()) GTEST_SKIP() << tiny.why();
+  const std::string png = (disk / "preview.png").string(), ply = (disk / "frame_0001.ply").string();
+  const std::string state = (disk / "checkpoint.json").string();
+  const Image small = noiseImage(16);
+  writePng(small, png);
+  writePlyFrame(ply, squareFrame(0));
+  const std::string record = "{\"frame\": 3}\n";
+  stain::writeFileAtomically(state, record.data(), record.size());
+  const std::string goodPng = fileBytes(png), goodPly = fileBytes(ply);
+  // A filler that leaves less room than any of the next writes needs.
+  const std::string filler(40 * 1024, 'x');
+  stain::writeFileAtomically((disk / "filler").string(), filler.data(), filler.size());
+
+  const auto expectNoSpace = [&](const std::function<void()>& write, const std::string& target) {
+    try {
+      write();
+      ADD_FAILURE() << "the write to " << target << " succeeded on a full filesystem";
+    } catch (const std::runtime_error& error) {
+      const std::string message = error.what();
+      EXPECT_EQ(message.rfind(target + ": cannot write", 0), 0u) << message;
+      EXPECT_NE(message.find("No space left on device"), std::string::npos) << message;
+    }
+  };
+  expectNoSpace([&] { writePng(noiseImage(100), png); }, png);  // 30 KiB of incompressible pixels
+  PlyFrame big = squareFrame(1);
+  for (int k = 0; k < 2000; ++k)
+    big.vertexAttributes.push_back({"a" + std::to_string(k), Eigen::VectorXd::Constant(4, k), PlyScalarType::Float64});
+  expectNoSpace([&] { writePlyFrame(ply, big); }, ply);
+  const std::string summary(30 * 1024, ' ');
+  expectNoSpace([&] { stain::writeFileAtomically(state, summary.data(), summary.size()); }, state);
+
+  EXPECT_EQ(namesIn(disk), (std::vector<std::string>{"checkpoint.json", "filler", "frame_0001.ply", "preview.png"}));
+  EXPECT_EQ(fileBytes(png), goodPng);
+  EXPECT_TRUE(readPng(png) == small);
+  EXPECT_EQ(fileBytes(ply), goodPly);
+  EXPECT_EQ(fileBytes(state), record);
+  // Room again: the same write goes through.
+  fs::remove(disk / "filler");
+  writePng(noiseImage(100), png);
+  EXPECT_EQ(readPng(png).width(), 100);
 }
 
 }  // namespace

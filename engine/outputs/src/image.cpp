@@ -12,7 +12,9 @@
 // LCD character generator), stored as five column bytes per glyph, bit 0 = top.
 #include <blot/engine/image.h>
 
+#include <blot/engine/output_options.h>
 #include <blot/stain/io/atomic_file.h>
+#include <blot/stain/io/bounded_read.h>
 
 #include <png.h>
 
@@ -20,8 +22,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
-#include <fstream>
-#include <iterator>
 
 namespace blot::engine {
 namespace {
@@ -86,6 +86,7 @@ constexpr int kGlyphAdvance = 6;
 
 struct PngStatus {
   char message[256] = {0};
+  char warning[256] = {0};  // the first warning: libpng explains a refused header there
 };
 
 void pngError(png_structp png, png_const_charp message) {
@@ -94,7 +95,10 @@ void pngError(png_structp png, png_const_charp message) {
   png_longjmp(png, 1);
 }
 
-void pngWarning(png_structp, png_const_charp) {}
+void pngWarning(png_structp png, png_const_charp message) {
+  auto* status = static_cast<PngStatus*>(png_get_error_ptr(png));
+  if (status->warning[0] == '\0') std::snprintf(status->warning, sizeof status->warning, "%s", message);
+}
 
 struct PngWriteBuffer {
   std::vector<std::uint8_t>* bytes;
@@ -138,21 +142,30 @@ bool encodePng(const Image& image, std::vector<std::uint8_t>& out, PngStatus& st
 }
 
 struct PngReadBuffer {
-  const std::vector<std::uint8_t>* bytes;
+  const std::string* bytes;
   std::size_t offset;
 };
 
+/// A read struct that refuses images wider or taller than kMaxImageSide
+/// (libpng: "Image width exceeds user limit in IHDR") before allocating rows,
+/// so a small file cannot declare a gigapixel image.
+png_structp createPngReader(PngStatus& status) {
+  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &status, pngError, pngWarning);
+  if (png != nullptr) png_set_user_limits(png, kMaxImageSide, kMaxImageSide);
+  return png;
+}
+
 void pngReadFromBuffer(png_structp png, png_bytep data, png_size_t length) {
   auto* buffer = static_cast<PngReadBuffer*>(png_get_io_ptr(png));
-  if (buffer->offset + length > buffer->bytes->size()) png_error(png, "file is truncated");
+  if (length > buffer->bytes->size() - buffer->offset) png_error(png, "file is truncated");
   std::memcpy(data, buffer->bytes->data() + buffer->offset, length);
   buffer->offset += length;
 }
 
 // Decodes into `image`, which the caller owns (so no destructor is skipped by longjmp).
-bool decodePng(const std::vector<std::uint8_t>& bytes, Image& image, PngStatus& status) {
+bool decodePng(const std::string& bytes, Image& image, PngStatus& status) {
   PngReadBuffer buffer{&bytes, 0};
-  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &status, pngError, pngWarning);
+  png_structp png = createPngReader(status);
   if (png == nullptr) return false;
   png_infop info = png_create_info_struct(png);
   if (info == nullptr || setjmp(png_jmpbuf(png))) {
@@ -233,9 +246,9 @@ bool encodePng16(const Image16& image, std::vector<std::uint8_t>& out, PngStatus
   return true;
 }
 
-bool readPngInfoFrom(const std::vector<std::uint8_t>& bytes, PngFileInfo& result, PngStatus& status) {
+bool readPngInfoFrom(const std::string& bytes, PngFileInfo& result, PngStatus& status) {
   PngReadBuffer buffer{&bytes, 0};
-  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &status, pngError, pngWarning);
+  png_structp png = createPngReader(status);
   if (png == nullptr) return false;
   png_infop info = png_create_info_struct(png);
   if (info == nullptr || setjmp(png_jmpbuf(png))) {
@@ -257,10 +270,10 @@ bool readPngInfoFrom(const std::vector<std::uint8_t>& bytes, PngFileInfo& result
 }
 
 // 16-bit files only; `image` and `row` belong to the caller (longjmp).
-bool decodePng16(const std::vector<std::uint8_t>& bytes, Image16& image, std::vector<std::uint8_t>& row,
+bool decodePng16(const std::string& bytes, Image16& image, std::vector<std::uint8_t>& row,
                  PngStatus& status) {
   PngReadBuffer buffer{&bytes, 0};
-  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &status, pngError, pngWarning);
+  png_structp png = createPngReader(status);
   if (png == nullptr) return false;
   png_infop info = png_create_info_struct(png);
   if (info == nullptr || setjmp(png_jmpbuf(png))) {
@@ -286,6 +299,37 @@ bool decodePng16(const std::vector<std::uint8_t>& bytes, Image16& image, std::ve
   png_read_end(png, nullptr);
   png_destroy_read_struct(&png, &info, nullptr);
   return true;
+}
+
+/// The one read of a PNG file: at most kPngFileByteLimit bytes (stain::
+/// readFileBounded: a larger file by its size, an endless one such as
+/// /dev/zero after the budget), and the 8-byte PNG signature checked.
+std::string readPngFile(const std::string& path) {
+  std::string bytes;
+  try {
+    bytes = stain::readFileBounded(path, kPngFileByteLimit, "the PNG file");
+  } catch (const stain::FileReadError& error) {
+    throw ImageError(error.what());
+  }
+  if (bytes.size() < 8 || png_sig_cmp(reinterpret_cast<png_const_bytep>(bytes.data()), 0, 8) != 0)
+    throw ImageError(path + ": not a PNG file (bad signature)");
+  return bytes;
+}
+
+/// "<path>: PNG decoding failed: <libpng's error> (<its first warning>)".
+ImageError decodingFailed(const std::string& path, const PngStatus& status) {
+  std::string message = path + ": PNG decoding failed: " + status.message;
+  if (status.warning[0] != '\0') message += std::string(" (") + status.warning + ")";
+  return ImageError(message);
+}
+
+/// The one write of an encoded PNG: whole, to a temporary renamed over `path`.
+void writePngFile(const std::vector<std::uint8_t>& encoded, const std::string& path) {
+  try {
+    stain::writeFileAtomically(path, encoded.data(), encoded.size());
+  } catch (const std::runtime_error& error) {
+    throw ImageError(error.what());
+  }
 }
 
 std::uint8_t blendChannel(std::uint8_t source, std::uint8_t target, std::uint8_t alpha) {
@@ -347,25 +391,15 @@ void writePng(const Image& image, const std::string& path) {
   if (!encodePng(image, encoded, status)) {
     throw ImageError(path + ": PNG encoding failed: " + status.message);
   }
-  try {
-    stain::writeFileAtomically(path, encoded.data(), encoded.size());
-  } catch (const std::runtime_error& error) {
-    throw ImageError(error.what());
-  }
+  writePngFile(encoded, path);
 }
 
 Image readPng(const std::string& path) {
-  std::ifstream file(path, std::ios::binary);
-  if (!file) throw ImageError(path + ": cannot open for reading");
-  const std::vector<std::uint8_t> bytes{std::istreambuf_iterator<char>(file),
-                                        std::istreambuf_iterator<char>()};
-  if (bytes.size() < 8 || png_sig_cmp(bytes.data(), 0, 8) != 0) {
-    throw ImageError(path + ": not a PNG file (bad signature)");
-  }
+  const std::string bytes = readPngFile(path);
   Image image;
   PngStatus status;
   if (!decodePng(bytes, image, status)) {
-    throw ImageError(path + ": PNG decoding failed: " + status.message);
+    throw decodingFailed(path, status);
   }
   return image;
 }
@@ -383,37 +417,23 @@ void writePng16(const Image16& image, const std::string& path, const std::vector
   if (!encodePng16(image, encoded, status, &text, rowBytes.data(), texts)) {
     throw ImageError(path + ": PNG encoding failed: " + status.message);
   }
-  try {
-    stain::writeFileAtomically(path, encoded.data(), encoded.size());
-  } catch (const std::runtime_error& error) {
-    throw ImageError(error.what());
-  }
+  writePngFile(encoded, path);
 }
 
 Image16 readPng16(const std::string& path) {
-  std::ifstream file(path, std::ios::binary);
-  if (!file) throw ImageError(path + ": cannot open for reading");
-  const std::vector<std::uint8_t> bytes{std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>()};
-  if (bytes.size() < 8 || png_sig_cmp(bytes.data(), 0, 8) != 0) {
-    throw ImageError(path + ": not a PNG file (bad signature)");
-  }
+  const std::string bytes = readPngFile(path);
   Image16 image;
   std::vector<std::uint8_t> row;
   PngStatus status;
-  if (!decodePng16(bytes, image, row, status)) throw ImageError(path + ": PNG decoding failed: " + status.message);
+  if (!decodePng16(bytes, image, row, status)) throw decodingFailed(path, status);
   return image;
 }
 
 PngFileInfo readPngInfo(const std::string& path) {
-  std::ifstream file(path, std::ios::binary);
-  if (!file) throw ImageError(path + ": cannot open for reading");
-  const std::vector<std::uint8_t> bytes{std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>()};
-  if (bytes.size() < 8 || png_sig_cmp(bytes.data(), 0, 8) != 0) {
-    throw ImageError(path + ": not a PNG file (bad signature)");
-  }
+  const std::string bytes = readPngFile(path);
   PngFileInfo info;
   PngStatus status;
-  if (!readPngInfoFrom(bytes, info, status)) throw ImageError(path + ": PNG decoding failed: " + status.message);
+  if (!readPngInfoFrom(bytes, info, status)) throw decodingFailed(path, status);
   return info;
 }
 

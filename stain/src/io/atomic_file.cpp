@@ -11,13 +11,22 @@
 // against power loss, not process death, and costs milliseconds per frame.
 #include <blot/stain/io/atomic_file.h>
 
+#include <atomic>
 #include <cerrno>
+#include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <stdexcept>
 #include <unistd.h>
 
 namespace blot::stain {
+namespace {
+
+std::atomic<int> gWritesBeforeKill{0};  // killInWriteForTesting: 0 = off
+
+}  // namespace
+
+void killInWriteForTesting(int n) { gWritesBeforeKill = n > 0 ? n : 0; }
 
 void writeFileAtomically(const std::string& path, const void* data, std::size_t size) {
   const std::string tempPath = path + "." + std::to_string(static_cast<long>(::getpid())) + ".tmp";
@@ -25,6 +34,11 @@ void writeFileAtomically(const std::string& path, const void* data, std::size_t 
   if (file == nullptr) {
     throw std::runtime_error(path + ": cannot write the temporary file " + tempPath + ": " +
                              std::strerror(errno));
+  }
+  if (gWritesBeforeKill > 0 && --gWritesBeforeKill == 0) {
+    std::fwrite(data, 1, size / 2, file);
+    std::fflush(file);
+    ::kill(::getpid(), SIGKILL);
   }
   errno = 0;
   const std::size_t written = size == 0 ? 0 : std::fwrite(data, 1, size, file);

@@ -3,6 +3,7 @@
 /// side-by-side comparisons with small text labels. Pixels are stored row-major,
 /// top row first, channels interleaved; values are sRGB-encoded bytes
 /// (color_space.h), and writePng marks them so with the sRGB chunk.
+#include <cstddef>
 #include <cstdint>
 #include <stdexcept>
 #include <string>
@@ -18,6 +19,12 @@ struct Rgba8 {
   }
   friend bool operator!=(const Rgba8& p, const Rgba8& q) { return !(p == q); }
 };
+
+/// The most bytes readPng, readPng16 and readPngInfo read from one file
+/// (512 MiB): a larger file is refused by its size before a byte is read, an
+/// endless one (a pipe, /dev/zero) after this many. Decoded images are also
+/// limited to kMaxImageSide (output_options.h) along each side.
+inline constexpr std::size_t kPngFileByteLimit = std::size_t(512) << 20;
 
 /// PNG read/write failures (file names the path and libpng's message).
 class ImageError : public std::runtime_error {

@@ -13,4 +13,10 @@ namespace blot::stain {
 /// std::runtime_error "<path>: cannot write ...: <system error>" is thrown.
 void writeFileAtomically(const std::string& path, const void* data, std::size_t size);
 
+/// Testing only (blot run --testing-kill-in-write): the n-th call of
+/// writeFileAtomically from now on (n >= 1; 0 turns it off) writes half of its
+/// bytes to the temporary file, flushes them, and sends this process SIGKILL,
+/// so a test can kill a run in the middle of a write without timing luck.
+void killInWriteForTesting(int n);
+
 }  // namespace blot::stain
