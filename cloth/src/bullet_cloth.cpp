@@ -337,7 +337,7 @@ void BulletCloth::applyLiquidLoads() {
 void BulletCloth::adoptBody() {
   Bullet& b = *bullet_;
   btSoftBody& body = *def_.body;
-  const int n = vertexCount();
+  const int n = static_cast<int>(def_.restPositions.rows());  // positions_ is not sized yet
   require(body.m_nodes.size() == n, "body has " + std::to_string(body.m_nodes.size()) + " nodes; restPositions has " +
                                         std::to_string(n) + " rows (node i must be vertex i)");
   require(body.m_faces.size() == 0 || body.m_faces.size() == faces_.rows(),
