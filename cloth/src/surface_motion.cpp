@@ -16,6 +16,18 @@ void SurfaceMotion::setLiquidLoads(const Eigen::VectorXd&, const Eigen::MatrixX3
   throw std::logic_error("this surface motion is prescribed and takes no liquid loads (two-way coupling needs a simulated cloth)");
 }
 
+void SurfaceMotion::setPinTarget(int, const Eigen::Vector3d&) {
+  throw std::invalid_argument("this surface motion has no pins (they belong to a Bullet cloth)");
+}
+
+void SurfaceMotion::setNextFrame(const Eigen::MatrixX3d&, const Eigen::MatrixX3d*) {
+  throw std::invalid_argument("this surface motion takes no frames (they are given to a caller-supplied surface)");
+}
+
+void SurfaceMotion::setNextFrame(const double*, const double*) {
+  throw std::invalid_argument("this surface motion takes no frames (they are given to a caller-supplied surface)");
+}
+
 StaticSurface::StaticSurface(const Eigen::MatrixX3d& restPositions)
     : positions_(restPositions), velocities_(Eigen::MatrixX3d::Zero(restPositions.rows(), 3)) {}
 

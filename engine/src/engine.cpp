@@ -349,27 +349,24 @@ SurfaceHit Engine::nearestSurfacePoint(const Eigen::Vector3d& point) const {
 }
 
 void Engine::setPinTarget(int vertex, const Eigen::Vector3d& position) {
-  auto* cloth = dynamic_cast<cloth::BulletCloth*>(&surface_->motion());
-  if (!cloth)
+  if (def_.source != MotionSource::Bullet)
     throw std::invalid_argument(std::string("Engine::setPinTarget: the motion source is \"") +
                                 motionSourceName(def_.source) + "\"; pins belong to a \"bullet\" cloth");
-  cloth->setPinTarget(vertex, position);
+  surface_->motion().setPinTarget(vertex, position);
 }
 
 void Engine::setSurfaceFrame(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3d* velocities) {
-  auto* motion = dynamic_cast<cloth::CallerMotion*>(&surface_->motion());
-  if (!motion)
+  if (def_.source != MotionSource::Caller)
     throw std::invalid_argument(std::string("Engine::setSurfaceFrame: the motion source is \"") +
                                 motionSourceName(def_.source) + "\"; frames are given to a \"caller\" source");
-  motion->setNextFrame(positions, velocities);
+  surface_->motion().setNextFrame(positions, velocities);
 }
 
 void Engine::setSurfaceFrame(const double* positions, const double* velocities) {
-  auto* motion = dynamic_cast<cloth::CallerMotion*>(&surface_->motion());
-  if (!motion)
+  if (def_.source != MotionSource::Caller)
     throw std::invalid_argument(std::string("Engine::setSurfaceFrame: the motion source is \"") +
                                 motionSourceName(def_.source) + "\"; frames are given to a \"caller\" source");
-  motion->setNextFrame(positions, velocities);
+  surface_->motion().setNextFrame(positions, velocities);
 }
 
 // ------------------------------------------------------------------ views

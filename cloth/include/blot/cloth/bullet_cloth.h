@@ -302,7 +302,7 @@ class BulletCloth final : public SurfaceMotion {
   /// applies. A later call replaces the target. Deterministic, saved with the
   /// state. Throws std::invalid_argument unless `vertex` is a pin not yet
   /// released.
-  void setPinTarget(int vertex, const Eigen::Vector3d& position);
+  void setPinTarget(int vertex, const Eigen::Vector3d& position) override;
   /// True when the body lives in the caller's world (ClothDef::world).
   bool sharesWorld() const;
 

@@ -71,6 +71,13 @@ class SurfaceMotion {
   /// size mismatch). A motion that is a pure function of its time has none
   /// (hasDynamicState false; both do nothing).
   virtual bool hasDynamicState() const { return false; }
+  /// A simulated cloth's pin moved at runtime (BulletCloth::setPinTarget);
+  /// throws std::invalid_argument for a motion without pins.
+  virtual void setPinTarget(int vertex, const Eigen::Vector3d& position);
+  /// The next frame of a caller-supplied surface (CallerMotion::setNextFrame);
+  /// throws std::invalid_argument for any other motion.
+  virtual void setNextFrame(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3d* velocities);
+  virtual void setNextFrame(const double* positions, const double* velocities);
   virtual void saveDynamicState(MotionStateVisitor& visitor) const { (void)visitor; }
   virtual void loadDynamicState(MotionStateVisitor& visitor) { (void)visitor; }
 };
@@ -116,10 +123,10 @@ class CallerMotion final : public SurfaceMotion {
   /// velocities (#V by 3, m/s) or null for the finite difference. Copied
   /// (no allocation after the first call); replaces a frame not yet used.
   /// Throws std::invalid_argument for a wrong row count or a non-finite value.
-  void setNextFrame(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3d* velocities = nullptr);
+  void setNextFrame(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3d* velocities = nullptr) override;
   /// The same from raw arrays, #V × 3 doubles each, row-major (x0 y0 z0 x1 …);
   /// velocities may be null.
-  void setNextFrame(const double* positions, const double* velocities);
+  void setNextFrame(const double* positions, const double* velocities) override;
   bool hasNextFrame() const { return hasNext_; }
   void keepRollbackPoint() override;
   void rollBack() override;
