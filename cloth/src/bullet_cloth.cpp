@@ -114,6 +114,10 @@ BulletCloth::BulletCloth(const ClothDef& def) : def_(def), bullet_(std::make_uni
 
   pinSlot_.assign(static_cast<size_t>(n), -1);
   released_.assign(def_.pins.size(), 0);
+  moved_.assign(def_.pins.size(), 0);
+  pinTargets_ = Eigen::MatrixX3d::Zero(static_cast<Eigen::Index>(def_.pins.size()), 3);
+  moveStarts_ = pinTargets_;
+  heldByCaller_.assign(static_cast<size_t>(n), 0);
   for (size_t p = 0; p < def_.pins.size(); ++p) pinSlot_[static_cast<size_t>(def_.pins[p].vertex)] = static_cast<int>(p);
   if (def_.tethers) {
     nearestPins(faces_, rest, def_.pins, tetherPin_, tetherLengths_);
@@ -122,23 +126,39 @@ BulletCloth::BulletCloth(const ClothDef& def) : def_(def), bullet_(std::make_uni
     tetherPin_.assign(static_cast<size_t>(n), -1);
   }
 
-  // World. Gravity is set once, into both places Bullet reads it: the world
-  // (rigid bodies) and the soft-body world info (predictMotion).
+  // World: a private one, or the caller's. Gravity is set once into a
+  // private world, into both places Bullet reads it: the world (rigid bodies)
+  // and the soft-body world info (predictMotion). A shared world keeps the
+  // caller's settings; its soft-body gravity must be the def's (the stain
+  // feels the same gravity as the cloth).
   Bullet& b = *bullet_;
-  b.configuration = std::make_unique<btSoftBodyRigidBodyCollisionConfiguration>();
-  b.dispatcher = std::make_unique<btCollisionDispatcher>(b.configuration.get());
-  b.broadphase = std::make_unique<btDbvtBroadphase>();
-  b.solver = std::make_unique<btSequentialImpulseConstraintSolver>();
-  b.world = std::make_unique<btSoftRigidDynamicsWorld>(b.dispatcher.get(), b.broadphase.get(), b.solver.get(),
-                                                       b.configuration.get());
   const btVector3 gravity = toBullet(def_.gravity);
-  b.world->setGravity(gravity);
+  if (def_.world) {
+    b.world = def_.world;
+    b.shared = true;
+    const Eigen::Vector3d worldGravity = toEigen(b.world->getWorldInfo().m_gravity);
+    require((worldGravity - def_.gravity).norm() <= 1e-6 * std::max(1.0, def_.gravity.norm()),
+            "gravity (" + std::to_string(def_.gravity.x()) + ", " + std::to_string(def_.gravity.y()) + ", " +
+                std::to_string(def_.gravity.z()) + ") differs from the shared world's soft-body gravity (" +
+                std::to_string(worldGravity.x()) + ", " + std::to_string(worldGravity.y()) + ", " +
+                std::to_string(worldGravity.z()) + "); set world->getWorldInfo().m_gravity or ClothDef.gravity");
+  } else {
+    b.configuration = std::make_unique<btSoftBodyRigidBodyCollisionConfiguration>();
+    b.dispatcher = std::make_unique<btCollisionDispatcher>(b.configuration.get());
+    b.broadphase = std::make_unique<btDbvtBroadphase>();
+    b.solver = std::make_unique<btSequentialImpulseConstraintSolver>();
+    b.ownedWorld = std::make_unique<btSoftRigidDynamicsWorld>(b.dispatcher.get(), b.broadphase.get(), b.solver.get(),
+                                                              b.configuration.get());
+    b.world = b.ownedWorld.get();
+    b.world->setGravity(gravity);
+    btSoftBodyWorldInfo& info = b.world->getWorldInfo();
+    info.m_gravity = gravity;
+    info.air_density = static_cast<btScalar>(def_.wind.airDensity);
+    info.m_sparsesdf.setDefaultVoxelsz(
+        static_cast<btScalar>(def_.collisionVoxelSize > 0 ? def_.collisionVoxelSize : automaticVoxelSize(def_)));
+    info.m_sparsesdf.Reset();
+  }
   btSoftBodyWorldInfo& info = b.world->getWorldInfo();
-  info.m_gravity = gravity;
-  info.air_density = static_cast<btScalar>(def_.wind.airDensity);
-  info.m_sparsesdf.setDefaultVoxelsz(
-      static_cast<btScalar>(def_.collisionVoxelSize > 0 ? def_.collisionVoxelSize : automaticVoxelSize(def_)));
-  info.m_sparsesdf.Reset();
 
   // Static colliders.
   const Eigen::Vector3d restMin = rest.colwise().minCoeff();
@@ -180,85 +200,92 @@ BulletCloth::BulletCloth(const ClothDef& def) : def_(def), bullet_(std::make_uni
   }
   b.collides = !def_.colliders.empty();
 
-  // The body: nodes, links, faces, in mesh order. The margin must be set before
-  // the nodes are appended (it sizes their bounding volumes).
-  b.body = std::make_unique<btSoftBody>(&info, 0, nullptr, nullptr);
+  if (def_.body) {
+    adoptBody();
+  } else {
+    // The body: nodes, links, faces, in mesh order. The margin must be set before
+    // the nodes are appended (it sizes their bounding volumes).
+    b.ownedBody = std::make_unique<btSoftBody>(&info, 0, nullptr, nullptr);
+    b.body = b.ownedBody.get();
+    btSoftBody& body = *b.body;
+    body.getCollisionShape()->setMargin(static_cast<btScalar>(collisionMargin_));
+    // Nodes as btSoftBody::appendNode makes them, except for the tree of their
+    // bounding volumes: appendNode inserts one leaf at a time, and Bullet's
+    // unbalanced insertion turns a raster-ordered grid into a near-linear tree
+    // (1.0 s at 140K nodes, 0.3 s even in scrambled order). We build the same
+    // btDbvt balanced, by median splits, in O(#V log #V).
+    body.m_nodes.reserve(n);
+    const btSoftBody::Node blank = [] {
+      btSoftBody::Node node;
+      ZeroInitialize(node);
+      return node;
+    }();
+    for (int i = 0; i < n; ++i) {
+      body.m_nodes.push_back(blank);
+      btSoftBody::Node& node = body.m_nodes[i];
+      node.m_x = toBullet(rest.row(i).transpose());
+      node.m_q = node.m_x;
+      // Pinned: m_im = 0, infinite mass.
+      node.m_im = pinSlot_[static_cast<size_t>(i)] >= 0 ? btScalar(0) : static_cast<btScalar>(1.0 / lumpedMasses_[i]);
+      node.m_material = body.m_materials[0];
+      node.index = i;
+    }
+    std::vector<int> order(static_cast<size_t>(n));
+    std::iota(order.begin(), order.end(), 0);
+    body.m_ndbvt.m_root = buildNodeTree(body, order.begin(), order.end(), nullptr, static_cast<btScalar>(collisionMargin_));
+    body.m_ndbvt.m_leaves = n;
+    body.updateBounds();
+
+    btSoftBody::Material* structural = body.m_materials[0];
+    structural->m_kLST = static_cast<btScalar>(def_.stretchStiffness);
+    btSoftBody::Material* shear = body.appendMaterial();
+    shear->m_kLST = static_cast<btScalar>(def_.shearStiffness);
+    btSoftBody::Material* bending = body.appendMaterial();
+    bending->m_kLST = static_cast<btScalar>(def_.bendStiffness);
+
+    const int edgeCount = static_cast<int>(def_.edges.rows());
+    const int bendCount = def_.bendStiffness > 0 ? static_cast<int>(def_.bendingPairs.rows()) : 0;
+    const int linkCount = edgeCount + bendCount;
+    linkVertices_.resize(linkCount, 2);
+    linkIsEdge_.assign(static_cast<size_t>(linkCount), false);
+    body.m_links.reserve(linkCount);
+    for (int e = 0; e < edgeCount; ++e) {
+      const int i = def_.edges(e, 0), j = def_.edges(e, 1);
+      body.appendLink(i, j, isShearEdge(def_.uvs, i, j) ? shear : structural);
+      linkVertices_.row(e) << i, j;
+      linkIsEdge_[static_cast<size_t>(e)] = true;
+    }
+    for (int k = 0; k < bendCount; ++k) {
+      const int p = def_.bendingPairs(k, 0), q = def_.bendingPairs(k, 1);
+      body.appendLink(p, q, bending);
+      body.m_links[body.m_links.size() - 1].m_bbending = -1;  // a signed 1-bit field: -1 is "set"
+      linkVertices_.row(edgeCount + k) << p, q;
+    }
+    body.m_faces.reserve(static_cast<int>(faces_.rows()));
+    for (int f = 0; f < faces_.rows(); ++f) body.appendFace(faces_(f, 0), faces_(f, 1), faces_(f, 2));
+    require(body.m_faces.size() == faces_.rows(), "mesh has a degenerate face (repeated vertex)");
+
+    btSoftBody::Config& cfg = body.m_cfg;
+    cfg.collisions = btSoftBody::fCollision::SDF_RS;  // soft–rigid contacts only, no self-collision
+    cfg.piterations = def_.positionIterations;
+    cfg.viterations = def_.velocityIterations;
+    cfg.diterations = def_.driftIterations;
+    cfg.kDF = 1;  // friction is the collider's coefficient itself
+    cfg.kKHR = static_cast<btScalar>(def_.contactHardness);
+    cfg.kDG = static_cast<btScalar>(def_.wind.dragCoefficient);
+    cfg.kLF = static_cast<btScalar>(def_.wind.liftCoefficient);
+    cfg.aeromodel = bulletAeroModel(def_.wind.model);
+    if (def_.solver == ClothSolver::Velocities) body.setSolver(btSoftBody::eSolverPresets::Velocities);
+    body.setWindVelocity(toBullet(def_.wind.velocity));
+
+    // Rest lengths, link constants and areas now, from the rest positions, and
+    // the flag lowered: nothing may recompute rest lengths during a step.
+    body.updateConstants();
+    body.m_bUpdateRtCst = false;
+    b.world->addSoftBody(&body);
+    b.bodyAdded = true;
+  }
   btSoftBody& body = *b.body;
-  body.getCollisionShape()->setMargin(static_cast<btScalar>(collisionMargin_));
-  // Nodes as btSoftBody::appendNode makes them, except for the tree of their
-  // bounding volumes: appendNode inserts one leaf at a time, and Bullet's
-  // unbalanced insertion turns a raster-ordered grid into a near-linear tree
-  // (1.0 s at 140K nodes, 0.3 s even in scrambled order). We build the same
-  // btDbvt balanced, by median splits, in O(#V log #V).
-  body.m_nodes.reserve(n);
-  const btSoftBody::Node blank = [] {
-    btSoftBody::Node node;
-    ZeroInitialize(node);
-    return node;
-  }();
-  for (int i = 0; i < n; ++i) {
-    body.m_nodes.push_back(blank);
-    btSoftBody::Node& node = body.m_nodes[i];
-    node.m_x = toBullet(rest.row(i).transpose());
-    node.m_q = node.m_x;
-    // Pinned: m_im = 0, infinite mass.
-    node.m_im = pinSlot_[static_cast<size_t>(i)] >= 0 ? btScalar(0) : static_cast<btScalar>(1.0 / lumpedMasses_[i]);
-    node.m_material = body.m_materials[0];
-    node.index = i;
-  }
-  std::vector<int> order(static_cast<size_t>(n));
-  std::iota(order.begin(), order.end(), 0);
-  body.m_ndbvt.m_root = buildNodeTree(body, order.begin(), order.end(), nullptr, static_cast<btScalar>(collisionMargin_));
-  body.m_ndbvt.m_leaves = n;
-  body.updateBounds();
-
-  btSoftBody::Material* structural = body.m_materials[0];
-  structural->m_kLST = static_cast<btScalar>(def_.stretchStiffness);
-  btSoftBody::Material* shear = body.appendMaterial();
-  shear->m_kLST = static_cast<btScalar>(def_.shearStiffness);
-  btSoftBody::Material* bending = body.appendMaterial();
-  bending->m_kLST = static_cast<btScalar>(def_.bendStiffness);
-
-  const int edgeCount = static_cast<int>(def_.edges.rows());
-  const int bendCount = def_.bendStiffness > 0 ? static_cast<int>(def_.bendingPairs.rows()) : 0;
-  const int linkCount = edgeCount + bendCount;
-  linkVertices_.resize(linkCount, 2);
-  linkIsEdge_.assign(static_cast<size_t>(linkCount), false);
-  body.m_links.reserve(linkCount);
-  for (int e = 0; e < edgeCount; ++e) {
-    const int i = def_.edges(e, 0), j = def_.edges(e, 1);
-    body.appendLink(i, j, isShearEdge(def_.uvs, i, j) ? shear : structural);
-    linkVertices_.row(e) << i, j;
-    linkIsEdge_[static_cast<size_t>(e)] = true;
-  }
-  for (int k = 0; k < bendCount; ++k) {
-    const int p = def_.bendingPairs(k, 0), q = def_.bendingPairs(k, 1);
-    body.appendLink(p, q, bending);
-    body.m_links[body.m_links.size() - 1].m_bbending = -1;  // a signed 1-bit field: -1 is "set"
-    linkVertices_.row(edgeCount + k) << p, q;
-  }
-  body.m_faces.reserve(static_cast<int>(faces_.rows()));
-  for (int f = 0; f < faces_.rows(); ++f) body.appendFace(faces_(f, 0), faces_(f, 1), faces_(f, 2));
-  require(body.m_faces.size() == faces_.rows(), "mesh has a degenerate face (repeated vertex)");
-
-  btSoftBody::Config& cfg = body.m_cfg;
-  cfg.collisions = btSoftBody::fCollision::SDF_RS;  // soft–rigid contacts only, no self-collision
-  cfg.piterations = def_.positionIterations;
-  cfg.viterations = def_.velocityIterations;
-  cfg.diterations = def_.driftIterations;
-  cfg.kDF = 1;  // friction is the collider's coefficient itself
-  cfg.kKHR = static_cast<btScalar>(def_.contactHardness);
-  cfg.kDG = static_cast<btScalar>(def_.wind.dragCoefficient);
-  cfg.kLF = static_cast<btScalar>(def_.wind.liftCoefficient);
-  cfg.aeromodel = bulletAeroModel(def_.wind.model);
-  if (def_.solver == ClothSolver::Velocities) body.setSolver(btSoftBody::eSolverPresets::Velocities);
-  body.setWindVelocity(toBullet(def_.wind.velocity));
-
-  // Rest lengths, link constants and areas now, from the rest positions, and
-  // the flag lowered: nothing may recompute rest lengths during a step.
-  body.updateConstants();
-  body.m_bUpdateRtCst = false;
-  b.world->addSoftBody(&body);
 
   restLinkLengths_.resize(body.m_links.size());
   for (int l = 0; l < body.m_links.size(); ++l) restLinkLengths_[l] = body.m_links[l].m_rl;
@@ -288,13 +315,17 @@ void BulletCloth::setLiquidLoads(const Eigen::VectorXd& extraNodeMasses, const E
   pendingExtraMasses_ = extraNodeMasses;  // same size: no allocation
   pendingImpulses_ = nodeImpulses;
   loadsPending_ = true;
+  // A shared world is stepped by its owner before the next advance(): the
+  // loads go into the body now.
+  if (bullet_->shared) applyLiquidLoads();
 }
 
 void BulletCloth::applyLiquidLoads() {
   btSoftBody& body = *bullet_->body;
   nodeMasses_ = lumpedMasses_ + pendingExtraMasses_;
   for (int i = 0; i < vertexCount(); ++i)
-    if (!isPinned(i)) body.m_nodes[i].m_im = static_cast<btScalar>(1.0 / nodeMasses_[i]);
+    if (!isPinned(i) && !heldByCaller_[static_cast<size_t>(i)])
+      body.m_nodes[i].m_im = static_cast<btScalar>(1.0 / nodeMasses_[i]);
   body.updateLinkConstants();
   for (int i = 0; i < vertexCount(); ++i) {
     btSoftBody::Node& node = body.m_nodes[i];
@@ -303,13 +334,93 @@ void BulletCloth::applyLiquidLoads() {
   loadsPending_ = false;
 }
 
-void BulletCloth::movePins(double targetTime, double substep) {
+void BulletCloth::adoptBody() {
+  Bullet& b = *bullet_;
+  btSoftBody& body = *def_.body;
+  const int n = static_cast<int>(def_.restPositions.rows());  // positions_ is not sized yet
+  require(body.m_nodes.size() == n, "body has " + std::to_string(body.m_nodes.size()) + " nodes; restPositions has " +
+                                        std::to_string(n) + " rows (node i must be vertex i)");
+  require(body.m_faces.size() == 0 || body.m_faces.size() == faces_.rows(),
+          "body has " + std::to_string(body.m_faces.size()) + " faces; faces has " + std::to_string(faces_.rows()) +
+              " rows");
+  const btSoftBody::Node* first = &body.m_nodes[0];
+  for (int f = 0; f < body.m_faces.size(); ++f)
+    for (int c = 0; c < 3; ++c) {
+      const int node = static_cast<int>(body.m_faces[f].m_n[c] - first);
+      require(node == faces_(f, c), "body face " + std::to_string(f) + " corner " + std::to_string(c) + " is node " +
+                                        std::to_string(node) + "; faces(" + std::to_string(f) + ", " +
+                                        std::to_string(c) + ") is " + std::to_string(faces_(f, c)));
+    }
+  require(body.getWorldInfo() == &b.world->getWorldInfo(),
+          "body was built with another world's btSoftBodyWorldInfo than ClothDef.world's");
+  b.body = &body;
+  b.adopted = true;
+  // The caller's masses are the cloth's own; nodes it holds keep m_im = 0.
+  for (int i = 0; i < n; ++i) {
+    const btScalar im = body.m_nodes[i].m_im;
+    heldByCaller_[static_cast<size_t>(i)] = im == 0 ? 1 : 0;
+    lumpedMasses_[i] = im > 0 ? 1.0 / static_cast<double>(im) : 0.0;
+  }
+  nodeMasses_ = lumpedMasses_;
+  for (const ClothPin& pin : def_.pins) body.m_nodes[pin.vertex].m_im = 0;
+  body.updateLinkConstants();
+  linkVertices_.resize(body.m_links.size(), 2);
+  linkIsEdge_.assign(static_cast<size_t>(body.m_links.size()), true);
+  for (int l = 0; l < body.m_links.size(); ++l) {
+    linkVertices_(l, 0) = static_cast<int>(body.m_links[l].m_n[0] - first);
+    linkVertices_(l, 1) = static_cast<int>(body.m_links[l].m_n[1] - first);
+    linkIsEdge_[static_cast<size_t>(l)] = !body.m_links[l].m_bbending;
+  }
+  collisionMargin_ = body.getCollisionShape()->getMargin();
+  btSoftBodyArray& bodies = b.world->getSoftBodyArray();
+  if (bodies.findLinearSearch(&body) == bodies.size()) {
+    b.world->addSoftBody(&body);
+    b.bodyAdded = true;
+  }
+}
+
+bool BulletCloth::sharesWorld() const { return bullet_->shared; }
+
+void BulletCloth::setPinTarget(int vertex, const Eigen::Vector3d& position) {
+  if (vertex < 0 || vertex >= vertexCount() || pinSlot_[static_cast<size_t>(vertex)] < 0)
+    throw std::invalid_argument("BulletCloth::setPinTarget: vertex " + std::to_string(vertex) + " is not a pin");
+  const auto p = static_cast<std::size_t>(pinSlot_[static_cast<size_t>(vertex)]);
+  if (released_[p])
+    throw std::invalid_argument("BulletCloth::setPinTarget: the pin at vertex " + std::to_string(vertex) +
+                                " was released");
+  if (!position.allFinite()) throw std::invalid_argument("BulletCloth::setPinTarget: position must be finite");
+  moved_[p] = 1;
+  pinTargets_.row(static_cast<Eigen::Index>(p)) = position.transpose();
+  // A shared world steps before the next advance(): the pin gets the
+  // velocity that carries it there during that step.
+  if (bullet_->shared && lastStep_ > 0) {
+    btSoftBody::Node& node = bullet_->body->m_nodes[vertex];
+    node.m_v = toBullet((position - toEigen(node.m_x)) / lastStep_);
+  }
+}
+
+Eigen::Vector3d BulletCloth::pinTarget(std::size_t p, double t) const {
+  if (moved_[p]) return pinTargets_.row(static_cast<Eigen::Index>(p)).transpose();
+  const ClothPin& pin = def_.pins[p];
+  return pin.motion.position(def_.restPositions.row(pin.vertex).transpose(), t);
+}
+
+// fraction: how far through this advance() the substep ends, for the straight
+// path of a pin moved by setPinTarget.
+void BulletCloth::movePins(double targetTime, double substep, double fraction) {
   btSoftBody& body = *bullet_->body;
   bool released = false;
   for (size_t p = 0; p < def_.pins.size(); ++p) {
     if (released_[p]) continue;
     const ClothPin& pin = def_.pins[p];
     btSoftBody::Node& node = body.m_nodes[pin.vertex];
+    if (moved_[p]) {
+      const Eigen::Vector3d start = moveStarts_.row(static_cast<Eigen::Index>(p)).transpose();
+      const Eigen::Vector3d target =
+          start + fraction * (pinTargets_.row(static_cast<Eigen::Index>(p)).transpose() - start);
+      node.m_v = toBullet((target - toEigen(node.m_x)) / substep);
+      continue;
+    }
     if (targetTime > pin.motion.releaseTime) {
       // Free from this substep on, with the pin's velocity at release.
       released_[p] = 1;
@@ -327,20 +438,62 @@ void BulletCloth::movePins(double targetTime, double substep) {
 void BulletCloth::advance(double h) {
   if (!(h > 0) || !std::isfinite(h)) throw std::invalid_argument("BulletCloth::advance: time step must be positive");
   Bullet& b = *bullet_;
+  if (b.shared) {
+    advanceSharedWorld(h);
+    return;
+  }
   if (loadsPending_) applyLiquidLoads();
   const double substep = h / def_.substeps;
   b.body->m_cfg.kDP = static_cast<btScalar>(1 - std::exp(-def_.dampingRate * substep));
+  for (size_t p = 0; p < def_.pins.size(); ++p)
+    if (moved_[p]) moveStarts_.row(static_cast<Eigen::Index>(p)) = toEigen(b.body->m_nodes[def_.pins[p].vertex].m_x).transpose();
   for (int s = 0; s < def_.substeps; ++s) {
-    movePins(time_ + (s + 1) * substep, substep);
+    movePins(time_ + (s + 1) * substep, substep, static_cast<double>(s + 1) / def_.substeps);
     // maxSubSteps = 0: exactly one Bullet step of this length, no accumulator.
     b.world->stepSimulation(static_cast<btScalar>(substep), 0, static_cast<btScalar>(substep));
     if (def_.tethers) enforceTethers(substep);
   }
   time_ += h;
+  lastStep_ = h;
   // Drop distance-cache cells no node has touched for a while (Bullet's demos
   // do this once per frame; otherwise the cache only grows).
   if (b.collides) b.world->getWorldInfo().m_sparsesdf.GarbageCollect();
   copyOut();
+}
+
+// The caller has stepped its world by h. Held pins are put exactly where they
+// belong at the new time (Bullet damps even an infinite-mass node's velocity a
+// little each substep), released pins let go, tethers pulled taut; then the
+// held pins get the velocity of their path over the next h, which the
+// caller's next world step follows.
+void BulletCloth::advanceSharedWorld(double h) {
+  Bullet& b = *bullet_;
+  btSoftBody& body = *b.body;
+  time_ += h;
+  lastStep_ = h;
+  bool released = false;
+  for (size_t p = 0; p < def_.pins.size(); ++p) {
+    if (released_[p]) continue;
+    const ClothPin& pin = def_.pins[p];
+    btSoftBody::Node& node = body.m_nodes[pin.vertex];
+    if (!moved_[p] && time_ > pin.motion.releaseTime) {
+      released_[p] = 1;
+      released = true;
+      node.m_im = static_cast<btScalar>(1.0 / nodeMasses_[pin.vertex]);
+      node.m_v = toBullet(pin.motion.velocityAt(pin.motion.releaseTime));
+      continue;
+    }
+    node.m_x = toBullet(pinTarget(p, time_));
+  }
+  if (released) body.updateLinkConstants();
+  if (def_.tethers) enforceTethers(h);
+  copyOut();
+  for (size_t p = 0; p < def_.pins.size(); ++p) {
+    if (released_[p]) continue;
+    btSoftBody::Node& node = body.m_nodes[def_.pins[p].vertex];
+    node.m_v = toBullet((pinTarget(p, time_ + h) - toEigen(node.m_x)) / h);
+  }
+  if (!b.adopted) body.m_cfg.kDP = static_cast<btScalar>(1 - std::exp(-def_.dampingRate * h / def_.substeps));
 }
 
 void BulletCloth::copyOut() {
@@ -353,9 +506,11 @@ void BulletCloth::copyOut() {
     boundingBox_.extend(positions_.row(i).transpose());
   }
   // Bullet's velocity of an infinite-mass node is damped like the others;
-  // report the trajectory's exact one.
+  // report the trajectory's exact one. A pin moved by setPinTarget reports
+  // Bullet's (the velocity it last moved with).
   for (size_t p = 0; p < def_.pins.size(); ++p)
-    if (!released_[p]) velocities_.row(def_.pins[p].vertex) = def_.pins[p].motion.velocityAt(time_).transpose();
+    if (!released_[p] && !moved_[p])
+      velocities_.row(def_.pins[p].vertex) = def_.pins[p].motion.velocityAt(time_).transpose();
 }
 
 void BulletCloth::saveDynamicState(MotionStateVisitor& visitor) const {
@@ -410,6 +565,8 @@ void BulletCloth::captureState(BulletClothState& state) const {
   state.pendingImpulses = pendingImpulses_;
   state.loadsPending = loadsPending_;
   state.releasedPins = released_;
+  state.movedPins = moved_;
+  state.pinTargets = pinTargets_;
 }
 
 void BulletCloth::restoreState(const BulletClothState& state) {
@@ -432,6 +589,9 @@ void BulletCloth::restoreState(const BulletClothState& state) {
   rows("pendingExtraMasses", state.pendingExtraMasses.size(), n);
   rows("pendingImpulses", state.pendingImpulses.rows(), n);
   rows("releasedPins", static_cast<Eigen::Index>(state.releasedPins.size()), static_cast<Eigen::Index>(def_.pins.size()));
+  rows("movedPins", static_cast<Eigen::Index>(state.movedPins.size()), static_cast<Eigen::Index>(def_.pins.size()));
+  rows("pinTargets", state.pinTargets.rows(), static_cast<Eigen::Index>(def_.pins.size()));
+  if (!state.pinTargets.allFinite()) throw std::invalid_argument("BulletClothState: pinTargets must be finite");
   if (!std::isfinite(state.time) || !state.positions.allFinite() || !state.velocities.allFinite())
     throw std::invalid_argument("BulletCloth::restoreState: time, positions and velocities must be finite");
 
@@ -466,6 +626,8 @@ void BulletCloth::restoreState(const BulletClothState& state) {
   pendingImpulses_ = state.pendingImpulses;
   loadsPending_ = state.loadsPending;
   released_ = state.releasedPins;
+  moved_ = state.movedPins;
+  pinTargets_ = state.pinTargets;
   copyOut();
 }
 

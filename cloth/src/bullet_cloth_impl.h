@@ -18,23 +18,30 @@
 
 namespace blot::cloth {
 
-// Every Bullet object the cloth owns. Members are destroyed in reverse order
-// (body, colliders, shapes, world, ...) after the destructor has taken the body
-// and the colliders out of the world.
+// Every Bullet object the cloth owns, and the world and body it uses (its
+// own, or the caller's in a shared world). The destructor takes out of the
+// world what the cloth put in (its body or an adopted one it added, the
+// colliders); members are then destroyed in reverse order (body, colliders,
+// shapes, world, ...).
 struct BulletCloth::Bullet {
   std::unique_ptr<btSoftBodyRigidBodyCollisionConfiguration> configuration;
   std::unique_ptr<btCollisionDispatcher> dispatcher;
   std::unique_ptr<btBroadphaseInterface> broadphase;
   std::unique_ptr<btSequentialImpulseConstraintSolver> solver;
-  std::unique_ptr<btSoftRigidDynamicsWorld> world;
+  std::unique_ptr<btSoftRigidDynamicsWorld> ownedWorld;
   std::vector<std::unique_ptr<btCollisionShape>> shapes;
   std::vector<std::unique_ptr<btCollisionObject>> colliders;
-  std::unique_ptr<btSoftBody> body;
+  std::unique_ptr<btSoftBody> ownedBody;
+  btSoftRigidDynamicsWorld* world = nullptr;  // ownedWorld or the caller's
+  btSoftBody* body = nullptr;                 // ownedBody or the caller's
+  bool shared = false;     // world is the caller's
+  bool adopted = false;    // body is the caller's
+  bool bodyAdded = false;  // the cloth added body to world
   bool collides = false;
 
   ~Bullet() {
     if (!world) return;
-    if (body) world->removeSoftBody(body.get());
+    if (body && bodyAdded) world->removeSoftBody(body);
     for (auto& collider : colliders) world->removeCollisionObject(collider.get());
   }
 };

@@ -73,6 +73,7 @@ void validateMesh(const ClothDef& def) {
 
 void validate(const ClothDef& def) {
   validateMesh(def);
+  require(def.body == nullptr || def.world != nullptr, "body is set but world is null (a caller's body lives in the caller's world)");
   require(std::isfinite(def.totalMass) && def.totalMass > 0, "totalMass must be positive (kg)");
   require(def.stretchStiffness > 0 && def.stretchStiffness <= 1, "stretchStiffness must be in (0, 1]");
   require(def.shearStiffness > 0 && def.shearStiffness <= 1, "shearStiffness must be in (0, 1]");

@@ -141,6 +141,7 @@ blot::engine::EngineDef toEngineDef(const blotEngineDef& d) {
     case BLOT_MOTION_STATIC: def.source = MotionSource::Static; break;
     case BLOT_MOTION_RIGID: def.source = MotionSource::Rigid; break;
     case BLOT_MOTION_BULLET: def.source = MotionSource::Bullet; break;
+    case BLOT_MOTION_CALLER: def.source = MotionSource::Caller; break;
     default: throw std::invalid_argument("source " + std::to_string(enumValue(d.source)) + ": expected a blotMotionSource");
   }
   def.rigid.angularVelocity = vec3(d.rigidAngularVelocity);
@@ -406,6 +407,39 @@ blotStatus blotEngine_SetThreadCount(blotEngine* engine, int threads) {
   if (engine == nullptr) return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_SetThreadCount: null engine");
   return guarded("blotEngine_SetThreadCount", [&] {
     engine->engine->setThreadCount(threads);
+    return BLOT_OK;
+  });
+}
+
+blotStatus blotEngine_AdvanceSteps(blotEngine* engine, int count) {
+  if (engine == nullptr) return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_AdvanceSteps: null engine");
+  if (count < 0)
+    return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_AdvanceSteps: count " + std::to_string(count) + " is negative");
+  return guarded("blotEngine_AdvanceSteps", [&] {
+    const blot::stain::StepReport report = engine->engine->advanceSteps(count);
+    if (report.status != blot::stain::StepStatus::Ok) return fail(BLOT_ERROR_NUMERICAL, report.message);
+    return BLOT_OK;
+  });
+}
+
+blotStatus blotEngine_SetPinTarget(blotEngine* engine, int vertex, const double position[3]) {
+  if (engine == nullptr || position == nullptr)
+    return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_SetPinTarget: null engine or position");
+  return guarded("blotEngine_SetPinTarget", [&] {
+    engine->engine->setPinTarget(vertex, Eigen::Vector3d(position[0], position[1], position[2]));
+    return BLOT_OK;
+  });
+}
+
+blotStatus blotEngine_SetSurfaceFrame(blotEngine* engine, const double* positions, const double* velocities,
+                                      int vertexCount) {
+  if (engine == nullptr || positions == nullptr)
+    return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_SetSurfaceFrame: null engine or positions");
+  if (vertexCount != engine->engine->vertexCount())
+    return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_SetSurfaceFrame: vertexCount " + std::to_string(vertexCount) +
+                                                 ", the engine has " + std::to_string(engine->engine->vertexCount()));
+  return guarded("blotEngine_SetSurfaceFrame", [&] {
+    engine->engine->setSurfaceFrame(positions, velocities);
     return BLOT_OK;
   });
 }

@@ -196,6 +196,9 @@ std::unique_ptr<coupling::CoupledSurface> Engine::buildSurface() const {
       motion = std::make_unique<cloth::BulletCloth>(cloth);
       break;
     }
+    case MotionSource::Caller:
+      motion = std::make_unique<cloth::CallerMotion>(def_.mesh.vertexPositions, def_.callerInitialVelocities);
+      break;
   }
   auto surface = std::make_unique<coupling::CoupledSurface>(std::move(motion), *topology_, fabric_, def_.stain,
                                                             def_.coupling);
@@ -343,6 +346,27 @@ SurfaceHit Engine::nearestSurfacePoint(const Eigen::Vector3d& point) const {
     }
   }
   return best;
+}
+
+void Engine::setPinTarget(int vertex, const Eigen::Vector3d& position) {
+  if (def_.source != MotionSource::Bullet)
+    throw std::invalid_argument(std::string("Engine::setPinTarget: the motion source is \"") +
+                                motionSourceName(def_.source) + "\"; pins belong to a \"bullet\" cloth");
+  surface_->motion().setPinTarget(vertex, position);
+}
+
+void Engine::setSurfaceFrame(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3d* velocities) {
+  if (def_.source != MotionSource::Caller)
+    throw std::invalid_argument(std::string("Engine::setSurfaceFrame: the motion source is \"") +
+                                motionSourceName(def_.source) + "\"; frames are given to a \"caller\" source");
+  surface_->motion().setNextFrame(positions, velocities);
+}
+
+void Engine::setSurfaceFrame(const double* positions, const double* velocities) {
+  if (def_.source != MotionSource::Caller)
+    throw std::invalid_argument(std::string("Engine::setSurfaceFrame: the motion source is \"") +
+                                motionSourceName(def_.source) + "\"; frames are given to a \"caller\" source");
+  surface_->motion().setNextFrame(positions, velocities);
 }
 
 // ------------------------------------------------------------------ views

@@ -20,7 +20,8 @@ namespace {
 constexpr char kMagic[8] = {'B', 'L', 'O', 'T', 'S', 'T', 'A', 'T'};
 constexpr std::uint32_t kVersion = 5;  // 2: field lists; 3: drops carry relativeVelocity and velocityIsWorld;
                                        // 4: the run counters (drops applied, refreshes, term steps);
-                                       // 5: geometry without previousRotations, with nextSlotKind
+                                       // 5: geometry without previousRotations, with nextSlotKind,
+                                       //    Bullet pins moved at runtime (movedPins, pinTargets)
 
 /// True for a type with a field list (a visit member).
 template <typename T, typename = void>
@@ -386,6 +387,9 @@ void Engine::save(const std::string& path) const {
 }
 
 void Engine::load(const std::string& path) {
+  if (def_.source == MotionSource::Bullet && def_.cloth.world)
+    throw StateFileError(path + ": the cloth lives in the caller's Bullet world, which Blot cannot restore; load "
+                                "is for an engine that owns its world");
   std::string text;
   try {
     text = stain::readFileBounded(path, stateFileByteBudget(def_.mesh.vertexPositions.rows(), def_.mesh.faces.rows()),
@@ -403,7 +407,7 @@ void Engine::load(const std::string& path) {
     r.fail("state file version " + std::to_string(version) + ", this build reads version " + std::to_string(kVersion));
   const auto source = r.pod<std::uint32_t>("motion source");
   if (source != static_cast<std::uint32_t>(def_.source))
-    r.fail(std::string("saved from a \"") + (source <= 3 ? motionSourceName(static_cast<MotionSource>(source)) : "?") +
+    r.fail(std::string("saved from a \"") + (source <= 4 ? motionSourceName(static_cast<MotionSource>(source)) : "?") +
            "\" cloth source, this engine uses \"" + motionSourceName(def_.source) + "\"");
   const auto vertices = r.pod<std::int64_t>("mesh size"), faces = r.pod<std::int64_t>("mesh size");
   if (vertices != def_.mesh.vertexPositions.rows() || faces != def_.mesh.faces.rows())

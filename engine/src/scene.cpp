@@ -454,6 +454,7 @@ void parseCloth(ObjectReader& r, const stain::TriangleMesh& mesh, EngineDef& def
       break;
     }
     case MotionSource::Bullet: parseBullet(r, mesh, def.cloth); break;
+    case MotionSource::Caller: break;  // not a scene choice: the positions come from code
   }
   r.finish();
 }
@@ -792,6 +793,7 @@ const char* motionSourceName(MotionSource source) {
     case MotionSource::Rigid: return "rigid";
     case MotionSource::Sequence: return "sequence";
     case MotionSource::Bullet: return "bullet";
+    case MotionSource::Caller: return "caller";
   }
   return "?";
 }

@@ -259,6 +259,41 @@ TEST(BulletCloth, ReleasedPinsDropTheCloth) {
   EXPECT_LT(cloth.positions()(test::flagTopRight(cells), 2), 1.0 - 1.1);
 }
 
+// setPinTarget: the pin travels in a straight line to its target during one
+// advance, is held there, and drags the cloth;
+// a state captured after the move continues bit-identically; a released pin
+// cannot be moved.
+TEST(BulletCloth, PinMovedAtRuntimeDragsTheCloth) {
+  const int cells = 16;
+  const int pin = test::flagTopLeft(cells), below = pin - (cells + 1);
+  ClothDef def = hangingFlag(cells);
+  def.pins[1].motion.releaseTime = 0.1;
+  BulletCloth cloth(def), still(def);
+  for (int frame = 0; frame < 10; ++frame) {
+    cloth.advance(kFrame);
+    still.advance(kFrame);
+  }
+  const Eigen::Vector3d start = cloth.positions().row(pin).transpose();
+  const Eigen::Vector3d target = start + Eigen::Vector3d(0.2, 0.3, -0.1);
+  cloth.setPinTarget(pin, target);
+  cloth.advance(kFrame);
+  EXPECT_LT((cloth.positions().row(pin).transpose() - target).norm(), 1e-6);
+  const BulletClothState kept = cloth.captureState();
+  for (int frame = 0; frame < 60; ++frame) {
+    cloth.advance(kFrame);
+    still.advance(kFrame);
+  }
+  EXPECT_LT((cloth.positions().row(pin).transpose() - target).norm(), 1e-6) << "held";
+  EXPECT_GT(cloth.positions()(below, 1) - still.positions()(below, 1), 0.15) << "the cloth follows";
+  EXPECT_TRUE(cloth.isHealthy());
+  BulletCloth resumed(def);
+  resumed.restoreState(kept);
+  for (int frame = 0; frame < 60; ++frame) resumed.advance(kFrame);
+  EXPECT_EQ(resumed.positions(), cloth.positions());
+  EXPECT_THROW(cloth.setPinTarget(test::flagTopRight(cells), target), std::invalid_argument);  // released
+  EXPECT_THROW(cloth.setPinTarget(below, target), std::invalid_argument);                      // no pin
+}
+
 TEST(BulletCloth, GravityIsSetInBothPlacesAndDrivesFreeFall) {
   ClothDef def = flatSheet(10, 2.0);
   def.gravity = Eigen::Vector3d(0.5, -1.0, -3.0);

@@ -2,6 +2,7 @@
 // the C++ views, and save/load through the handle.
 #include <blot/blot.h>
 #include <blot/engine/engine.h>
+#include <blot/stain/geometry/mesh_primitives.h>
 
 #include <gtest/gtest.h>
 
@@ -309,6 +310,57 @@ TEST(CApiTest, AbsurdFrameTimesAndTamperedStatesAreRefusedAndTheEngineStaysUsabl
   EXPECT_EQ(blotEngine_Step(engine, 0.01), BLOT_OK);
   std::remove(path.c_str());
   blotDestroyEngine(engine);
+}
+
+// A C game moves a pin at runtime and feeds a surface it simulates itself.
+TEST(CApiTest, PinsMoveAtRuntimeAndCallerSurfacesTakeTheirFrames) {
+  // A 10 x 10 patch pinned at two corners (Bullet), one of them moved.
+  const blot::stain::TriangleMesh mesh = blot::stain::gridMesh(10, 10, 0.5, 0.5);
+  std::vector<double> positions(mesh.vertexPositions.size());
+  std::vector<int32_t> faces(mesh.faces.size());
+  for (Eigen::Index i = 0; i < mesh.vertexPositions.rows(); ++i)
+    for (int c = 0; c < 3; ++c) positions[static_cast<size_t>(3 * i + c)] = mesh.vertexPositions(i, c);
+  for (Eigen::Index f = 0; f < mesh.faces.rows(); ++f)
+    for (int c = 0; c < 3; ++c) faces[static_cast<size_t>(3 * f + c)] = mesh.faces(f, c);
+  const int32_t pins[2] = {0, 10};
+  blotEngineDef def = blotDefaultEngineDef();
+  def.positions = positions.data();
+  def.vertexCount = static_cast<int>(mesh.vertexPositions.rows());
+  def.faces = faces.data();
+  def.faceCount = static_cast<int>(mesh.faces.rows());
+  def.source = BLOT_MOTION_BULLET;
+  def.cloth.pinnedVertices = pins;
+  def.cloth.pinnedVertexCount = 2;
+  def.timeStep = 0.01;
+  blotEngine* cloth = nullptr;
+  ASSERT_EQ(blotCreateEngine(&def, &cloth), BLOT_OK) << blotGetLastError();
+  const double target[3] = {0.1, 0.05, 0.2};
+  ASSERT_EQ(blotEngine_SetPinTarget(cloth, 0, target), BLOT_OK) << blotGetLastError();
+  ASSERT_EQ(blotEngine_AdvanceSteps(cloth, 1), BLOT_OK) << blotGetLastError();
+  std::vector<float> p(positions.size());
+  ASSERT_EQ(blotEngine_CopyPositions(cloth, p.data(), static_cast<int>(p.size())), BLOT_OK);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(p[static_cast<size_t>(c)], target[c], 1e-6);
+  EXPECT_EQ(blotEngine_SetPinTarget(cloth, 5, target), BLOT_ERROR_INVALID_ARGUMENT);  // not a pin
+  EXPECT_NE(std::string(blotGetLastError()).find("vertex 5 is not a pin"), std::string::npos) << blotGetLastError();
+  EXPECT_EQ(blotEngine_AdvanceSteps(cloth, -1), BLOT_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(blotEngine_SetSurfaceFrame(cloth, positions.data(), nullptr, def.vertexCount), BLOT_ERROR_INVALID_ARGUMENT);
+  blotDestroyEngine(cloth);
+
+  // The same patch as a caller surface, lifted 1 cm per step.
+  def.source = BLOT_MOTION_CALLER;
+  blotEngine* caller = nullptr;
+  ASSERT_EQ(blotCreateEngine(&def, &caller), BLOT_OK) << blotGetLastError();
+  std::vector<double> frame = positions;
+  for (int k = 1; k <= 3; ++k) {
+    for (size_t i = 2; i < frame.size(); i += 3) frame[i] = positions[i] + 0.01 * k;
+    ASSERT_EQ(blotEngine_SetSurfaceFrame(caller, frame.data(), nullptr, def.vertexCount), BLOT_OK) << blotGetLastError();
+    ASSERT_EQ(blotEngine_AdvanceSteps(caller, 1), BLOT_OK) << blotGetLastError();
+  }
+  ASSERT_EQ(blotEngine_CopyPositions(caller, p.data(), static_cast<int>(p.size())), BLOT_OK);
+  EXPECT_FLOAT_EQ(p[2], static_cast<float>(frame[2]));
+  EXPECT_EQ(blotEngine_SetSurfaceFrame(caller, frame.data(), nullptr, 3), BLOT_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(blotEngine_SetPinTarget(caller, 0, target), BLOT_ERROR_INVALID_ARGUMENT);
+  blotDestroyEngine(caller);
 }
 
 }  // namespace

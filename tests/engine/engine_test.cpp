@@ -3,6 +3,7 @@
 #include <blot/engine/engine.h>
 #include <blot/engine/scene.h>
 #include <blot/stain/geometry/mesh_primitives.h>
+#include <blot/stain/io/mesh_io.h>
 
 #include <gtest/gtest.h>
 
@@ -255,8 +256,9 @@ TEST(EngineTest, EnginesBuiltAlikeInOneProcessAgree) {
   EXPECT_EQ(again.stateHash(), first);
 }
 
-TEST(EngineTest, MeshSequenceSceneMovesAndSavesBitIdentically) {
-  // Three frames of a 6 x 6 patch bending upward, written as OBJ files.
+/// Three frames of a 6 x 6 patch bending upward, written as OBJ files, and a
+/// scene playing them at 10 frames/s with a drop; returns the scene's path.
+std::filesystem::path writeBendingSequence() {
   const std::filesystem::path dir = std::filesystem::temp_directory_path() / "blot_engine_sequence";
   std::filesystem::create_directories(dir);
   const stain::TriangleMesh grid = stain::gridMesh(6, 6, 0.5, 0.5);
@@ -270,18 +272,21 @@ TEST(EngineTest, MeshSequenceSceneMovesAndSavesBitIdentically) {
     for (Eigen::Index f = 0; f < grid.faces.rows(); ++f)
       obj << "f " << grid.faces(f, 0) + 1 << " " << grid.faces(f, 1) + 1 << " " << grid.faces(f, 2) + 1 << "\n";
   }
-  {
-    std::ofstream scene(dir / "s.json");
-    scene << R"({"mesh": {"file": "f_0.obj"}, "cloth": {"source": "sequence", "pattern": "f_%d.obj", "frame_rate": 10},
-                 "time_step": 0.01, "drops": [{"vertex": 24, "radius": 0.1, "solvent_mass": 0.002}]})";
-  }
+  std::ofstream scene(dir / "s.json");
+  scene << R"({"mesh": {"file": "f_0.obj"}, "cloth": {"source": "sequence", "pattern": "f_%d.obj", "frame_rate": 10},
+               "time_step": 0.01, "drops": [{"vertex": 24, "radius": 0.1, "solvent_mass": 0.002}]})";
+  return dir / "s.json";
+}
+
+TEST(EngineTest, MeshSequenceSceneMovesAndSavesBitIdentically) {
+  const std::filesystem::path scene = writeBendingSequence();
   const std::string path = temporaryPath("sequence.state");
-  std::unique_ptr<Engine> original = Engine::fromSceneFile((dir / "s.json").string());
+  std::unique_ptr<Engine> original = Engine::fromSceneFile(scene.string());
   original->advanceSteps(7);
   original->save(path);
   original->advanceSteps(9);
   EXPECT_GT(original->positions().col(2).maxCoeff(), 0.001);  // the surface bent
-  std::unique_ptr<Engine> restored = Engine::fromSceneFile((dir / "s.json").string());
+  std::unique_ptr<Engine> restored = Engine::fromSceneFile(scene.string());
   restored->load(path);
   restored->advanceSteps(9);
   EXPECT_EQ(restored->stateHash(), original->stateHash());
@@ -482,6 +487,109 @@ TEST(EngineTest, StatisticsCountTheStepsEachTermRanIn) {
   EXPECT_EQ(steps(stain::StepTerm::FilmPressure), 0);
   EXPECT_EQ(steps(stain::StepTerm::Sources), 0);
   EXPECT_EQ(steps(stain::StepTerm::IntrinsicRebuild), 0) << "a rigid motion keeps the metric";
+}
+
+// A caller-supplied surface (MotionSource::Caller) fed, step by step, the
+// positions and velocities of a mesh-sequence player reproduces the engine
+// that plays the same sequence itself: the whole state hash (surface, every
+// density and velocity, time) is equal after every step.
+TEST(EngineTest, CallerSuppliedFramesReproduceAMeshSequenceRunBitIdentically) {
+  std::unique_ptr<Engine> sequenceRun = Engine::fromSceneFile(writeBendingSequence().string());
+  const EngineDef& played = sequenceRun->definition();
+  const cloth::FrameReader read = [](const std::string& path, Eigen::MatrixX3d& positions, Eigen::MatrixX3i& faces) {
+    stain::TriangleMesh frame = stain::loadMesh(path);
+    positions = std::move(frame.vertexPositions);
+    faces = std::move(frame.faces);
+  };
+  cloth::MeshSequence player(played.sequence, read);  // the caller's own animation
+  EngineDef def = played;
+  def.source = MotionSource::Caller;
+  def.callerInitialVelocities = player.velocities();
+  Engine callerRun(def);
+  ASSERT_EQ(callerRun.stateHash(), sequenceRun->stateHash());
+  for (int k = 1; k <= 25; ++k) {
+    player.advance(def.timeStep);
+    callerRun.setSurfaceFrame(player.positions(), &player.velocities());
+    ASSERT_EQ(callerRun.advanceSteps(1).status, stain::StepStatus::Ok);
+    ASSERT_EQ(sequenceRun->advanceSteps(1).status, stain::StepStatus::Ok);
+    ASSERT_EQ(callerRun.stateHash(), sequenceRun->stateHash()) << "step " << k;
+  }
+  EXPECT_GT(callerRun.positions().col(2).maxCoeff(), 0.001);  // the surface moved
+  EXPECT_GT(callerRun.solvent().sum(), 0.0);                    // and carries the stain
+  // Without velocities the finite difference is used, and a step without a
+  // frame holds the surface still.
+  const Eigen::MatrixX3d before = callerRun.positions();
+  ASSERT_EQ(callerRun.advanceSteps(1).status, stain::StepStatus::Ok);
+  EXPECT_EQ(callerRun.positions(), before);
+  Eigen::MatrixX3d lifted = before;
+  lifted.col(2).array() += 0.001;
+  callerRun.setSurfaceFrame(lifted);
+  ASSERT_EQ(callerRun.advanceSteps(1).status, stain::StepStatus::Ok);
+  EXPECT_NEAR(callerRun.surface().motion().velocities()(0, 2), 0.001 / def.timeStep, 1e-9);
+  // Bad frames name the problem; other sources refuse frames.
+  EXPECT_THROW(callerRun.setSurfaceFrame(Eigen::MatrixX3d::Zero(3, 3)), std::invalid_argument);
+  lifted(4, 1) = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(callerRun.setSurfaceFrame(lifted), std::invalid_argument);
+  EXPECT_THROW(sequenceRun->setSurfaceFrame(before), std::invalid_argument);
+}
+
+// A pin moved at runtime drags its node there within one internal step and
+// holds it; the cloth follows (the node below the pin moves the same way),
+// the same calls give the same bits, and a save taken after the move
+// continues bit-identically.
+TEST(EngineTest, PinMovedAtRuntimeDragsTheClothDeterministically) {
+  const std::string path = temporaryPath("moved_pin.state");
+  const int pin = 16 * 17, below = 15 * 17;  // the top-left corner and the vertex under it
+  Engine still(twoWayFlag()), moved(twoWayFlag()), again(twoWayFlag());
+  for (Engine* e : {&still, &moved, &again}) ASSERT_EQ(e->advanceSteps(20).status, stain::StepStatus::Ok);
+  const Eigen::Vector3d target = moved.positions().row(pin).transpose() + Eigen::Vector3d(0.1, 0.2, 0.05);
+  moved.setPinTarget(pin, target);
+  again.setPinTarget(pin, target);
+  ASSERT_EQ(moved.advanceSteps(1).status, stain::StepStatus::Ok);
+  EXPECT_LT((moved.positions().row(pin).transpose() - target).norm(), 1e-6);  // float rounding
+  moved.save(path);
+  for (Engine* e : {&still, &moved}) ASSERT_EQ(e->advanceSteps(40).status, stain::StepStatus::Ok);
+  ASSERT_EQ(again.advanceSteps(41).status, stain::StepStatus::Ok);
+  EXPECT_LT((moved.positions().row(pin).transpose() - target).norm(), 1e-6) << "held at the target";
+  // The cloth followed toward +y (out of the flag's plane); the unmoved one did not.
+  const double followed = moved.positions()(below, 1) - still.positions()(below, 1);
+  EXPECT_GT(followed, 0.1);
+  EXPECT_EQ(again.stateHash(), moved.stateHash());
+  Engine restored(twoWayFlag());
+  restored.load(path);
+  ASSERT_EQ(restored.advanceSteps(40).status, stain::StepStatus::Ok);
+  EXPECT_EQ(restored.stateHash(), moved.stateHash());
+  std::remove(path.c_str());
+  // Not a pin, not finite, not a Bullet cloth: named errors.
+  EXPECT_THROW(moved.setPinTarget(below, target), std::invalid_argument);
+  EXPECT_THROW(moved.setPinTarget(pin, Eigen::Vector3d(0, std::nan(""), 0)), std::invalid_argument);
+  Engine rigid(rotatingPatch(6));
+  EXPECT_THROW(rigid.setPinTarget(0, target), std::invalid_argument);
+}
+
+// Per-engine threads: the two-way flag gives the same bits with 1 and 2
+// threads, and two engines with different counts stepped in turn in one
+// process give the single-engine results.
+TEST(EngineTest, TwoWayFlagIsBitIdenticalForOneAndTwoThreadsAndTwoEngines) {
+  auto run = [](int threads) {
+    Engine engine(twoWayFlag());
+    engine.setThreadCount(threads);
+    EXPECT_EQ(engine.advanceSteps(30).status, stain::StepStatus::Ok);
+    return engine.stateHash();
+  };
+  const std::uint64_t one = run(1), two = run(2);
+  EXPECT_EQ(one, two);
+  Engine a(twoWayFlag()), b(twoWayFlag());
+  a.setThreadCount(1);
+  b.setThreadCount(2);
+  for (int k = 0; k < 30; ++k) {
+    ASSERT_EQ(a.advanceSteps(1).status, stain::StepStatus::Ok);
+    ASSERT_EQ(b.advanceSteps(1).status, stain::StepStatus::Ok);
+  }
+  EXPECT_EQ(a.stateHash(), one);
+  EXPECT_EQ(b.stateHash(), two);
+  EXPECT_EQ(a.threadCount(), 1);
+  EXPECT_EQ(b.threadCount(), 2);
 }
 
 }  // namespace

@@ -68,7 +68,8 @@ blotDropDef blotDefaultDropDef(void);
 typedef enum blotMotionSource {
   BLOT_MOTION_STATIC = 0, /**< the mesh stays at its rest shape */
   BLOT_MOTION_RIGID = 1,  /**< a rigid motion (blotEngineDef.rigid*) */
-  BLOT_MOTION_BULLET = 2  /**< Bullet soft-body cloth (blotEngineDef.cloth) */
+  BLOT_MOTION_BULLET = 2, /**< Bullet soft-body cloth (blotEngineDef.cloth) */
+  BLOT_MOTION_CALLER = 3  /**< positions the caller gives before every step (blotEngine_SetSurfaceFrame) */
 } blotMotionSource;
 
 /** Bullet soft-body cloth (see blot::cloth::ClothDef, docs/cloth.md). */
@@ -216,6 +217,22 @@ blotStatus blotEngine_GetMassBudget(const blotEngine* engine, blotMassBudget* ou
 /** OpenMP threads of this engine's steps (>= 0; 0: the calling thread's OpenMP default), from the next
  *  step on; per engine, not process-wide. Results are bit-identical for any count. */
 blotStatus blotEngine_SetThreadCount(blotEngine* engine, int threads);
+
+/** Runs exactly `count` (>= 0) internal steps, bypassing the frame-time accumulator (one step per
+ *  call when the caller feeds a BLOT_MOTION_CALLER surface or steps its own Bullet world). */
+blotStatus blotEngine_AdvanceSteps(blotEngine* engine, int count);
+
+/** Bullet cloth: moves the pin at `vertex` (one of blotClothDef.pinnedVertices) to `position` (m) in a
+ *  straight line during the next internal step and holds it there. BLOT_ERROR_INVALID_ARGUMENT for
+ *  another source, a vertex that is no pin, a non-finite position. */
+blotStatus blotEngine_SetPinTarget(blotEngine* engine, int vertex, const double position[3]);
+
+/** BLOT_MOTION_CALLER: the surface at the end of the next internal step: `positions` and (or NULL for
+ *  the finite difference) `velocities`, vertexCount x 3 interleaved xyz (m, m/s), copied. A step
+ *  without a new frame holds the surface still. BLOT_ERROR_INVALID_ARGUMENT for another source, a
+ *  vertexCount other than the engine's, a non-finite value. */
+blotStatus blotEngine_SetSurfaceFrame(blotEngine* engine, const double* positions, const double* velocities,
+                                      int vertexCount);
 
 /** Saves / loads the whole state (binary; see Engine::save and Engine::load).
  *  BLOT_ERROR_IO for a file that cannot be written, opened or does not match the engine. */

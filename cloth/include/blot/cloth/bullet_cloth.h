@@ -1,9 +1,10 @@
 #pragma once
 /// Bullet soft-body cloth as a SurfaceMotion: a btSoftBody in a classic
 /// soft-rigid world, built node by node from any triangle mesh so that cloth
-/// node i is mesh vertex i and Bullet face f is mesh face f. No Bullet type
-/// appears here; positions and velocities are copied out into Eigen arrays
-/// (double) after each advance().
+/// node i is mesh vertex i and Bullet face f is mesh face f. Positions and
+/// velocities are copied out into Eigen arrays (double) after each advance().
+/// Bullet types appear only as the two forward-declared pointers of a shared
+/// world (ClothDef::world, ClothDef::body; docs/embedding.md).
 ///
 /// Units: metres, kilograms, seconds. The model and the chosen solver settings
 /// (and why) are in docs/cloth.md.
@@ -15,6 +16,9 @@
 #include <limits>
 #include <memory>
 #include <vector>
+
+class btSoftRigidDynamicsWorld;
+class btSoftBody;
 
 namespace blot::cloth {
 
@@ -183,6 +187,29 @@ struct ClothDef {
   /// nothing. Set false when the host application installs its own Bullet
   /// allocator: Bullet has only one, and ours would then free the host's blocks.
   bool recycleBulletAllocations = true;
+
+  /// A shared world: the caller's btSoftRigidDynamicsWorld, which the caller
+  /// owns and steps (the same Bullet build and precision as Blot's). Null (the
+  /// default): the cloth owns a private world and steps it in advance(). With
+  /// a world the cloth's body lives in it, so the caller's rigid bodies
+  /// collide with it, and advance(h) steps nothing: it reads the nodes the
+  /// caller's world step moved and prepares the next step (docs/embedding.md
+  /// gives the contract: one world step of h per advance(h), in `substeps`
+  /// substeps). The world's gravity and soft-body world info are the
+  /// caller's: `gravity` must equal the world info's m_gravity (checked),
+  /// windVelocity, drag and lift still go to a body Blot builds. `colliders`
+  /// are added to that world as static objects and removed again by the
+  /// cloth's destructor.
+  btSoftRigidDynamicsWorld* world = nullptr;
+  /// With `world`: a body the caller built (it need not be in the world yet;
+  /// the cloth adds it then and removes it again on destruction). Node i must
+  /// be vertex i of restPositions and, when the body has faces, face f must be
+  /// `faces` row f. The caller's links, materials, solver settings and node
+  /// masses stay as they are (totalMass, the stiffnesses, iterations and
+  /// dampingRate are not used; its node masses are the cloth's own masses);
+  /// nodes the caller holds (m_im = 0) are never given a mass. Null: Blot
+  /// builds the body from this def and owns it.
+  btSoftBody* body = nullptr;
 };
 
 /// Everything a BulletCloth carries from one advance() to the next, as plain
@@ -206,6 +233,11 @@ struct BulletClothState {
   Eigen::MatrixX3d pendingImpulses;    ///< #V by 3 (N·s)
   bool loadsPending = false;
   std::vector<char> releasedPins;  ///< per ClothDef pin: 1 once released
+  /// Per ClothDef pin: 1 once moved by BulletCloth::setPinTarget (its
+  /// PinMotion no longer applies), and the position it is moved to (m; zero rows
+  /// for pins never moved).
+  std::vector<char> movedPins;
+  Eigen::MatrixX3d pinTargets;
   /// Every field, once (save/load and the state hash are built on it).
   template <class Visitor> void visit(Visitor& v) { fields(*this, v); }
   template <class Visitor> void visit(Visitor& v) const { fields(*this, v); }
@@ -226,15 +258,19 @@ struct BulletClothState {
     v.field("pendingImpulses", s.pendingImpulses);
     v.field("loadsPending", s.loadsPending);
     v.field("releasedPins", s.releasedPins);
+    v.field("movedPins", s.movedPins);
+    v.field("pinTargets", s.pinTargets);
   }
 };
 
-/// Bullet soft-body cloth. Move-only; owns its Bullet world.
+/// Bullet soft-body cloth. Move-only; owns its Bullet world, or lives in the
+/// caller's (ClothDef::world).
 class BulletCloth final : public SurfaceMotion {
  public:
   /// Builds the body from the def's arrays in O((#V + #F) log #V) (a balanced
-  /// node tree, fast marching for tethers; no vertex-count² table). Throws
-  /// std::invalid_argument naming the field (and row) for a bad def.
+  /// node tree, fast marching for tethers; no vertex-count² table), or adopts
+  /// ClothDef::body. Throws std::invalid_argument naming the field (and row)
+  /// for a bad def.
   explicit BulletCloth(const ClothDef& def);
   ~BulletCloth() override;
   BulletCloth(BulletCloth&&) noexcept;
@@ -253,7 +289,22 @@ class BulletCloth final : public SurfaceMotion {
   /// substeps (h > 0, s), moving pinned nodes along their trajectories and
   /// releasing pins whose time has come. Allocates nothing itself (Bullet may
   /// when contacts appear or its distance cache grows).
+  /// In a shared world (ClothDef::world) the caller has just stepped the
+  /// world by h: advance(h) puts held pins exactly on their targets at
+  /// time() + h, releases pins, enforces tethers, reads the nodes, and gives
+  /// held pins the velocity that carries them to their next targets during
+  /// the caller's next world step of h.
   void advance(double h) override;
+
+  /// Moves the pin at `vertex` at runtime: during the next advance() it goes
+  /// in a straight line from where it is to `position` (m, finite) and is held
+  /// there afterwards; its PinMotion (drift, waving, release) no longer
+  /// applies. A later call replaces the target. Deterministic, saved with the
+  /// state. Throws std::invalid_argument unless `vertex` is a pin not yet
+  /// released.
+  void setPinTarget(int vertex, const Eigen::Vector3d& position) override;
+  /// True when the body lives in the caller's world (ClothDef::world).
+  bool sharesWorld() const;
 
   /// Two-way coupling input, applied at the start of the next advance():
   /// extraNodeMasses (#V, kg ≥ 0) is the liquid mass carried by each node and
@@ -263,7 +314,9 @@ class BulletCloth final : public SurfaceMotion {
   /// The mass goes into Bullet's inverse mass directly, followed by a refresh
   /// of the link constants — never btSoftBody::setMass, which would make the
   /// current stretched link lengths the new rest lengths (docs/cloth.md).
-  /// Calling it again before advance() replaces the pending loads.
+  /// Calling it again before advance() replaces the pending loads. In a
+  /// shared world they are written into the body at once, for the caller's
+  /// next world step.
   void setLiquidLoads(const Eigen::VectorXd& extraNodeMasses, const Eigen::MatrixX3d& nodeImpulses) override;
   bool acceptsLiquidLoads() const override { return true; }
   const Eigen::VectorXd* clothNodeMasses() const override { return &lumpedMasses_; }
@@ -331,7 +384,10 @@ class BulletCloth final : public SurfaceMotion {
   friend struct BulletClothTesting;
   struct Bullet;  // the Bullet objects, defined in cloth/src/bullet_cloth_impl.h
   void applyLiquidLoads();
-  void movePins(double targetTime, double substep);
+  void adoptBody();
+  void movePins(double targetTime, double substep, double fraction);
+  Eigen::Vector3d pinTarget(std::size_t pin, double t) const;
+  void advanceSharedWorld(double h);
   void enforceTethers(double substep);
   void copyOut();
 
@@ -345,6 +401,11 @@ class BulletCloth final : public SurfaceMotion {
   bool loadsPending_ = false;
   std::vector<int> pinSlot_;     // per vertex: index into def_.pins or -1
   std::vector<char> released_;   // per pin
+  std::vector<char> moved_;      // per pin: 1 once setPinTarget moved it
+  Eigen::MatrixX3d pinTargets_;  // per pin: setPinTarget's position (m)
+  Eigen::MatrixX3d moveStarts_;  // per pin: where a moved pin was when this advance began
+  std::vector<char> heldByCaller_;  // per vertex: m_im = 0 in an adopted body (never given a mass)
+  double lastStep_ = 0;          // h of the last advance (shared world: the next world step's length)
   Eigen::MatrixX2i linkVertices_;
   std::vector<bool> linkIsEdge_;
   std::vector<int> tetherPin_;     // per vertex: pin slot it is tied to, or -1

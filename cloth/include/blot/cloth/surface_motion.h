@@ -71,6 +71,13 @@ class SurfaceMotion {
   /// size mismatch). A motion that is a pure function of its time has none
   /// (hasDynamicState false; both do nothing).
   virtual bool hasDynamicState() const { return false; }
+  /// A simulated cloth's pin moved at runtime (BulletCloth::setPinTarget);
+  /// throws std::invalid_argument for a motion without pins.
+  virtual void setPinTarget(int vertex, const Eigen::Vector3d& position);
+  /// The next frame of a caller-supplied surface (CallerMotion::setNextFrame);
+  /// throws std::invalid_argument for any other motion.
+  virtual void setNextFrame(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3d* velocities);
+  virtual void setNextFrame(const double* positions, const double* velocities);
   virtual void saveDynamicState(MotionStateVisitor& visitor) const { (void)visitor; }
   virtual void loadDynamicState(MotionStateVisitor& visitor) { (void)visitor; }
 };
@@ -90,6 +97,52 @@ class StaticSurface final : public SurfaceMotion {
  private:
   Eigen::MatrixX3d positions_, velocities_;
   double time_ = 0, rollbackTime_ = 0;
+};
+
+/// Positions the caller supplies every step, for a cloth simulated by
+/// anything else (the game's own cloth solver, an animation system). Before
+/// each advance(h) the caller hands the positions (and, if it knows them, the
+/// velocities) at time() + h with setNextFrame(); advance(h) moves to them.
+/// Without velocities they are the finite difference (x_next − x) / h.
+/// Without a new frame advance(h) holds the surface still (zero velocity).
+/// Prescribed: it takes no liquid loads.
+class CallerMotion final : public SurfaceMotion {
+ public:
+  /// The surface at time 0: rest positions (#V by 3, m) and velocities
+  /// (#V by 3, m/s; no rows: at rest). Throws std::invalid_argument for other
+  /// row counts or non-finite values.
+  explicit CallerMotion(const Eigen::MatrixX3d& restPositions,
+                        const Eigen::MatrixX3d& initialVelocities = Eigen::MatrixX3d());
+  int vertexCount() const override { return static_cast<int>(positions_.rows()); }
+  double time() const override { return time_; }
+  const Eigen::MatrixX3d& positions() const override { return positions_; }
+  const Eigen::MatrixX3d& velocities() const override { return velocities_; }
+  /// Moves to the frame given by setNextFrame (h > 0, s). Allocates nothing.
+  void advance(double h) override;
+  /// Positions (#V by 3, m) at the end of the next advance(), and their
+  /// velocities (#V by 3, m/s) or null for the finite difference. Copied
+  /// (no allocation after the first call); replaces a frame not yet used.
+  /// Throws std::invalid_argument for a wrong row count or a non-finite value.
+  void setNextFrame(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3d* velocities = nullptr) override;
+  /// The same from raw arrays, #V × 3 doubles each, row-major (x0 y0 z0 x1 …);
+  /// velocities may be null.
+  void setNextFrame(const double* positions, const double* velocities) override;
+  bool hasNextFrame() const { return hasNext_; }
+  void keepRollbackPoint() override;
+  void rollBack() override;
+  /// Time, positions, velocities and the frame not yet used (save/load).
+  bool hasDynamicState() const override { return true; }
+  void saveDynamicState(MotionStateVisitor& visitor) const override;
+  void loadDynamicState(MotionStateVisitor& visitor) override;
+
+ private:
+  void checkNext();
+  Eigen::MatrixX3d positions_, velocities_, nextPositions_, nextVelocities_;
+  bool hasNext_ = false, nextHasVelocities_ = false;
+  double time_ = 0;
+  Eigen::MatrixX3d keptPositions_, keptVelocities_, keptNextPositions_, keptNextVelocities_;
+  bool keptHasNext_ = false, keptNextHasVelocities_ = false;
+  double keptTime_ = 0;
 };
 
 /// Analytic rigid motion: rotation at constant angular velocity ω (rad/s, world

@@ -29,9 +29,11 @@
 
 namespace blot::engine {
 
-/// Where the moving mesh comes from (cloth/).
-enum class MotionSource { Static, Rigid, Sequence, Bullet };
-const char* motionSourceName(MotionSource source);  ///< "static", "rigid", "sequence", "bullet"
+/// Where the moving mesh comes from (cloth/). Caller: positions the caller
+/// supplies every step (Engine::setSurfaceFrame; cloth::CallerMotion), for a
+/// cloth simulated by anything else; code only, not a scene choice.
+enum class MotionSource { Static, Rigid, Sequence, Bullet, Caller };
+const char* motionSourceName(MotionSource source);  ///< "static", "rigid", "sequence", "bullet", "caller"
 
 /// A drop that lands at a given simulated time (s, ≥ 0): applied before the
 /// first internal step that starts at or after `time`.
@@ -52,7 +54,14 @@ struct EngineDef {
   cloth::MeshSequenceDef sequence;    ///< used when source == Sequence (frames read with stain::loadMesh)
   /// Used when source == Bullet. Its mesh-derived fields are filled from
   /// `mesh` by coupling::describeClothMesh; set only the physical ones.
+  /// cloth.world (and cloth.body) put the cloth into the caller's Bullet world,
+  /// which the caller steps: one world step of timeStep before each internal
+  /// step, so drive the engine with advanceSteps(1) (docs/embedding.md).
   cloth::ClothDef cloth;
+  /// Used when source == Caller: the surface's velocities at time 0 (#V by 3,
+  /// m/s), or no rows for a surface at rest. Its positions at time 0 are the
+  /// mesh's; later ones come from Engine::setSurfaceFrame.
+  Eigen::MatrixX3d callerInitialVelocities;
 
   /// Isotropic fabric (when fabricPatches is empty): density diffusivity (m²/s, > 0).
   double diffusivity = 0.01;
@@ -188,6 +197,22 @@ class Engine {
   /// Nearest point on the current surface to `point` (m); O(#F).
   SurfaceHit nearestSurfacePoint(const Eigen::Vector3d& point) const;
 
+  /// Bullet cloth: moves the pin at `vertex` (one of EngineDef::cloth.pins)
+  /// to `position` (m) in a straight line during the next internal step and
+  /// holds it there (cloth::BulletCloth::setPinTarget). Throws
+  /// std::invalid_argument naming the problem (not a Bullet cloth, not a pin,
+  /// released, not finite).
+  void setPinTarget(int vertex, const Eigen::Vector3d& position);
+  /// Caller source: the surface positions (#V by 3, m) at the end of the next
+  /// internal step, and their velocities (m/s) or null for the finite
+  /// difference (cloth::CallerMotion::setNextFrame). Give one frame before
+  /// each internal step (advanceSteps(1)); a step without one holds the
+  /// surface still. Throws std::invalid_argument for another source, a wrong
+  /// row count or a non-finite value.
+  void setSurfaceFrame(const Eigen::MatrixX3d& positions, const Eigen::MatrixX3d* velocities = nullptr);
+  /// The same from row-major arrays of #V × 3 doubles (velocities may be null).
+  void setSurfaceFrame(const double* positions, const double* velocities);
+
   // Read-only views, #V rows, valid until the next step(), advanceSteps() or load().
   int vertexCount() const;
   const stain::Triangles& faces() const;
@@ -233,6 +258,8 @@ class Engine {
   /// def; the steps after it are bit-identical to the original's. Throws
   /// StateFileError naming the file and the mismatch (vertex/face counts, mesh
   /// fingerprint, motion source, version, truncation); the engine is unchanged then.
+  /// A cloth in the caller's Bullet world (EngineDef::cloth.world) cannot be
+  /// loaded into (the world is the caller's): StateFileError.
   void load(const std::string& path);
 
  private:
