@@ -143,9 +143,14 @@ class Reader {
            " to " + std::to_string(outer.back()) + ", expected 0 to " + std::to_string(nnz));
     for (std::int64_t c = 0; c < cols; ++c) {
       const int begin = outer[static_cast<std::size_t>(c)], end = outer[static_cast<std::size_t>(c + 1)];
+      // Checked before the column's entries are read: the last pointer being
+      // nnz does not bound the ones before it until all are non-decreasing.
       if (end < begin)
         fail(std::string("corrupt sparse matrix ") + what + ": column pointer " + std::to_string(c + 1) + " (" +
              std::to_string(end) + ") is below column pointer " + std::to_string(c) + " (" + std::to_string(begin) + ")");
+      if (end > nnz)
+        fail(std::string("corrupt sparse matrix ") + what + ": column pointer " + std::to_string(c + 1) + " (" +
+             std::to_string(end) + ") is beyond the " + std::to_string(nnz) + " non-zeros");
       for (int k = begin; k < end; ++k) {
         const int row = inner[static_cast<std::size_t>(k)];
         if (row < 0 || row >= rows || (k > begin && row <= inner[static_cast<std::size_t>(k - 1)]))

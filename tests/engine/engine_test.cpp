@@ -635,5 +635,35 @@ TEST(StateFuzzCorpus, EverySeedLoadsAndPassesTheFuzzOracle) {
   EXPECT_EQ(files, 3 * fuzz::kStateFuzzEngineCount);
 }
 
+// Inputs the fuzzer found (tests/fuzz/regressions/state), replayed through its
+// checks in every test build, the sanitized one included: each must now be
+// refused with a message naming the file, the engine untouched.
+TEST(StateFuzzRegressions, EveryFindingIsRefusedWithTheEngineUntouched) {
+  namespace fs = std::filesystem;
+  const fs::path folder = fs::path(BLOT_TEST_DATA_DIR) / ".." / "fuzz" / "regressions" / "state";
+  ASSERT_TRUE(fs::is_directory(folder)) << folder;
+  const std::string scratch = (fs::temp_directory_path() / "blot_state_fuzz_regression.state").string();
+  int files = 0;
+  for (const auto& entry : fs::directory_iterator(folder)) {
+    std::ifstream in(entry.path(), std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    ASSERT_GE(bytes.size(), 2u) << entry.path();
+    ++files;
+    std::ofstream(scratch, std::ios::binary | std::ios::trunc).write(bytes.data() + 1, static_cast<std::streamsize>(bytes.size() - 1));
+    Engine engine(fuzz::stateFuzzEngineDef(static_cast<unsigned char>(bytes[0]) % fuzz::kStateFuzzEngineCount));
+    const std::uint64_t before = engine.stateHash();
+    try {
+      engine.load(scratch);
+      ADD_FAILURE() << entry.path() << " loaded";
+    } catch (const StateFileError& error) {
+      EXPECT_EQ(std::string(error.what()).rfind(scratch + ": ", 0), 0u) << error.what();
+    }
+    EXPECT_EQ(engine.stateHash(), before) << entry.path();
+    LLVMFuzzerTestOneInput(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size());
+  }
+  std::remove(scratch.c_str());
+  EXPECT_GE(files, 1);
+}
+
 }  // namespace
 }  // namespace blot::engine
