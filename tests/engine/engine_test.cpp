@@ -602,6 +602,22 @@ TEST(EngineTest, TwoWayFlagIsBitIdenticalForOneAndTwoThreadsAndTwoEngines) {
 namespace blot::engine {
 namespace {
 
+// A fuzz_state input (tests/fuzz/state_fuzz.cpp): its first byte chooses the
+// engine, the rest is a state file. Reads `input`, writes that state file to
+// `scratch` and returns the whole input; the engine is
+// stateFuzzEngine(bytes) below.
+std::string writeStateFuzzInputAsStateFile(const std::filesystem::path& input, const std::string& scratch) {
+  std::ifstream in(input, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (bytes.size() >= 2)
+    std::ofstream(scratch, std::ios::binary | std::ios::trunc).write(bytes.data() + 1, static_cast<std::streamsize>(bytes.size() - 1));
+  return bytes;
+}
+
+EngineDef stateFuzzEngine(const std::string& bytes) {
+  return fuzz::stateFuzzEngineDef(static_cast<unsigned char>(bytes[0]) % fuzz::kStateFuzzEngineCount);
+}
+
 // The seeds of fuzz_state are saved states of its engines: every one must
 // still load (a format change makes them stale, and the fuzzer would then
 // spend its time on the header). BLOT_UPDATE_FUZZ_SEEDS=1 rewrites them.
@@ -617,13 +633,11 @@ TEST(StateFuzzCorpus, EverySeedLoadsAndPassesTheFuzzOracle) {
   ASSERT_TRUE(fs::is_directory(folder)) << folder;
   int files = 0;
   for (const auto& entry : fs::directory_iterator(folder)) {
-    std::ifstream in(entry.path(), std::ios::binary);
-    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    // The seed as a state file, loaded into a fresh engine of its kind.
+    const std::string bytes = writeStateFuzzInputAsStateFile(entry.path(), scratch);
     ASSERT_GE(bytes.size(), 2u) << entry.path();
     ++files;
-    // The seed as a state file, loaded into a fresh engine of its kind.
-    std::ofstream(scratch, std::ios::binary | std::ios::trunc).write(bytes.data() + 1, static_cast<std::streamsize>(bytes.size() - 1));
-    Engine engine(fuzz::stateFuzzEngineDef(static_cast<unsigned char>(bytes[0]) % fuzz::kStateFuzzEngineCount));
+    Engine engine(stateFuzzEngine(bytes));
     EXPECT_NO_THROW(engine.load(scratch)) << entry.path() << ": stale seed; rerun with BLOT_UPDATE_FUZZ_SEEDS=1";
     // And through the fuzz target's own checks (they abort on a finding).
     LLVMFuzzerTestOneInput(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size());
@@ -645,12 +659,10 @@ TEST(StateFuzzRegressions, EveryFindingIsRefusedWithTheEngineUntouched) {
   const std::string scratch = (fs::temp_directory_path() / "blot_state_fuzz_regression.state").string();
   int files = 0;
   for (const auto& entry : fs::directory_iterator(folder)) {
-    std::ifstream in(entry.path(), std::ios::binary);
-    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string bytes = writeStateFuzzInputAsStateFile(entry.path(), scratch);
     ASSERT_GE(bytes.size(), 2u) << entry.path();
     ++files;
-    std::ofstream(scratch, std::ios::binary | std::ios::trunc).write(bytes.data() + 1, static_cast<std::streamsize>(bytes.size() - 1));
-    Engine engine(fuzz::stateFuzzEngineDef(static_cast<unsigned char>(bytes[0]) % fuzz::kStateFuzzEngineCount));
+    Engine engine(stateFuzzEngine(bytes));
     const std::uint64_t before = engine.stateHash();
     try {
       engine.load(scratch);
