@@ -1,7 +1,7 @@
 #pragma once
 // Parallel loops that cost nothing when they run on one thread.
 //
-// A step must not allocate (docs/design-notes.md), and an OpenMP parallel
+// A step must not allocate (docs/scene-format.md, "Allocation"), and an OpenMP parallel
 // region that runs on one thread does: GCC 12's libgomp allocates a team for
 // every region and keeps it for the next one only when it has two or more
 // threads, so a region whose `if` clause is false, or any region on a
