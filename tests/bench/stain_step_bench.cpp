@@ -39,7 +39,7 @@
 
 #include "mesh_fixture.h"
 
-#include "allocation_counter.h"  // counts malloc/calloc/realloc while gCountAllocations is set
+#include "allocation_counter.h"  // counts every allocation while gCountAllocations is set
 
 namespace blot::stain {
 namespace {

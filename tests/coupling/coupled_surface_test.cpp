@@ -9,7 +9,7 @@
 #include <cstdio>
 #include <string>
 
-#include "allocation_counter.h"  // counts malloc/calloc/realloc while gCountAllocations is set
+#include "allocation_counter.h"  // counts every allocation while gCountAllocations is set
 #include "flag_fixture.h"
 
 namespace blot::coupling {

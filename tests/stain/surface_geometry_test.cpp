@@ -13,7 +13,7 @@
 #include <cstdio>
 #include <random>
 
-#include "allocation_counter.h"  // counts malloc/calloc/realloc while gCountAllocations is set
+#include "allocation_counter.h"  // counts every allocation while gCountAllocations is set
 
 namespace blot::stain {
 namespace {

@@ -1,7 +1,7 @@
 #pragma once
 // Counting allocator for one test or benchmark binary: include this header in
-// exactly ONE source file of the binary. Every malloc, calloc and realloc
-// (operator new and Eigen's dynamic storage both end in malloc) is counted
+// exactly ONE source file of the binary. Every malloc, calloc, realloc and
+// aligned allocation (operator new, Eigen, CHOLMOD and OpenMP all end there) is counted
 // while `gCountAllocations` is set, then forwarded to glibc. Used to check
 // that steady-state steps allocate nothing.
 //
@@ -46,5 +46,19 @@ extern "C" void* calloc(size_t count, size_t size) {
 extern "C" void* realloc(void* pointer, size_t size) {
   countAllocation();
   return __libc_realloc(pointer, size);
+}
+extern "C" void* __libc_memalign(size_t alignment, size_t size);
+extern "C" void* aligned_alloc(size_t alignment, size_t size) {
+  countAllocation();
+  return __libc_memalign(alignment, size);
+}
+extern "C" void* memalign(size_t alignment, size_t size) {
+  countAllocation();
+  return __libc_memalign(alignment, size);
+}
+extern "C" int posix_memalign(void** pointer, size_t alignment, size_t size) {
+  countAllocation();
+  *pointer = __libc_memalign(alignment, size);
+  return *pointer != nullptr ? 0 : 12;  // ENOMEM
 }
 #endif

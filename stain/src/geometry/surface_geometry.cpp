@@ -16,6 +16,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "numerics/threads.h"
+
 namespace blot::stain {
 namespace {
 
@@ -389,15 +391,16 @@ bool SurfaceGeometry::refreshExtrinsicWith(const RowVectors3& nextPositions, dou
       const double* z = y + n;
       const double* inverseBuilt = dynamic_.inverseBuiltSquaredLengths.data();
       double maxRatio = 1.0, minRatio = 1.0;
-#pragma omp parallel for schedule(static) if (edgeCount >= 4 * kMinParallelVertices) \
-    reduction(max : maxRatio) reduction(min : minRatio)
-      for (int e = 0; e < edgeCount; ++e) {
-        const int a = edges(e, 0), b = edges(e, 1);
-        const double dx = x[b] - x[a], dy = y[b] - y[a], dz = z[b] - z[a];
-        const double ratio = (dx * dx + dy * dy + dz * dz) * inverseBuilt[e];
-        maxRatio = std::max(maxRatio, ratio);
-        minRatio = std::min(minRatio, ratio);
-      }
+      threads::runLoop(edgeCount >= 4 * kMinParallelVertices, [&] {
+#pragma omp for schedule(static) reduction(max : maxRatio) reduction(min : minRatio)
+        for (int e = 0; e < edgeCount; ++e) {
+          const int a = edges(e, 0), b = edges(e, 1);
+          const double dx = x[b] - x[a], dy = y[b] - y[a], dz = z[b] - z[a];
+          const double ratio = (dx * dx + dy * dy + dz * dz) * inverseBuilt[e];
+          maxRatio = std::max(maxRatio, ratio);
+          minRatio = std::min(minRatio, ratio);
+        }
+      });
       dynamic_.maxEdgeStrain = std::max(std::sqrt(maxRatio) - 1.0, 1.0 - std::sqrt(minRatio));
     }
   }
@@ -535,18 +538,19 @@ void SurfaceGeometry::prepareVertices(const int* vertices, int count) {
   long iterations = 0;
   // Repeated ids would race: the parallel loop is for lists without repeats
   // (the band), which is what large lists are.
-#pragma omp parallel for schedule(static) if (count >= kMinParallelVertices) \
-    reduction(+ : fitted, fallbacks, iterations, prepared)
-  for (int k = 0; k < count; ++k) {
-    const int i = vertices[k];
-    if (preparedAt_[static_cast<size_t>(i)] == refreshIndex_) continue;
-    FitCounts counts;
-    prepareOne(i, counts);
-    fitted += counts.fitted;
-    fallbacks += counts.fallbacks;
-    iterations += counts.iterations;
-    ++prepared;
-  }
+  threads::runLoop(count >= kMinParallelVertices, [&] {
+#pragma omp for schedule(static) reduction(+ : fitted, fallbacks, iterations, prepared)
+    for (int k = 0; k < count; ++k) {
+      const int i = vertices[k];
+      if (preparedAt_[static_cast<size_t>(i)] == refreshIndex_) continue;
+      FitCounts counts;
+      prepareOne(i, counts);
+      fitted += counts.fitted;
+      fallbacks += counts.fallbacks;
+      iterations += counts.iterations;
+      ++prepared;
+    }
+  });
   preparedCount_ += prepared;
   addCounts(FitCounts{fitted, iterations, fallbacks});
 }
@@ -555,17 +559,18 @@ void SurfaceGeometry::prepareAllVertices() {
   const int n = topology_->vertexCount();
   int fitted = 0, fallbacks = 0, prepared = 0;
   long iterations = 0;
-#pragma omp parallel for schedule(static) if (n >= kMinParallelVertices) \
-    reduction(+ : fitted, fallbacks, iterations, prepared)
-  for (int i = 0; i < n; ++i) {
-    if (preparedAt_[static_cast<size_t>(i)] == refreshIndex_) continue;
-    FitCounts counts;
-    prepareOne(i, counts);
-    fitted += counts.fitted;
-    fallbacks += counts.fallbacks;
-    iterations += counts.iterations;
-    ++prepared;
-  }
+  threads::runLoop(n >= kMinParallelVertices, [&] {
+#pragma omp for schedule(static) reduction(+ : fitted, fallbacks, iterations, prepared)
+    for (int i = 0; i < n; ++i) {
+      if (preparedAt_[static_cast<size_t>(i)] == refreshIndex_) continue;
+      FitCounts counts;
+      prepareOne(i, counts);
+      fitted += counts.fitted;
+      fallbacks += counts.fallbacks;
+      iterations += counts.iterations;
+      ++prepared;
+    }
+  });
   preparedCount_ += prepared;
   addCounts(FitCounts{fitted, iterations, fallbacks});
 }

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "numerics/compensated_sum.h"
+#include "numerics/threads.h"
 
 namespace blot::stain::diffusion_internal {
 
@@ -84,12 +85,14 @@ struct KrylovOutcome {
 template <int kSums, typename Body>
 void chunkedSums(int count, double* partials, double total[kSums], const Body& body) {
   const int chunks = (count + kKrylovChunkRows - 1) / kKrylovChunkRows;
-#pragma omp parallel for schedule(static) if (count >= kKrylovParallelRows)
-  for (int c = 0; c < chunks; ++c) {
-    double sums[kSums] = {};
-    body(c * kKrylovChunkRows, std::min(count, (c + 1) * kKrylovChunkRows), sums);
-    for (int k = 0; k < kSums; ++k) partials[c * kSums + k] = sums[k];
-  }
+  threads::runLoop(count >= kKrylovParallelRows, [&] {
+#pragma omp for schedule(static)
+    for (int c = 0; c < chunks; ++c) {
+      double sums[kSums] = {};
+      body(c * kKrylovChunkRows, std::min(count, (c + 1) * kKrylovChunkRows), sums);
+      for (int k = 0; k < kSums; ++k) partials[c * kSums + k] = sums[k];
+    }
+  });
   for (int k = 0; k < kSums; ++k) total[k] = 0.0;
   for (int c = 0; c < chunks; ++c) {
     for (int k = 0; k < kSums; ++k) total[k] += partials[c * kSums + k];
@@ -313,16 +316,18 @@ KrylovOutcome pairConjugateGradients(const int* outer, const int* inner, const d
     if (kComplex) beta[1] = beta[0];
     // p = D⁻¹ r + β p (no sums).
     const int chunks = (count + kKrylovChunkRows - 1) / kKrylovChunkRows;
-#pragma omp parallel for schedule(static) if (count >= kKrylovParallelRows)
-    for (int c = 0; c < chunks; ++c) {
-      const int end = std::min(count, (c + 1) * kKrylovChunkRows);
-      for (int k = c * kKrylovChunkRows; k < end; ++k) {
-        const int i = list[k];
-        const double invD = inverseDiagonal[i];
-        p[2 * i] = invD * r[2 * i] + beta[0] * p[2 * i];
-        p[2 * i + 1] = invD * r[2 * i + 1] + beta[1] * p[2 * i + 1];
+    threads::runLoop(count >= kKrylovParallelRows, [&] {
+#pragma omp for schedule(static)
+      for (int c = 0; c < chunks; ++c) {
+        const int end = std::min(count, (c + 1) * kKrylovChunkRows);
+        for (int k = c * kKrylovChunkRows; k < end; ++k) {
+          const int i = list[k];
+          const double invD = inverseDiagonal[i];
+          p[2 * i] = invD * r[2 * i] + beta[0] * p[2 * i];
+          p[2 * i + 1] = invD * r[2 * i + 1] + beta[1] * p[2 * i + 1];
+        }
       }
-    }
+    });
     outcome.iterations = iteration;
     for (int c = 0; c < systems; ++c) {
       if (!std::isfinite(rr[c])) return outcome;

@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "numerics/threads.h"
+
 namespace blot::stain {
 namespace {
 
@@ -113,14 +115,16 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
 
   // U_i = F_i u_i (world) and p_i, row-major, on active[from, to).
   auto worldVelocities = [&](int from, int to) {
-#pragma omp parallel for schedule(static) if (to - from >= kMinParallelVertices)
-    for (int k = from; k < to; ++k) {
-      const int i = active[static_cast<size_t>(k)];
-      const Matrix3& frame = extrinsic.frames[static_cast<size_t>(i)];
-      const Complex u = state.velocities(i);
-      scratch.vertexVelocities.row(i) = (frame.col(0) * u.real() + frame.col(1) * u.imag()).transpose();
-      scratch.vertexPositions.row(i) = extrinsic.positions.row(i);
-    }
+    threads::runLoop(to - from >= kMinParallelVertices, [&] {
+#pragma omp for schedule(static)
+      for (int k = from; k < to; ++k) {
+        const int i = active[static_cast<size_t>(k)];
+        const Matrix3& frame = extrinsic.frames[static_cast<size_t>(i)];
+        const Complex u = state.velocities(i);
+        scratch.vertexVelocities.row(i) = (frame.col(0) * u.real() + frame.col(1) * u.imag()).transpose();
+        scratch.vertexPositions.row(i) = extrinsic.positions.row(i);
+      }
+    });
   };
   // Ring speeds and outflow rates on active[from, to); edges to inactive
   // vertices are closed. Returns the largest Courant number over the wet ones.
@@ -143,52 +147,56 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
   const Complex* u = state.velocities.data();
   auto ringSpeedsAndOutflowRigid = [&](int from, int to) {
     double maxCourant = 0.0;
-#pragma omp parallel for schedule(static) reduction(max : maxCourant) if (to - from >= kMinParallelVertices)
-    for (int k = from; k < to; ++k) {
-      const int i = active[static_cast<size_t>(k)];
-      double outflow = 0.0;
-      for (int m = ringOffsets[i]; m < ringOffsets[i + 1]; ++m) {
-        const int j = ringNeighbors[m];
-        const int e = ringEdgeIds[m];
-        const double* c = frameNormals + 4 * static_cast<size_t>(e);
-        const Complex ua = u[edgeFirst[e]], ub = u[edgeSecond[e]];
-        const double along = (ua.real() * c[0] + ua.imag() * c[1]) + (ub.real() * c[2] + ub.imag() * c[3]);
-        const double sign = i == edgeFirst[e] ? 1.0 : -1.0;
-        const double speed = marked[j] ? 0.5 * (sign * along) : 0.0;
-        speeds[m] = speed;
-        outflow += positivePart(speed);
+    threads::runLoop(to - from >= kMinParallelVertices, [&] {
+#pragma omp for schedule(static) reduction(max : maxCourant)
+      for (int k = from; k < to; ++k) {
+        const int i = active[static_cast<size_t>(k)];
+        double outflow = 0.0;
+        for (int m = ringOffsets[i]; m < ringOffsets[i + 1]; ++m) {
+          const int j = ringNeighbors[m];
+          const int e = ringEdgeIds[m];
+          const double* c = frameNormals + 4 * static_cast<size_t>(e);
+          const Complex ua = u[edgeFirst[e]], ub = u[edgeSecond[e]];
+          const double along = (ua.real() * c[0] + ua.imag() * c[1]) + (ub.real() * c[2] + ub.imag() * c[3]);
+          const double sign = i == edgeFirst[e] ? 1.0 : -1.0;
+          const double speed = marked[j] ? 0.5 * (sign * along) : 0.0;
+          speeds[m] = speed;
+          outflow += positivePart(speed);
+        }
+        scratch.outflowRates(i) = outflow;
+        if (wet.empty() || wet[static_cast<size_t>(i)])
+          maxCourant = std::max(maxCourant, h * outflow / areas(i));
       }
-      scratch.outflowRates(i) = outflow;
-      if (wet.empty() || wet[static_cast<size_t>(i)])
-        maxCourant = std::max(maxCourant, h * outflow / areas(i));
-    }
+    });
     return maxCourant;
   };
   auto ringSpeedsAndOutflow = [&](int from, int to) {
     if (rigid) return ringSpeedsAndOutflowRigid(from, to);
     double maxCourant = 0.0;
-#pragma omp parallel for schedule(static) reduction(max : maxCourant) if (to - from >= kMinParallelVertices)
-    for (int k = from; k < to; ++k) {
-      const int i = active[static_cast<size_t>(k)];
-      const double* ui = velocities3 + 3 * static_cast<size_t>(i);
-      double outflow = 0.0;
-      for (int m = ringOffsets[i]; m < ringOffsets[i + 1]; ++m) {
-        const int j = ringNeighbors[m];
-        const double* uj = velocities3 + 3 * static_cast<size_t>(j);
-        // ½(U_i + U_j)·N_ij, written so that j's ring gets the exact negative
-        // (sums commute; N_ji is N_ij negated, and negation is exact in IEEE).
-        const Vector3 dual = dualEdgeNormal(topology, extrinsic.positions, ringEdgeIds[m]);
-        const double sign = i < j ? 1.0 : -1.0;
-        const double along = sign * ((ui[0] + uj[0]) * dual[0] + (ui[1] + uj[1]) * dual[1] +
-                                     (ui[2] + uj[2]) * dual[2]);
-        const double speed = marked[j] ? 0.5 * along : 0.0;
-        speeds[m] = speed;
-        outflow += positivePart(speed);
+    threads::runLoop(to - from >= kMinParallelVertices, [&] {
+#pragma omp for schedule(static) reduction(max : maxCourant)
+      for (int k = from; k < to; ++k) {
+        const int i = active[static_cast<size_t>(k)];
+        const double* ui = velocities3 + 3 * static_cast<size_t>(i);
+        double outflow = 0.0;
+        for (int m = ringOffsets[i]; m < ringOffsets[i + 1]; ++m) {
+          const int j = ringNeighbors[m];
+          const double* uj = velocities3 + 3 * static_cast<size_t>(j);
+          // ½(U_i + U_j)·N_ij, written so that j's ring gets the exact negative
+          // (sums commute; N_ji is N_ij negated, and negation is exact in IEEE).
+          const Vector3 dual = dualEdgeNormal(topology, extrinsic.positions, ringEdgeIds[m]);
+          const double sign = i < j ? 1.0 : -1.0;
+          const double along = sign * ((ui[0] + uj[0]) * dual[0] + (ui[1] + uj[1]) * dual[1] +
+                                       (ui[2] + uj[2]) * dual[2]);
+          const double speed = marked[j] ? 0.5 * along : 0.0;
+          speeds[m] = speed;
+          outflow += positivePart(speed);
+        }
+        scratch.outflowRates(i) = outflow;
+        if (wet.empty() || wet[static_cast<size_t>(i)])
+          maxCourant = std::max(maxCourant, h * outflow / areas(i));
       }
-      scratch.outflowRates(i) = outflow;
-      if (wet.empty() || wet[static_cast<size_t>(i)])
-        maxCourant = std::max(maxCourant, h * outflow / areas(i));
-    }
+    });
     return maxCourant;
   };
 
@@ -222,73 +230,74 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
   Vector* solventBuffers[2] = {&scratch.massSolvent, &scratch.nextMassSolvent};
   Vector* soluteBuffers[2] = {&scratch.massSolute, &scratch.nextMassSolute};
   int limited = 0;
-#pragma omp parallel if (count >= kMinParallelVertices)
-  {
-    // Per-step shares: kept fraction 1 − f_i and giving ratio f_i / outflow_i.
+  // One parallel region for all the loops below (their implicit barriers order
+  // them), or none for a small set (numerics/threads.h).
+  threads::runLoop(count >= kMinParallelVertices, [&] {
+      // Per-step shares: kept fraction 1 − f_i and giving ratio f_i / outflow_i.
 #pragma omp for schedule(static) reduction(+ : limited)
-    for (int k = 0; k < count; ++k) {
-      const int i = active[static_cast<size_t>(k)];
-      const double outflow = scratch.outflowRates(i);
-      const double courant = tau * outflow / areas(i);
-      if (courant > 1.0) ++limited;
-      const double fraction = std::min(courant, 1.0);
-      scratch.keptFractions(i) = 1.0 - fraction;
-      scratch.givingRatios(i) = outflow > 0.0 ? fraction / outflow : 0.0;
-      scratch.massSolvent(i) = areas(i) * state.solvent(i);
-      scratch.massSolute(i) = areas(i) * state.solute(i);
-    }
-    // Share of neighbour j's mass flowing into i: g_j · speed(j -> i), where
-    // speed(j -> i) = −ringSpeeds(m) bit for bit.
-    const double* giving = scratch.givingRatios.data();
-    double* shares = scratch.ringInflowShares.data();
-#pragma omp for schedule(static)
-    for (int k = 0; k < count; ++k) {
-      const int i = active[static_cast<size_t>(k)];
-      for (int m = ringOffsets[i]; m < ringOffsets[i + 1]; ++m) {
-        shares[m] = giving[ringNeighbors[m]] * positivePart(-speeds[m]);
+      for (int k = 0; k < count; ++k) {
+        const int i = active[static_cast<size_t>(k)];
+        const double outflow = scratch.outflowRates(i);
+        const double courant = tau * outflow / areas(i);
+        if (courant > 1.0) ++limited;
+        const double fraction = std::min(courant, 1.0);
+        scratch.keptFractions(i) = 1.0 - fraction;
+        scratch.givingRatios(i) = outflow > 0.0 ? fraction / outflow : 0.0;
+        scratch.massSolvent(i) = areas(i) * state.solvent(i);
+        scratch.massSolute(i) = areas(i) * state.solute(i);
       }
-    }
-    // Sub-steps alternate between the two mass buffers; the implicit barrier
-    // after each loop orders them. Zero shares are multiplied, not skipped
-    // (half of them are zero, in no pattern a branch predictor could learn).
-    const double* kept = scratch.keptFractions.data();
-    for (int step = 0; step < substeps; ++step) {
-      const double* solvent = solventBuffers[step % 2]->data();
-      const double* solute = soluteBuffers[step % 2]->data();
-      double* nextSolvent = solventBuffers[(step + 1) % 2]->data();
-      double* nextSolute = soluteBuffers[(step + 1) % 2]->data();
+      // Share of neighbour j's mass flowing into i: g_j · speed(j -> i), where
+      // speed(j -> i) = −ringSpeeds(m) bit for bit.
+      const double* giving = scratch.givingRatios.data();
+      double* shares = scratch.ringInflowShares.data();
 #pragma omp for schedule(static)
       for (int k = 0; k < count; ++k) {
         const int i = active[static_cast<size_t>(k)];
-        double newSolvent = kept[i] * solvent[i];
-        double newSolute = kept[i] * solute[i];
         for (int m = ringOffsets[i]; m < ringOffsets[i + 1]; ++m) {
-          const int j = ringNeighbors[m];
-          newSolvent += shares[m] * solvent[j];
-          newSolute += shares[m] * solute[j];
+          shares[m] = giving[ringNeighbors[m]] * positivePart(-speeds[m]);
         }
-        nextSolvent[i] = newSolvent;
-        nextSolute[i] = newSolute;
       }
-    }
-    const Vector& solvent = *solventBuffers[substeps % 2];
-    const Vector& solute = *soluteBuffers[substeps % 2];
+      // Sub-steps alternate between the two mass buffers; the implicit barrier
+      // after each loop orders them. Zero shares are multiplied, not skipped
+      // (half of them are zero, in no pattern a branch predictor could learn).
+      const double* kept = scratch.keptFractions.data();
+      for (int step = 0; step < substeps; ++step) {
+        const double* solvent = solventBuffers[step % 2]->data();
+        const double* solute = soluteBuffers[step % 2]->data();
+        double* nextSolvent = solventBuffers[(step + 1) % 2]->data();
+        double* nextSolute = soluteBuffers[(step + 1) % 2]->data();
 #pragma omp for schedule(static)
-    for (int k = 0; k < count; ++k) {
-      const int i = active[static_cast<size_t>(k)];
-      state.solvent(i) = solvent(i) / areas(i);
-      state.solute(i) = solute(i) / areas(i);
-      marks[static_cast<size_t>(i)] = 0;
-    }
-    // Leave every entry a later call may read as an inactive neighbour at 0.
+        for (int k = 0; k < count; ++k) {
+          const int i = active[static_cast<size_t>(k)];
+          double newSolvent = kept[i] * solvent[i];
+          double newSolute = kept[i] * solute[i];
+          for (int m = ringOffsets[i]; m < ringOffsets[i + 1]; ++m) {
+            const int j = ringNeighbors[m];
+            newSolvent += shares[m] * solvent[j];
+            newSolute += shares[m] * solute[j];
+          }
+          nextSolvent[i] = newSolvent;
+          nextSolute[i] = newSolute;
+        }
+      }
+      const Vector& solvent = *solventBuffers[substeps % 2];
+      const Vector& solute = *soluteBuffers[substeps % 2];
 #pragma omp for schedule(static)
-    for (int k = 0; k < count; ++k) {
-      const int i = active[static_cast<size_t>(k)];
-      scratch.givingRatios(i) = 0.0;
-      scratch.massSolvent(i) = scratch.massSolute(i) = 0.0;
-      scratch.nextMassSolvent(i) = scratch.nextMassSolute(i) = 0.0;
-    }
-  }
+      for (int k = 0; k < count; ++k) {
+        const int i = active[static_cast<size_t>(k)];
+        state.solvent(i) = solvent(i) / areas(i);
+        state.solute(i) = solute(i) / areas(i);
+        marks[static_cast<size_t>(i)] = 0;
+      }
+      // Leave every entry a later call may read as an inactive neighbour at 0.
+#pragma omp for schedule(static)
+      for (int k = 0; k < count; ++k) {
+        const int i = active[static_cast<size_t>(k)];
+        scratch.givingRatios(i) = 0.0;
+        scratch.massSolvent(i) = scratch.massSolute(i) = 0.0;
+        scratch.nextMassSolvent(i) = scratch.nextMassSolute(i) = 0.0;
+      }
+  });
   report.limitedVertices = limited;
   return report;
 }

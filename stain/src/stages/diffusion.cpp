@@ -13,6 +13,7 @@
 #include "numerics/diffusion_system.h"
 #include "numerics/krylov_solver.h"
 #include "numerics/positivity_limiter.h"
+#include "numerics/threads.h"
 
 namespace blot::stain {
 using namespace diffusion_internal;
@@ -133,26 +134,32 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
       const bool threaded = count >= kKrylovParallelRows;
       for (int c = 0; c < 2; ++c) {
         double largest = 0.0;  // a max: the same in any order
-#pragma omp parallel for schedule(static) reduction(max : largest) if (threaded)
-        for (int k = 0; k < count; ++k) largest = std::max(largest, std::abs(dx[2 * list[k] + c]));
+        threads::runLoop(threaded, [&] {
+#pragma omp for schedule(static) reduction(max : largest)
+          for (int k = 0; k < count; ++k) largest = std::max(largest, std::abs(dx[2 * list[k] + c]));
+        });
         const double floor = kIterativeTolerance * largest;
-#pragma omp parallel for schedule(static) if (threaded)
-        for (int chunk = 0; chunk < chunks; ++chunk) {
-          CompensatedSum solved;
-          const int end = std::min(count, (chunk + 1) * kKrylovChunkRows);
-          for (int k = chunk * kKrylovChunkRows; k < end; ++k) {
-            double& v = dx[2 * list[k] + c];
-            if (std::abs(v) < floor) v = 0.0;
-            solved.add(areas[list[k]] * v);
+        threads::runLoop(threaded, [&] {
+#pragma omp for schedule(static)
+          for (int chunk = 0; chunk < chunks; ++chunk) {
+            CompensatedSum solved;
+            const int end = std::min(count, (chunk + 1) * kKrylovChunkRows);
+            for (int k = chunk * kKrylovChunkRows; k < end; ++k) {
+              double& v = dx[2 * list[k] + c];
+              if (std::abs(v) < floor) v = 0.0;
+              solved.add(areas[list[k]] * v);
+            }
+            partials[chunk] = solved.value();
           }
-          partials[chunk] = solved.value();
-        }
+        });
         CompensatedSum solved;
         for (int chunk = 0; chunk < chunks; ++chunk) solved.add(partials[chunk]);
         if (mass[c] > 0.0 && solved.value() > 0.0) {
           const double scale = mass[c] / solved.value();
-#pragma omp parallel for schedule(static) if (threaded)
-          for (int k = 0; k < count; ++k) dx[2 * list[k] + c] *= scale;
+          threads::runLoop(threaded, [&] {
+#pragma omp for schedule(static)
+            for (int k = 0; k < count; ++k) dx[2 * list[k] + c] *= scale;
+          });
         }
       }
     } else {

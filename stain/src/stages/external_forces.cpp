@@ -5,6 +5,8 @@
 
 #include <cmath>
 
+#include "numerics/threads.h"
+
 namespace blot::stain {
 namespace {
 
@@ -42,14 +44,16 @@ void applyBodyForces(const StepContext& ctx, const ExtrinsicGeometry& geometry, 
   const bool allWet = wet.empty();
   const double h = ctx.h;
   const Vector3 gravity = on.gravity ? ctx.gravity : Vector3::Zero();
-#pragma omp parallel for schedule(static) if (n >= kMinParallelVertices)
-  for (int i = 0; i < n; ++i) {
-    if (!allWet && !wet[static_cast<size_t>(i)]) continue;
-    Vector3 a = gravity;
-    if (useInertia) a -= geometry.vertexAccelerations.row(i).transpose();
-    const Matrix3& frame = geometry.frames[static_cast<size_t>(i)];
-    state.velocities(i) += h * Complex(frame.col(0).dot(a), frame.col(1).dot(a));
-  }
+  threads::runLoop(n >= kMinParallelVertices, [&] {
+#pragma omp for schedule(static)
+    for (int i = 0; i < n; ++i) {
+      if (!allWet && !wet[static_cast<size_t>(i)]) continue;
+      Vector3 a = gravity;
+      if (useInertia) a -= geometry.vertexAccelerations.row(i).transpose();
+      const Matrix3& frame = geometry.frames[static_cast<size_t>(i)];
+      state.velocities(i) += h * Complex(frame.col(0).dot(a), frame.col(1).dot(a));
+    }
+  });
 }
 
 void applyCoriolis(const StepContext& ctx, const ExtrinsicGeometry& geometry, const std::vector<char>& wet,
@@ -60,18 +64,20 @@ void applyCoriolis(const StepContext& ctx, const ExtrinsicGeometry& geometry, co
   const bool allWet = wet.empty();
   const double h = ctx.h;
   const bool exact = on.coriolisScheme != CoriolisScheme::Explicit;
-#pragma omp parallel for schedule(static) if (n >= kMinParallelVertices)
-  for (int i = 0; i < n; ++i) {
-    if (!allWet && !wet[static_cast<size_t>(i)]) continue;
-    const double omegaN = geometry.vertexAngularVelocities(i, 2);
-    if (omegaN == 0.0) continue;
-    Complex& u = state.velocities(i);
-    if (exact) {
-      u *= unitRotation(-2.0 * omegaN * h);
-    } else {
-      u += -2.0 * h * omegaN * Complex(-u.imag(), u.real());
+  threads::runLoop(n >= kMinParallelVertices, [&] {
+#pragma omp for schedule(static)
+    for (int i = 0; i < n; ++i) {
+      if (!allWet && !wet[static_cast<size_t>(i)]) continue;
+      const double omegaN = geometry.vertexAngularVelocities(i, 2);
+      if (omegaN == 0.0) continue;
+      Complex& u = state.velocities(i);
+      if (exact) {
+        u *= unitRotation(-2.0 * omegaN * h);
+      } else {
+        u += -2.0 * h * omegaN * Complex(-u.imag(), u.real());
+      }
     }
-  }
+  });
 }
 
 void applyExternalForces(const StepContext& ctx, const ExtrinsicGeometry& geometry, const std::vector<char>& wet,
@@ -86,12 +92,14 @@ void applyHalfFrameRotation(const StepContext& ctx, const ExtrinsicGeometry& geo
   if (geometry.vertexAngularVelocities.rows() != n) return;
   const bool allWet = wet.empty();
   const double h = ctx.h;
-#pragma omp parallel for schedule(static) if (n >= kMinParallelVertices)
-  for (int i = 0; i < n; ++i) {
-    if (!allWet && !wet[static_cast<size_t>(i)]) continue;
-    const double omegaN = geometry.vertexAngularVelocities(i, 2);
-    if (omegaN != 0.0) state.velocities(i) *= unitRotation(-0.5 * omegaN * h);
-  }
+  threads::runLoop(n >= kMinParallelVertices, [&] {
+#pragma omp for schedule(static)
+    for (int i = 0; i < n; ++i) {
+      if (!allWet && !wet[static_cast<size_t>(i)]) continue;
+      const double omegaN = geometry.vertexAngularVelocities(i, 2);
+      if (omegaN != 0.0) state.velocities(i) *= unitRotation(-0.5 * omegaN * h);
+    }
+  });
 }
 
 void applyFrameVelocityChange(const StepContext& ctx, const ExtrinsicGeometry& geometry,
@@ -108,20 +116,22 @@ void applyFrameVelocityChange(const StepContext& ctx, const ExtrinsicGeometry& g
   const RowVectors3& p2 = geometry.nextPositions;
   const auto frameVelocity = [&](int k) -> Vector3 { return (p2.row(k) - p1.row(k)).transpose() * invH; };
 
-#pragma omp parallel for schedule(static) if (n >= kMinParallelVertices)
-  for (int i = 0; i < n; ++i) {
-    if (!allWet && !wet[static_cast<size_t>(i)]) continue;
-    Vector3 change = -frameVelocity(i);
-    for (int c = 0; c < 3; ++c) {
-      const double w = footWeights(i, c);
-      if (w != 0.0) change += w * frameVelocity(footVertices(i, c));
+  threads::runLoop(n >= kMinParallelVertices, [&] {
+#pragma omp for schedule(static)
+    for (int i = 0; i < n; ++i) {
+      if (!allWet && !wet[static_cast<size_t>(i)]) continue;
+      Vector3 change = -frameVelocity(i);
+      for (int c = 0; c < 3; ++c) {
+        const double w = footWeights(i, c);
+        if (w != 0.0) change += w * frameVelocity(footVertices(i, c));
+      }
+      const Matrix3& frame = geometry.frames[static_cast<size_t>(i)];
+      Complex u = state.velocities(i) + Complex(frame.col(0).dot(change), frame.col(1).dot(change));
+      const double omegaN = geometry.vertexAngularVelocities(i, 2);
+      if (omegaN != 0.0) u *= unitRotation(-0.5 * omegaN * h);
+      state.velocities(i) = u;
     }
-    const Matrix3& frame = geometry.frames[static_cast<size_t>(i)];
-    Complex u = state.velocities(i) + Complex(frame.col(0).dot(change), frame.col(1).dot(change));
-    const double omegaN = geometry.vertexAngularVelocities(i, 2);
-    if (omegaN != 0.0) u *= unitRotation(-0.5 * omegaN * h);
-    state.velocities(i) = u;
-  }
+  });
 }
 
 }  // namespace blot::stain

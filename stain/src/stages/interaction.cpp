@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <cassert>
 
+#include "numerics/threads.h"
+
 namespace blot::stain {
 namespace {
 
@@ -143,9 +145,9 @@ void interact(const StepContext& ctx, const SurfaceTopology& topology, const Int
     }
     evaporated[c] = sum;
   };
-  // Small meshes stay serial without entering an OpenMP region at all (an
-  // `if(false)` region still costs a team set-up and an allocation in libgomp).
-  if (n > kParallelThreshold) {
+  // Small meshes and one-thread engines stay serial without entering an
+  // OpenMP region at all (numerics/threads.h: a one-thread region allocates).
+  if (threads::worthThreads(n > kParallelThreshold)) {
 #pragma omp parallel for schedule(static)
     for (int c = 0; c < kChunks; ++c) processChunk(c);
   } else {

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <limits>
 
+#include "numerics/threads.h"
+
 namespace blot::stain {
 namespace {
 
@@ -267,25 +269,33 @@ VelocityAdvectionReport advectVelocity(const StepContext& ctx, const SurfaceTopo
   const double h = ctx.h;
   int stripSteps = 0, boundaryStops = 0, cappedWalks = 0;
 
-#pragma omp parallel for schedule(dynamic, 256) reduction(+ : stripSteps, boundaryStops, cappedWalks) \
-    if (n >= kMinParallelVertices)
-  for (int i = 0; i < n; ++i) {
-    if (!allWet && !wet[static_cast<size_t>(i)]) continue;
+  // Walks differ in length: a dynamic schedule on threads, a plain loop
+  // otherwise (an orphaned dynamic loop would allocate; numerics/threads.h).
+  const auto walkFrom = [&](int i, int& steps, int& stops, int& capped) {
+    if (!allWet && !wet[static_cast<size_t>(i)]) return;
     const Walk walk = backtrack(tables, u, i, -h * u(i));
     advected(i) = walk.value;
     for (int c = 0; c < 3; ++c) {
       scratch.footVertices(i, c) = walk.footVertices[c];
       scratch.footWeights(i, c) = walk.footWeights[c];
     }
-    stripSteps += walk.stripSteps;
-    boundaryStops += walk.boundaryStop ? 1 : 0;
-    cappedWalks += walk.capped ? 1 : 0;
+    steps += walk.stripSteps;
+    stops += walk.boundaryStop ? 1 : 0;
+    capped += walk.capped ? 1 : 0;
+  };
+  if (threads::worthThreads(n >= kMinParallelVertices)) {
+#pragma omp parallel for schedule(dynamic, 256) reduction(+ : stripSteps, boundaryStops, cappedWalks)
+    for (int i = 0; i < n; ++i) walkFrom(i, stripSteps, boundaryStops, cappedWalks);
+  } else {
+    for (int i = 0; i < n; ++i) walkFrom(i, stripSteps, boundaryStops, cappedWalks);
   }
 
-#pragma omp parallel for schedule(static) if (n >= kMinParallelVertices)
-  for (int i = 0; i < n; ++i) {
-    if (allWet || wet[static_cast<size_t>(i)]) state.velocities(i) = advected(i);
-  }
+  threads::runLoop(n >= kMinParallelVertices, [&] {
+#pragma omp for schedule(static)
+    for (int i = 0; i < n; ++i) {
+      if (allWet || wet[static_cast<size_t>(i)]) state.velocities(i) = advected(i);
+    }
+  });
 
   VelocityAdvectionReport report;
   report.stripSteps = stripSteps;
