@@ -16,6 +16,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <memory>
 #include <sstream>
@@ -341,6 +342,31 @@ TEST(DemoScenes, ThreePatternCornerSpreadsDifferentlyIntoEachPatch) {
   EXPECT_LT(std::abs(e.statistics().massBudget.soluteError()), 1e-9);
 }
 
+
+// docs/gallery.md, "Drop sizes": every example scene's drops land as a film
+// about a millimetre thick, h = V / (pi r^2) with V = (solvent + solute) / rho,
+// and are a drop (<= 0.1 ml), a spill (a few ml) or a glass (tens of ml), never
+// a glass's worth in a drop's radius. The band 0.5-3.5 mm holds every scene
+// (0.96-3.1 mm); a 30 ml drop over 4 mm (600 mm) or 0.05 ml over 10 cm
+// (0.002 mm) fails.
+TEST(DemoScenes, EveryExampleDropLandsAsAFilmAboutAMillimetreThick) {
+  int drops = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(kScenes)) {
+    if (entry.path().extension() != ".json") continue;
+    const std::string file = entry.path().filename().string();
+    const SceneDef scene = loadScene(entry.path().string());
+    const double rho = scene.engine.stain.liquid.liquidDensity;
+    for (const TimedDrop& d : scene.engine.drops) {
+      const double volume = (d.drop.solventMass + d.drop.soluteMass) / rho;
+      const double film = volume / (M_PI * d.drop.radius * d.drop.radius);
+      EXPECT_GT(film, 0.5e-3) << file << ": " << volume * 1e6 << " ml over " << d.drop.radius << " m";
+      EXPECT_LT(film, 3.5e-3) << file << ": " << volume * 1e6 << " ml over " << d.drop.radius << " m";
+      EXPECT_LT(volume, 0.1e-3) << file << ": a drop of more than 100 ml";
+      ++drops;
+    }
+  }
+  EXPECT_GT(drops, 20);
+}
 
 // The preview keys the gallery scenes use: rest_shape and up (checked against
 // the view direction, with the key path in the message).
