@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <random>
@@ -89,9 +90,12 @@ int main(int argc, char** argv) {
       box.sizes().minCoeff(&thin);
       p[thin] = box.min()[thin] - 0.3;
       blot::stain::DropDef drop;
-      drop.radius = 0.04 + 0.06 * unit(rng);
+      // A splash of 6.5-26 ml landing as a film about 1 mm thick (docs/gallery.md,
+      // "Drop sizes"): radius sqrt(V / (pi * 1 mm)), 4.5-9.1 cm.
       drop.solventMass = 0.005 + 0.015 * unit(rng);
       drop.soluteMass = 0.3 * drop.solventMass;
+      const double volume = (drop.solventMass + drop.soluteMass) / 1000.0;  // m^3 at 1000 kg/m^3
+      drop.radius = std::sqrt(volume / (M_PI * 1e-3));
       engine->addDropAtPoint(p, drop);
       ++drops;
       nextDrop += gap(rng);
