@@ -508,7 +508,7 @@ TEST(Scene, LiquidPresetSetsItsDocumentedValues) {
   };
   for (const Expected& e : expected) {
     SCOPED_TRACE(e.name);
-    for (const std::string liquid : {std::string("\"") + e.name + "\"", std::string(R"({"preset": ")") + e.name + "\"}"}) {
+    for (const std::string& liquid : {std::string("\"") + e.name + "\"", std::string(R"({"preset": ")") + e.name + "\"}"}) {
       const SceneDef scene = parseScene(base + R"("liquid": )" + liquid + "}", "liquid.json");
       const EngineDef& def = scene.engine;
       EXPECT_DOUBLE_EQ(def.stain.liquid.liquidDensity, e.density);
