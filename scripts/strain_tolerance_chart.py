@@ -12,12 +12,12 @@ writes $BLOT_STUDY_OUT/strain_tolerance.csv. Run it and draw:
 (Debian's python3-matplotlib, hence /usr/bin/python3 rather than a pyenv python.)
 
 One chart per scene, two panels: the relative L2 error of the whole solute
-(the stain) and of the free solvent at 0.5 s and 2 s against rebuilds per
-step (machine-independent cost), and the same errors against the tolerance,
-with rebuilds per step and the stain's ms per step relative to the
-every-step run (one thread; the CSV's first line records the load average). Each
-point is labelled with its tolerance; the "floor" (the reference with the
-drops' radii changed by 1e-8) is drawn as a dotted line; the right panel's black lines are the cost.
+(the stain) at 2 s and of the free solvent at 0.5 s against the Geometry
+stage's ms per step (the cost the tolerance controls; one thread, wall clock,
+the CSV's first line records the load average), points labelled with their
+tolerance; and the same errors against the tolerance, with the rebuilds per
+step in black. Solid: whole rebuilds; dashed: partial ones. The "floor" (the
+reference with the drops' radii changed by 1e-8) is drawn dotted.
 """
 import csv
 import os
@@ -43,53 +43,55 @@ def read(path):
     return load, rows
 
 
+def at(rows, time):
+    return [r for r in rows if abs(float(r["time_s"]) - time) < 1e-6]
+
+
 def main():
     path = sys.argv[1] if len(sys.argv) > 1 else os.path.join(ROOT, "build", "studies", "strain_tolerance.csv")
     load, rows = read(path)
     out = os.path.join(ROOT, "docs", "charts")
     os.makedirs(out, exist_ok=True)
+    styles = {"full": ("o-", "whole rebuild"), "partial": ("s--", "partial rebuild")}
+    errors = [("error_stain", 2.0, "whole solute (stain), 2 s", "C0"),
+              ("error_solvent", 0.5, "free solvent, 0.5 s", "C1")]
     for scene in dict.fromkeys(r["scene"] for r in rows):
         data = [r for r in rows if r["scene"] == scene]
+        runs = [r for r in data if r["tolerance"] not in ("every step", "floor")]
         fig, axes = plt.subplots(1, 2, figsize=(13, 5.2))
-        series = [("error_stain", "2", "whole solute (stain), 2 s", "C0", "o-"),
-                  ("error_stain", "0.5", "whole solute (stain), 0.5 s", "C0", "s--"),
-                  ("error_solvent", "0.5", "free solvent, 0.5 s", "C1", "^--"),
-                  ("error_solvent", "2", "free solvent, 2 s", "C1", "v-")]
-        for ax, xkey, xlabel in ((axes[0], "rebuilds_per_step", "cost: intrinsic rebuilds per step"),
-                                 (axes[1], "tolerance_value", "strain tolerance")):
-            for key, time, label, colour, style in series:
-                points = [r for r in data if abs(float(r["time_s"]) - float(time)) < 1e-6
-                          and r["tolerance"] not in ("every step", "floor")]
-                if not points or all(float(p[key]) == 0 for p in points):
-                    continue
-                xs = [max(float(p[xkey]), 1e-3) if xkey == "rebuilds_per_step" else min(float(p[xkey]), 1.0)
-                      for p in points]
-                ys = [max(float(p[key]), FLOOR) for p in points]
-                ax.plot(xs, ys, style, color=colour, label=label, markersize=6)
-                if key == "error_stain" and time == "2":
-                    for x, y, p in zip(xs, ys, points):
-                        ax.annotate(p["tolerance"], (x, y), textcoords="offset points", xytext=(5, 5), fontsize=9)
-                floor = [float(r[key]) for r in data
-                         if r["tolerance"] == "floor" and abs(float(r["time_s"]) - float(time)) < 1e-6]
+        for ax, xkey, xlabel in ((axes[0], "geometry_ms", "cost: Geometry stage, ms per step (one thread, wall clock)"),
+                                 (axes[1], "tolerance_value", "strain tolerance  (\"never\" drawn at 1)")):
+            for refresh, (style, name) in styles.items():
+                for key, time, label, colour in errors:
+                    points = [r for r in at(runs, time) if r["refresh"] == refresh]
+                    if not points:
+                        continue
+                    xs = [min(float(p[xkey]), 1.0) if xkey == "tolerance_value" else float(p[xkey]) for p in points]
+                    ys = [max(float(p[key]), FLOOR) for p in points]
+                    ax.plot(xs, ys, style, color=colour, label=f"{label}, {name}", markersize=5,
+                            alpha=1.0 if refresh == "full" else 0.8)
+                    if key == "error_stain" and xkey == "geometry_ms":
+                        for x, y, p in zip(xs, ys, points):
+                            ax.annotate(p["tolerance"], (x, y), textcoords="offset points", xytext=(4, 4), fontsize=8)
+            for key, time, label, colour in errors:
+                floor = [float(r[key]) for r in at(data, time) if r["tolerance"] == "floor"]
                 if floor and floor[0] > 0:
                     ax.axhline(floor[0], color=colour, linestyle=":", linewidth=1)
             ax.set_xscale("log")
             ax.set_yscale("log")
-            ax.set_xlabel(xlabel + ("  (\"never\" drawn at 1e-3)" if xkey == "rebuilds_per_step" else "  (\"never\" drawn at 1)"))
+            ax.set_xlabel(xlabel)
             ax.set_ylabel("relative L2 error against rebuilding every step")
             ax.grid(True, which="both", color="#dddddd")
-        axes[0].legend(fontsize=9, loc="best")
-        # Cost on the tolerance panel: rebuilds per step and the stain's ms per step.
-        end = [r for r in data if abs(float(r["time_s"]) - 2) < 1e-6 and r["tolerance"] not in ("every step", "floor")]
+        axes[0].legend(fontsize=8, loc="best")
         twin = axes[1].twinx()
-        xs = [min(float(r["tolerance_value"]), 1.0) for r in end]
-        twin.plot(xs, [float(r["rebuilds_per_step"]) for r in end], "k.-", linewidth=1, label="rebuilds per step")
-        reference = [float(r["stain_ms"]) for r in data if r["tolerance"] == "every step"][0]
-        twin.plot(xs, [float(r["stain_ms"]) / reference for r in end], "kx:", linewidth=1,
-                  label="stain ms per step / every-step run's")
+        for refresh, (style, name) in styles.items():
+            end = [r for r in at(runs, 2.0) if r["refresh"] == refresh]
+            xs = [min(float(r["tolerance_value"]), 1.0) for r in end]
+            twin.plot(xs, [float(r["rebuilds_per_step"]) for r in end], "k" + style[0] + style[1:], linewidth=0.8,
+                      markersize=3, label=f"rebuilds per step, {name}")
         twin.set_ylim(0, 1.3)
-        twin.set_ylabel("cost (black)")
-        twin.legend(fontsize=9, loc="lower left")
+        twin.set_ylabel("rebuilds per step (black)")
+        twin.legend(fontsize=8, loc="lower left")
         fig.suptitle(f"{TITLES.get(scene, scene)}: strain tolerance of the intrinsic rebuild\n"
                      f"dotted: floor (drop radii x (1 + 1e-8)); errors of 0 drawn at {FLOOR:g}; {load.lstrip('# ')}",
                      fontsize=11)
