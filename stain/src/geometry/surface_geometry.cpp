@@ -390,16 +390,19 @@ bool SurfaceGeometry::refreshIntrinsicPartially(const RowVectors3& positions) {
   for (const int e : chosenEdges_) edgeMarks_[static_cast<size_t>(e)] = 0;
   for (const int f : faces1_)
     for (int k = 0; k < 3; ++k) edgeMarks_[static_cast<size_t>(faceEdges(f, k))] = 1;
-  edges1_.clear();
-  for (int e = 0; e < edgeCount; ++e)
-    if (edgeMarks_[static_cast<size_t>(e)]) {
-      edges1_.push_back(e);
-      edgeMarks_[static_cast<size_t>(e)] = 0;
+  // The marked ids of `marks` (size `count`), ascending, into `list`; the
+  // marks are cleared unless `keep`.
+  const auto collect = [](std::vector<char>& marks, int count, std::vector<int>& list, bool keep) {
+    list.clear();
+    for (int i = 0; i < count; ++i) {
+      if (!marks[static_cast<size_t>(i)]) continue;
+      list.push_back(i);
+      if (!keep) marks[static_cast<size_t>(i)] = 0;
     }
-  vertices1_.clear();
-  for (int v = 0; v < n; ++v)
-    if (vertexMarks_[static_cast<size_t>(v)]) vertices1_.push_back(v);
-  // F2: ring faces of V1 (ascending); edges at V1 (transport angles).
+  };
+  collect(edgeMarks_, edgeCount, edges1_, false);
+  collect(vertexMarks_, n, vertices1_, true);  // kept: the L_S re-assembly reads them
+  // F2: ring faces of V1; edges at V1 (transport angles).
   for (const int v : vertices1_) {
     for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m) {
       const int f = ringFaces[static_cast<size_t>(m)];
@@ -407,34 +410,18 @@ bool SurfaceGeometry::refreshIntrinsicPartially(const RowVectors3& positions) {
       edgeMarks_[static_cast<size_t>(ringEdges[static_cast<size_t>(m)])] = 1;
     }
   }
-  faces2_.clear();
-  for (int f = 0; f < faceCount; ++f)
-    if (faceMarks_[static_cast<size_t>(f)]) {
-      faces2_.push_back(f);
-      faceMarks_[static_cast<size_t>(f)] = 0;
-      for (int k = 0; k < 3; ++k) vertexMarks2_[static_cast<size_t>(faces(f, k))] = 1;
-    }
-  edges2_.clear();
-  for (int e = 0; e < edgeCount; ++e)
-    if (edgeMarks_[static_cast<size_t>(e)]) {
-      edges2_.push_back(e);
-      edgeMarks_[static_cast<size_t>(e)] = 0;
-    }
-  // V2: vertices of F2; F3: their ring faces (ascending).
-  vertices2_.clear();
-  for (int v = 0; v < n; ++v)
-    if (vertexMarks2_[static_cast<size_t>(v)]) vertices2_.push_back(v);
+  collect(faceMarks_, faceCount, faces2_, false);
+  collect(edgeMarks_, edgeCount, edges2_, false);
+  // V2: vertices of F2 (kept for the connection re-assembly); F3: their ring faces.
+  for (const int f : faces2_)
+    for (int k = 0; k < 3; ++k) vertexMarks2_[static_cast<size_t>(faces(f, k))] = 1;
+  collect(vertexMarks2_, n, vertices2_, true);
   for (const int v : vertices2_)
     for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m) {
       const int f = ringFaces[static_cast<size_t>(m)];
       if (f >= 0) faceMarks_[static_cast<size_t>(f)] = 1;
     }
-  faces3_.clear();
-  for (int f = 0; f < faceCount; ++f)
-    if (faceMarks_[static_cast<size_t>(f)]) {
-      faces3_.push_back(f);
-      faceMarks_[static_cast<size_t>(f)] = 0;
-    }
+  collect(faceMarks_, faceCount, faces3_, false);
 
   // The values, in dependency order (each update writes what the whole
   // function writes for those elements).
