@@ -274,10 +274,10 @@ void SurfaceGeometry::setVertexRefresh(VertexRefresh mode) {
   if (mode == VertexRefresh::AllVertices) prepareAllVertices();
 }
 
-void intrinsicGeometryFromLengths(const SurfaceTopology& topology, const Vector& lengths,
-                                  const Eigen::MatrixX3d& densityTensors, const Eigen::MatrixX3d& velocityTensors,
-                                  const Eigen::MatrixX2d& faceWeftCoefficients, IntrinsicGeometry& in) {
-  in.edgeLengths = lengths;
+namespace {
+
+// Everything of the tier that follows from in.edgeLengths before the operators.
+void lengthQuantities(const SurfaceTopology& topology, IntrinsicGeometry& in) {
   in.faceCornerAngles = faceCornerAngles(topology, in.edgeLengths);
   in.faceAreas = faceAreas(topology, in.edgeLengths);
   in.edgeCotanWeights = edgeCotanWeights(topology, in.faceCornerAngles);
@@ -285,6 +285,15 @@ void intrinsicGeometryFromLengths(const SurfaceTopology& topology, const Vector&
   in.polarMap = geodesicPolarMap(topology, in.faceCornerAngles);
   in.edgeTransportAngles = edgeTransportAngles(topology, in.polarMap);
   in.faceTransportAngles = faceTransportAngles(topology, in.faceCornerAngles, in.polarMap);
+}
+
+}  // namespace
+
+void intrinsicGeometryFromLengths(const SurfaceTopology& topology, const Vector& lengths,
+                                  const Eigen::MatrixX3d& densityTensors, const Eigen::MatrixX3d& velocityTensors,
+                                  const Eigen::MatrixX2d& faceWeftCoefficients, IntrinsicGeometry& in) {
+  in.edgeLengths = lengths;
+  lengthQuantities(topology, in);
   in.densityStiffness = anisotropicStiffnessFromLengths(topology, in.edgeLengths, densityTensors, faceWeftCoefficients);
   in.velocityStiffness = connectionLaplacianFromLengths(topology, in.edgeLengths, in.faceTransportAngles,
                                                         velocityTensors, faceWeftCoefficients);
@@ -322,13 +331,7 @@ void SurfaceGeometry::refreshIntrinsicFromPositions(const RowVectors3& positions
   const SurfaceTopology& topology = *topology_;
   IntrinsicGeometry& in = dynamic_.intrinsic;
   in.edgeLengths = edgeLengths(topology, positions);
-  in.faceCornerAngles = faceCornerAngles(topology, in.edgeLengths);
-  in.faceAreas = faceAreas(topology, in.edgeLengths);
-  in.edgeCotanWeights = edgeCotanWeights(topology, in.faceCornerAngles);
-  in.vertexDualAreas = vertexDualAreas(topology, in.faceAreas);
-  in.polarMap = geodesicPolarMap(topology, in.faceCornerAngles);
-  in.edgeTransportAngles = edgeTransportAngles(topology, in.polarMap);
-  in.faceTransportAngles = faceTransportAngles(topology, in.faceCornerAngles, in.polarMap);
+  lengthQuantities(topology, in);
   // The first build is on the rest shape, where the given wefts apply as they are.
   const RowVectors3 wefts =
       in.rebuildCount == 0
