@@ -195,7 +195,7 @@ blot::engine::EngineDef toEngineDef(const blotEngineDef& d) {
   def.stain.gravity = vec3(d.gravity);
   // A Bullet cloth's links jitter by percents near pins: the scene loader's
   // default strain tolerance for it (docs/scene-format.md, strain_tolerance).
-  if (def.source == MotionSource::Bullet) def.stain.strainTolerance = 0.02;
+  if (def.source == MotionSource::Bullet) def.stain.strainTolerance = blot::engine::kBulletStrainTolerance;
   def.timeStep = d.timeStep;
   def.maxStepsPerCall = d.maxStepsPerCall;
   return def;

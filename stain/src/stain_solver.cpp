@@ -149,6 +149,7 @@ double MassBudget::soluteError() const {
 StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& restPositions,
                          const FabricField& fabric, const StainSolverDef& def)
     : def_(checkedDefinition(def)), geometry_(topology, restPositions, fabric, def.strainTolerance) {
+  geometry_.setIntrinsicRefresh(def.intrinsicRefresh);
   const int n = topology.vertexCount();
   state_.resize(n);
   backup_.resize(n);

@@ -176,6 +176,36 @@ TEST(ScalarOperators, DegenerateWeftIsReportedForAnisotropicTensorsOnly) {
                std::invalid_argument);
 }
 
+// The operators from edge lengths (the intrinsic tier's) equal the
+// position-based ones on the same shape to rounding (1e-12 of the largest
+// entry), for random anisotropic tensors and wefts on a bumpy closed mesh;
+// the degenerate-weft check names the face there too.
+TEST(ScalarOperators, OperatorsFromLengthsMatchThePositionBasedOnes) {
+  const Geometry g(testing::jitteredIcosphere(2, 0.2, 4));
+  const TriangleMesh& mesh = g.mesh;
+  const SurfaceTopology& topology = g.topology;
+  const auto [tensors, wefts] = testing::randomFabric(topology.faceCount(), 100.0, 3);
+  const Eigen::MatrixX2d coefficients = faceWeftCoefficients(topology, mesh.vertexPositions, wefts);
+  const SparseMatrix byPositions = anisotropicStiffness(topology, mesh.vertexPositions, tensors, wefts);
+  const SparseMatrix byLengths = anisotropicStiffnessFromLengths(topology, g.lengths, tensors, coefficients);
+  EXPECT_LT(maxAbs(SparseMatrix(byLengths - byPositions)), 1e-12 * maxAbs(byPositions));
+  const ComplexSparseMatrix cByPositions =
+      connectionLaplacian(topology, mesh.vertexPositions, g.faceAngles, tensors, wefts);
+  const ComplexSparseMatrix cByLengths =
+      connectionLaplacianFromLengths(topology, g.lengths, g.faceAngles, tensors, coefficients);
+  EXPECT_LT(maxAbs(ComplexSparseMatrix(cByLengths - cByPositions)), 1e-12 * maxAbs(cByPositions));
+
+  RowVectors3 bad = wefts;
+  bad.row(5).setZero();
+  const Eigen::MatrixX2d badCoefficients = faceWeftCoefficients(topology, mesh.vertexPositions, bad);
+  try {
+    anisotropicStiffnessFromLengths(topology, g.lengths, tensors, badCoefficients);
+    FAIL() << "expected std::invalid_argument";
+  } catch (const std::invalid_argument& error) {
+    EXPECT_NE(std::string(error.what()).find("face 5"), std::string::npos) << error.what();
+  }
+}
+
 TEST(ScalarOperators, IcosphereSpectrumConvergesToTwoAtLeastAtSecondOrder) {
   // Eigenvalues ℓ(ℓ+1) of the unit sphere; ℓ = 1 is three-fold at 2.
   std::vector<double> errors;

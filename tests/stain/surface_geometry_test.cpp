@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 #include <omp.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdio>
@@ -343,6 +344,162 @@ TEST(SurfaceGeometry, RefreshExtrinsicAllocatesNothing) {
   gCountAllocations = false;
   EXPECT_EQ(gAllocations.load(), 0);
   EXPECT_GT(geometry.maxEdgeStrain(), 0.0);  // the deforming step was seen
+}
+
+// ---- Partial intrinsic refresh ----------------------------------------------
+
+// The wavy sheet, every vertex jittered by ~1e-5 of the spacing (strains far
+// below the tolerance: edges a partial refresh keeps) and a bump of height
+// `height` at (cx, cy) (strains past it: edges it re-measures).
+RowVectors3 bumpedSheet(const RowVectors3& rest, double cx, double cy, double height, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> jitter(-6e-7, 6e-7);
+  RowVectors3 p = rest;
+  for (Eigen::Index v = 0; v < p.rows(); ++v) {
+    const double dx = rest(v, 0) - cx, dy = rest(v, 1) - cy;
+    p(v, 2) += height * std::exp(-(dx * dx + dy * dy) / (2 * 0.06 * 0.06));
+    for (int c = 0; c < 3; ++c) p(v, c) += jitter(rng);
+  }
+  return p;
+}
+
+void expectSameIntrinsic(const IntrinsicGeometry& a, const IntrinsicGeometry& b) {
+  EXPECT_EQ(a.edgeLengths, b.edgeLengths);
+  EXPECT_EQ(a.faceCornerAngles, b.faceCornerAngles);
+  EXPECT_EQ(a.faceAreas, b.faceAreas);
+  EXPECT_EQ(a.edgeCotanWeights, b.edgeCotanWeights);
+  EXPECT_EQ(a.vertexDualAreas, b.vertexDualAreas);
+  EXPECT_EQ(a.polarMap.ringAngles, b.polarMap.ringAngles);
+  EXPECT_EQ(a.polarMap.vertexAngleScales, b.polarMap.vertexAngleScales);
+  EXPECT_EQ(a.edgeTransportAngles, b.edgeTransportAngles);
+  EXPECT_EQ(a.faceTransportAngles, b.faceTransportAngles);
+  ASSERT_EQ(a.densityStiffness.nonZeros(), b.densityStiffness.nonZeros());
+  ASSERT_EQ(a.velocityStiffness.nonZeros(), b.velocityStiffness.nonZeros());
+  const auto nnz = static_cast<size_t>(a.densityStiffness.nonZeros());
+  EXPECT_TRUE(std::equal(a.densityStiffness.innerIndexPtr(), a.densityStiffness.innerIndexPtr() + nnz,
+                         b.densityStiffness.innerIndexPtr()));
+  EXPECT_TRUE(std::equal(a.densityStiffness.valuePtr(), a.densityStiffness.valuePtr() + nnz,
+                         b.densityStiffness.valuePtr()));
+  EXPECT_TRUE(std::equal(a.velocityStiffness.valuePtr(), a.velocityStiffness.valuePtr() + nnz,
+                         b.velocityStiffness.valuePtr()));
+}
+
+// A partial refresh after local strain gives bitwise the whole tier built
+// from the same per-edge lengths, over several refreshes in a row; it
+// re-measures only the edges past half the tolerance, touches a small share
+// of the faces, and leaves every kept edge below half the tolerance.
+TEST(SurfaceGeometry, PartialRefreshIsTheWholeRebuildFromTheSameLengths) {
+  const TriangleMesh mesh = wavySheet();
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  const FabricField fabric = anisotropicFabric(topology.faceCount(), 5);
+  SurfaceGeometry geometry(topology, mesh.vertexPositions, fabric);
+  EXPECT_EQ(geometry.intrinsicRefresh(), IntrinsicRefresh::Full);  // the default
+  geometry.setIntrinsicRefresh(IntrinsicRefresh::Partial);
+  const double tolerance = 1e-3;
+  int partial = 0;
+  for (int step = 1; step <= 6; ++step) {
+    const RowVectors3 p = bumpedSheet(mesh.vertexPositions, 0.2 + 0.1 * step, 0.35, 0.004 * step, step);
+    const Vector built = geometry.intrinsic().edgeLengths;
+    if (!geometry.refreshExtrinsic(p, 0.01)) continue;
+    geometry.refreshIntrinsic();
+    const IntrinsicGeometry& in = geometry.intrinsic();
+    // Re-measured: exactly the edges past half the tolerance against their built length.
+    const Vector now = edgeLengths(topology, p);
+    int chosen = 0;
+    for (int e = 0; e < topology.edgeCount(); ++e) {
+      const double strain = std::abs(now(e) / built(e) - 1);
+      if (strain > 0.5 * tolerance * (1 + 1e-9)) {
+        EXPECT_EQ(in.edgeLengths(e), now(e)) << "edge " << e;
+        ++chosen;
+      } else if (strain < 0.5 * tolerance * (1 - 1e-9)) {
+        EXPECT_EQ(in.edgeLengths(e), built(e)) << "edge " << e;
+      }
+    }
+    EXPECT_LE(geometry.maxEdgeStrain(), 0.5 * tolerance * (1 + 1e-9));
+    if (geometry.refreshedEdgeCount() < topology.edgeCount()) {
+      ++partial;
+      EXPECT_EQ(geometry.refreshedEdgeCount(), chosen);
+      EXPECT_LT(geometry.refreshedFaceCount(), topology.faceCount());  // the bump covers ~a third of this small sheet
+    }
+    IntrinsicGeometry whole;
+    intrinsicGeometryFromLengths(topology, in.edgeLengths, fabric.densityTensors, fabric.velocityTensors,
+                                 geometry.faceWeftCoefficients(), whole);
+    expectSameIntrinsic(in, whole);
+  }
+  EXPECT_GE(partial, 3);  // the test exercised the partial path, not only the fallback
+}
+
+// The invariants of the operators after partial refreshes: constants in the
+// kernel of L_S (rows sum to zero, to 1e-12 of the diagonal), L_S symmetric
+// and the connection Laplacian Hermitian (1e-14 relative), positive
+// diagonals, dual areas one third of the ring area and summing to the area.
+TEST(SurfaceGeometry, PartialRefreshKeepsTheOperatorInvariants) {
+  const TriangleMesh mesh = wavySheet();
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  SurfaceGeometry geometry(topology, mesh.vertexPositions, anisotropicFabric(topology.faceCount(), 6));
+  geometry.setIntrinsicRefresh(IntrinsicRefresh::Partial);
+  for (int step = 1; step <= 4; ++step) {
+    if (geometry.refreshExtrinsic(bumpedSheet(mesh.vertexPositions, 0.5, 0.2 + 0.08 * step, 0.01, step), 0.01))
+      geometry.refreshIntrinsic();
+  }
+  ASSERT_LT(geometry.refreshedEdgeCount(), topology.edgeCount());
+  const IntrinsicGeometry& in = geometry.intrinsic();
+  const SparseMatrix& L = in.densityStiffness;
+  const double scale = L.diagonal().cwiseAbs().maxCoeff();
+  EXPECT_LT((L * Vector::Ones(L.cols())).cwiseAbs().maxCoeff(), 1e-12 * scale);
+  EXPECT_LT(SparseMatrix(L - SparseMatrix(L.transpose())).coeffs().cwiseAbs().maxCoeff(), 1e-14 * scale);
+  EXPECT_GT(L.diagonal().minCoeff(), 0.0);
+  const ComplexSparseMatrix& C = in.velocityStiffness;
+  const ComplexSparseMatrix hermitian = C - ComplexSparseMatrix(C.adjoint());
+  EXPECT_LT(hermitian.coeffs().cwiseAbs().maxCoeff(), 1e-14 * scale);
+  EXPECT_GT(C.diagonal().real().minCoeff(), 0.0);
+  EXPECT_NEAR(in.vertexDualAreas.sum(), in.faceAreas.sum(), 1e-13 * in.faceAreas.sum());
+  EXPECT_GT(in.vertexDualAreas.minCoeff(), 0.0);
+}
+
+// A partial refresh allocates nothing; the same run takes the same bits with
+// one and two OpenMP threads (the strain test is parallel above 8192 edges).
+TEST(SurfaceGeometry, PartialRefreshAllocatesNothingAndIsThreadCountIndependent) {
+  const TriangleMesh mesh = jitteredIcosphere(4, 0.2, 21);  // 2562 vertices, 7680 edges
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  const RowVectors3& rest = mesh.vertexPositions;
+  const auto at = [&](int step) {
+    RowVectors3 p = rest;
+    for (Eigen::Index v = 0; v < p.rows(); ++v)  // a bump moving over the sphere
+      p.row(v) *= 1.0 + 0.01 * std::exp(-(rest.row(v) - Eigen::RowVector3d(0, 0.3 * step, 1)).squaredNorm() / 0.02);
+    return p;
+  };
+  const auto run = [&](int threads, long* allocations) {
+    omp_set_num_threads(threads);
+    SurfaceGeometry geometry(topology, rest, anisotropicFabric(topology.faceCount(), 7));
+    geometry.setIntrinsicRefresh(IntrinsicRefresh::Partial);
+    geometry.refreshExtrinsic(at(0), 0.01);
+    geometry.refreshIntrinsic();
+    int partial = 0;
+    for (int step = 1; step <= 5; ++step) {
+      const RowVectors3 p = at(step);
+      const bool trip = geometry.refreshExtrinsic(p, 0.01);
+      if (allocations != nullptr) {
+        gAllocations = 0;
+        gCountAllocations = true;
+      }
+      if (trip) geometry.refreshIntrinsic();
+      if (allocations != nullptr) {
+        gCountAllocations = false;
+        *allocations += gAllocations.load();
+      }
+      partial += trip && geometry.refreshedEdgeCount() < topology.edgeCount();
+    }
+    EXPECT_GE(partial, 3);
+    return geometry.intrinsic();
+  };
+  const int saved = omp_get_max_threads();
+  long allocations = 0;
+  const IntrinsicGeometry one = run(1, kCountsAllocations ? &allocations : nullptr);
+  const IntrinsicGeometry two = run(2, nullptr);
+  omp_set_num_threads(saved);
+  EXPECT_EQ(allocations, 0);
+  expectSameIntrinsic(one, two);
 }
 
 // ---- Rotation fits ----------------------------------------------------------

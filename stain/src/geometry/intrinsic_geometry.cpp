@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <utility>
+#include <vector>
 
 namespace blot::stain {
 namespace {
@@ -20,7 +21,33 @@ double stableHeronArea(double a, double b, double c) {
   return 0.25 * std::sqrt(std::max(p, 0.0));
 }
 
+// Corner angles and area of face f (the body of faceCornerAngles and faceAreas).
+inline void faceAnglesAndArea(const Eigen::MatrixX3i& fe, const Vector& edgeLengths, int f, Eigen::MatrixX3d& angles,
+                              double& area) {
+  const double l0 = edgeLengths(fe(f, 0)), l1 = edgeLengths(fe(f, 1)), l2 = edgeLengths(fe(f, 2));
+  area = stableHeronArea(l0, l1, l2);
+  const double fourArea = 4.0 * area;
+  // Corner k: adjacent edges faceEdges(f, k) and faceEdges(f, k + 2),
+  // opposite edge faceEdges(f, k + 1).
+  const double l[3] = {l0, l1, l2};
+  for (int k = 0; k < 3; ++k) {
+    double b = l[k], c = l[(k + 2) % 3];
+    const double a = l[(k + 1) % 3];
+    if (b < c) std::swap(b, c);
+    angles(f, k) = std::atan2(fourArea, (b - a) * (b + a) + c * c);
+  }
+}
+
+// Half of the cotangent of the angle opposite half-edge h (its face's corner
+// (h % 3 + 2) % 3).
+inline double halfCotangentOpposite(const Eigen::MatrixX3d& angles, int h) {
+  const double angle = angles(h / 3, (h % 3 + 2) % 3);
+  return 0.5 * std::cos(angle) / std::sin(angle);
+}
+
 }  // namespace
+
+double triangleArea(double a, double b, double c) { return stableHeronArea(a, b, c); }
 
 Vector edgeLengths(const SurfaceTopology& topology, const RowVectors3& vertexPositions) {
   const Eigen::MatrixX2i& ev = topology.edgeVertices();
@@ -34,19 +61,8 @@ Vector edgeLengths(const SurfaceTopology& topology, const RowVectors3& vertexPos
 Eigen::MatrixX3d faceCornerAngles(const SurfaceTopology& topology, const Vector& edgeLengths) {
   const Eigen::MatrixX3i& fe = topology.faceEdges();
   Eigen::MatrixX3d angles(topology.faceCount(), 3);
-  for (int f = 0; f < topology.faceCount(); ++f) {
-    const double l0 = edgeLengths(fe(f, 0)), l1 = edgeLengths(fe(f, 1)), l2 = edgeLengths(fe(f, 2));
-    const double fourArea = 4.0 * stableHeronArea(l0, l1, l2);
-    // Corner k: adjacent edges faceEdges(f, k) and faceEdges(f, k + 2),
-    // opposite edge faceEdges(f, k + 1).
-    const double l[3] = {l0, l1, l2};
-    for (int k = 0; k < 3; ++k) {
-      double b = l[k], c = l[(k + 2) % 3];
-      const double a = l[(k + 1) % 3];
-      if (b < c) std::swap(b, c);
-      angles(f, k) = std::atan2(fourArea, (b - a) * (b + a) + c * c);
-    }
-  }
+  double area;
+  for (int f = 0; f < topology.faceCount(); ++f) faceAnglesAndArea(fe, edgeLengths, f, angles, area);
   return angles;
 }
 
@@ -60,17 +76,8 @@ Vector faceAreas(const SurfaceTopology& topology, const Vector& edgeLengths) {
 }
 
 Vector edgeCotanWeights(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles) {
-  const Eigen::MatrixX3i& fe = topology.faceEdges();
-  Vector weights = Vector::Zero(topology.edgeCount());
-  // Fixed order (face by face) so the two half-contributions always add in
-  // the same order: deterministic to the last bit.
-  for (int f = 0; f < topology.faceCount(); ++f) {
-    for (int k = 0; k < 3; ++k) {
-      // The angle at corner k is opposite edge faceEdges(f, k + 1).
-      const double angle = faceCornerAngles(f, k);
-      weights(fe(f, (k + 1) % 3)) += 0.5 * std::cos(angle) / std::sin(angle);
-    }
-  }
+  Vector weights(topology.edgeCount());
+  for (int e = 0; e < topology.edgeCount(); ++e) updateEdgeCotanWeights(topology, faceCornerAngles, &e, 1, weights);
   return weights;
 }
 
@@ -82,6 +89,52 @@ Vector vertexDualAreas(const SurfaceTopology& topology, const Vector& faceAreas)
     for (int k = 0; k < 3; ++k) dual(faces(f, k)) += third;
   }
   return dual;
+}
+
+void updateFaceAnglesAndAreas(const SurfaceTopology& topology, const Vector& edgeLengths, const int* faces,
+                              int count, Eigen::MatrixX3d& faceCornerAngles, Vector& faceAreas) {
+  const Eigen::MatrixX3i& fe = topology.faceEdges();
+  for (int n = 0; n < count; ++n) faceAnglesAndArea(fe, edgeLengths, faces[n], faceCornerAngles, faceAreas(faces[n]));
+}
+
+void updateEdgeCotanWeights(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles,
+                            const int* edges, int count, Vector& edgeCotanWeights) {
+  for (int n = 0; n < count; ++n) {
+    // The lower-index face's half first, then the other's: the order of a
+    // face-by-face sum, so the bits do not depend on which edges are updated.
+    const int e = edges[n];
+    const int h = topology.edgeHalfedges()[static_cast<size_t>(e)];
+    const int twin = topology.halfedgeTwins()[static_cast<size_t>(h)];
+    double w = halfCotangentOpposite(faceCornerAngles, h);
+    if (twin >= 0) w += halfCotangentOpposite(faceCornerAngles, twin);
+    edgeCotanWeights(e) = w;
+  }
+}
+
+void updateVertexDualAreas(const SurfaceTopology& topology, const Vector& faceAreas, const int* vertices, int count,
+                           Vector& vertexDualAreas) {
+  const std::vector<int>& offsets = topology.ringOffsets();
+  const std::vector<int>& ringFaces = topology.ringFaces();
+  for (int n = 0; n < count; ++n) {
+    const int v = vertices[n];
+    // The ring's faces in ascending order (the order vertexDualAreas adds
+    // them in), by repeated selection of the next larger face id: rings are
+    // small, and this needs no storage whatever the valence.
+    const int begin = offsets[static_cast<size_t>(v)], end = offsets[static_cast<size_t>(v) + 1];
+    double dual = 0.0;
+    int last = -1;
+    for (;;) {
+      int next = -1;
+      for (int m = begin; m < end; ++m) {
+        const int f = ringFaces[static_cast<size_t>(m)];
+        if (f > last && (next < 0 || f < next)) next = f;
+      }
+      if (next < 0) break;
+      dual += faceAreas(next) / 3.0;
+      last = next;
+    }
+    vertexDualAreas(v) = dual;
+  }
 }
 
 Vector vertexAngleSums(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles) {

@@ -4,8 +4,11 @@
 // Design note: docs/design-notes.md, "stain/src/geometry/operators.cpp".
 #include <blot/stain/geometry/operators.h>
 
+#include <blot/stain/geometry/intrinsic_geometry.h>
+
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 #include <vector>
@@ -20,6 +23,16 @@ struct FaceLayout {
   Vector2 corners[3];  // 2D corners in the face frame.
   Matrix2 tensor;      // S_T in the face frame.
 };
+
+// S_T = (e, e⊥) S (e, e⊥)ᵀ for the unit weft e in face coordinates and the
+// fabric tensor S = [sww swp; swp spp] (e⊥ = +90° rotation in the face).
+Matrix2 tensorInFace(const Vector2& e, double sww, double swp, double spp) {
+  Matrix2 basis;  // columns: weft e, warp e⊥
+  basis << e.x(), -e.y(), e.y(), e.x();
+  Matrix2 fabric;
+  fabric << sww, swp, swp, spp;
+  return basis * fabric * basis.transpose();
+}
 
 // Lays face f out in its own frame and rotates its fabric tensor into it.
 FaceLayout layoutFace(const SurfaceTopology& topology, const RowVectors3& positions,
@@ -54,12 +67,64 @@ FaceLayout layoutFace(const SurfaceTopology& topology, const RowVectors3& positi
     throw std::invalid_argument(s.str());
   }
   const Vector2 e(inPlane.dot(x) / length, inPlane.dot(y) / length);
-  Matrix2 basis;  // columns: weft e, warp e⊥ = n × e (= +90° rotation in the face)
-  basis << e.x(), -e.y(), e.y(), e.x();
-  Matrix2 fabric;
-  fabric << sww, swp, swp, spp;
-  layout.tensor = basis * fabric * basis.transpose();
+  layout.tensor = tensorInFace(e, sww, swp, spp);  // e⊥ = n × e
   return layout;
+}
+
+// Lays face f out from its edge lengths (see anisotropicStiffnessFromLengths).
+FaceLayout intrinsicLayout(const SurfaceTopology& topology, const Vector& edgeLengths,
+                           const Eigen::MatrixX3d& faceTensors, const Eigen::MatrixX2d& faceWeftCoefficients, int f) {
+  const Eigen::MatrixX3i& fe = topology.faceEdges();
+  // faceEdges(f, 0) joins corners 0 and 1, (f, 1) corners 1 and 2, (f, 2) corners 2 and 0.
+  const double l0 = edgeLengths(fe(f, 0)), l1 = edgeLengths(fe(f, 1)), l2 = edgeLengths(fe(f, 2));
+  const double x = (l0 * l0 + (l2 - l1) * (l2 + l1)) / (2.0 * l0);
+  const double y = 2.0 * triangleArea(l0, l1, l2) / l0;
+  FaceLayout layout;
+  layout.corners[0] = Vector2::Zero();
+  layout.corners[1] = Vector2(l0, 0.0);
+  layout.corners[2] = Vector2(x, y);
+  const double sww = faceTensors(f, 0), swp = faceTensors(f, 1), spp = faceTensors(f, 2);
+  if (swp == 0.0 && sww == spp) {  // isotropic: orientation irrelevant
+    layout.tensor = sww * Matrix2::Identity();
+    return layout;
+  }
+  const double a = faceWeftCoefficients(f, 0), b = faceWeftCoefficients(f, 1);
+  const Vector2 weft = a * layout.corners[1] + b * layout.corners[2];
+  const double length = weft.norm();
+  if (!(length > 0) || !std::isfinite(length)) {  // also catches a zero or out-of-plane weft (NaN coefficients)
+    std::ostringstream s;
+    s << "anisotropicStiffness: face " << f << ": the weft direction has no component in the face plane; "
+      << "the fabric orientation is undefined for an anisotropic tensor";
+    throw std::invalid_argument(s.str());
+  }
+  layout.tensor = tensorInFace(weft / length, sww, swp, spp);
+  return layout;
+}
+
+// The 3x3 stiffness of face f from its lengths.
+Matrix3 intrinsicFaceStiffness(const SurfaceTopology& topology, const Vector& edgeLengths,
+                               const Eigen::MatrixX3d& faceTensors, const Eigen::MatrixX2d& faceWeftCoefficients,
+                               int f) {
+  const FaceLayout layout = intrinsicLayout(topology, edgeLengths, faceTensors, faceWeftCoefficients, f);
+  return triangleStiffness(layout.corners[0], layout.corners[1], layout.corners[2], layout.tensor);
+}
+
+// Face f's connection block entry (k, l): K_kl conj(r_k) r_l, the diagonal real.
+inline Complex connectionEntry(const Matrix3& K, const Complex* r, int k, int l) {
+  return k == l ? Complex(K(k, k), 0.0) : K(k, l) * std::conj(r[k]) * r[l];
+}
+
+// Zeroes the entries (i, j) of L with j in vertices and i marked.
+template <typename Scalar>
+void zeroMarkedEntries(const char* marks, const int* vertices, int vertexCount, Eigen::SparseMatrix<Scalar>& L) {
+  const int* outer = L.outerIndexPtr();
+  const int* rows = L.innerIndexPtr();
+  Scalar* values = L.valuePtr();
+  for (int n = 0; n < vertexCount; ++n) {
+    const int j = vertices[n];
+    for (int p = outer[j]; p < outer[j + 1]; ++p)
+      if (marks[rows[p]]) values[p] = Scalar(0);
+  }
 }
 
 // The pattern of a P1 operator on `topology`, values zero: column j holds
@@ -200,6 +265,98 @@ ComplexSparseMatrix connectionLaplacian(const SurfaceTopology& topology,
     }
   }
   return L;
+}
+
+SparseMatrix anisotropicStiffnessFromLengths(const SurfaceTopology& topology, const Vector& edgeLengths,
+                                             const Eigen::MatrixX3d& faceTensors,
+                                             const Eigen::MatrixX2d& faceWeftCoefficients) {
+  const Triangles& faces = topology.faces();
+  SparseMatrix L = oneRingPattern<double>(topology);
+  for (int f = 0; f < topology.faceCount(); ++f) {
+    const Matrix3 K = intrinsicFaceStiffness(topology, edgeLengths, faceTensors, faceWeftCoefficients, f);
+    for (int k = 0; k < 3; ++k) {
+      for (int l = 0; l < 3; ++l) addEntry(L, faces(f, k), faces(f, l), K(k, l));
+    }
+  }
+  return L;
+}
+
+void reassembleStiffnessFromLengths(const SurfaceTopology& topology, const Vector& edgeLengths,
+                                    const Eigen::MatrixX3d& faceTensors, const Eigen::MatrixX2d& faceWeftCoefficients,
+                                    const char* vertexMarks, const int* vertices, int vertexCount, const int* faceList,
+                                    int faceCount, SparseMatrix& L) {
+  const Triangles& faces = topology.faces();
+  zeroMarkedEntries(vertexMarks, vertices, vertexCount, L);
+  for (int n = 0; n < faceCount; ++n) {
+    const int f = faceList[n];
+    const Matrix3 K = intrinsicFaceStiffness(topology, edgeLengths, faceTensors, faceWeftCoefficients, f);
+    for (int k = 0; k < 3; ++k) {
+      if (!vertexMarks[faces(f, k)]) continue;
+      for (int l = 0; l < 3; ++l)
+        if (vertexMarks[faces(f, l)]) addEntry(L, faces(f, k), faces(f, l), K(k, l));
+    }
+  }
+}
+
+ComplexSparseMatrix connectionLaplacianFromLengths(const SurfaceTopology& topology, const Vector& edgeLengths,
+                                                   const Eigen::MatrixX3d& faceTransportAngles,
+                                                   const Eigen::MatrixX3d& faceTensors,
+                                                   const Eigen::MatrixX2d& faceWeftCoefficients) {
+  const Triangles& faces = topology.faces();
+  ComplexSparseMatrix L = oneRingPattern<Complex>(topology);
+  for (int f = 0; f < topology.faceCount(); ++f) {
+    const Matrix3 K = intrinsicFaceStiffness(topology, edgeLengths, faceTensors, faceWeftCoefficients, f);
+    Complex r[3];
+    for (int k = 0; k < 3; ++k) r[k] = std::polar(1.0, faceTransportAngles(f, k));
+    for (int k = 0; k < 3; ++k) {
+      for (int l = 0; l < 3; ++l) addEntry(L, faces(f, k), faces(f, l), connectionEntry(K, r, k, l));
+    }
+  }
+  return L;
+}
+
+void reassembleConnectionFromLengths(const SurfaceTopology& topology, const Vector& edgeLengths,
+                                     const Eigen::MatrixX3d& faceTransportAngles, const Eigen::MatrixX3d& faceTensors,
+                                     const Eigen::MatrixX2d& faceWeftCoefficients, const char* vertexMarks,
+                                     const int* vertices, int vertexCount, const int* faceList, int faceCount,
+                                     ComplexSparseMatrix& L) {
+  const Triangles& faces = topology.faces();
+  zeroMarkedEntries(vertexMarks, vertices, vertexCount, L);
+  for (int n = 0; n < faceCount; ++n) {
+    const int f = faceList[n];
+    const Matrix3 K = intrinsicFaceStiffness(topology, edgeLengths, faceTensors, faceWeftCoefficients, f);
+    Complex r[3];
+    for (int k = 0; k < 3; ++k) r[k] = std::polar(1.0, faceTransportAngles(f, k));
+    for (int k = 0; k < 3; ++k) {
+      if (!vertexMarks[faces(f, k)]) continue;
+      for (int l = 0; l < 3; ++l)
+        if (vertexMarks[faces(f, l)]) addEntry(L, faces(f, k), faces(f, l), connectionEntry(K, r, k, l));
+    }
+  }
+}
+
+Eigen::MatrixX2d faceWeftCoefficients(const SurfaceTopology& topology, const RowVectors3& restPositions,
+                                      const RowVectors3& faceWeftDirections) {
+  const Triangles& faces = topology.faces();
+  Eigen::MatrixX2d coefficients(topology.faceCount(), 2);
+  for (int f = 0; f < topology.faceCount(); ++f) {
+    const Vector3 r0 = restPositions.row(faces(f, 0)).transpose();
+    const Vector3 r1 = restPositions.row(faces(f, 1)).transpose() - r0;
+    const Vector3 r2 = restPositions.row(faces(f, 2)).transpose() - r0;
+    const Vector3 w = faceWeftDirections.row(f).transpose();
+    // Least squares w ≈ a r1 + b r2 (exact for an in-plane weft).
+    const double g11 = r1.dot(r1), g12 = r1.dot(r2), g22 = r2.dot(r2);
+    const double det = g11 * g22 - g12 * g12;
+    const double b1 = r1.dot(w), b2 = r2.dot(w);
+    const double a = (g22 * b1 - g12 * b2) / det, b = (g11 * b2 - g12 * b1) / det;
+    const double inPlane = (a * r1 + b * r2).norm();
+    if (inPlane > kDegenerateWeft * w.norm() && std::isfinite(inPlane)) {
+      coefficients.row(f) << a, b;
+    } else {
+      coefficients.row(f).setConstant(std::numeric_limits<double>::quiet_NaN());
+    }
+  }
+  return coefficients;
 }
 
 SparseMatrix realForm(const ComplexSparseMatrix& complexMatrix) {

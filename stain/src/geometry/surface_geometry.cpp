@@ -141,25 +141,21 @@ void checkRows(Eigen::Index rows, Eigen::Index expected, const char* what) {
 }
 
 // Weft directions of the rest shape carried to `positions` as material lines
-// (see the design note). Zero wefts stay zero.
-RowVectors3 currentWeftDirections(const SurfaceTopology& topology, const RowVectors3& restPositions,
-                                  const RowVectors3& positions, const RowVectors3& restWefts) {
+// (see the design note): w = a c₁ + b c₂ with (a, b) the rest weft's
+// coefficients (faceWeftCoefficients). Zero wefts stay zero.
+RowVectors3 currentWeftDirections(const SurfaceTopology& topology, const RowVectors3& positions,
+                                  const Eigen::MatrixX2d& coefficients, const RowVectors3& restWefts) {
   const Triangles& faces = topology.faces();
   RowVectors3 wefts(topology.faceCount(), 3);
   for (int f = 0; f < topology.faceCount(); ++f) {
-    const Vector3 r0 = restPositions.row(faces(f, 0)).transpose();
-    const Vector3 r1 = restPositions.row(faces(f, 1)).transpose() - r0;
-    const Vector3 r2 = restPositions.row(faces(f, 2)).transpose() - r0;
+    if (restWefts.row(f).isZero(0)) {
+      wefts.row(f).setZero();
+      continue;
+    }
     const Vector3 c0 = positions.row(faces(f, 0)).transpose();
     const Vector3 c1 = positions.row(faces(f, 1)).transpose() - c0;
     const Vector3 c2 = positions.row(faces(f, 2)).transpose() - c0;
-    const Vector3 w = restWefts.row(f).transpose();
-    // Least squares w̄ ≈ a r1 + b r2 (exact for an in-plane weft).
-    const double g11 = r1.dot(r1), g12 = r1.dot(r2), g22 = r2.dot(r2);
-    const double det = g11 * g22 - g12 * g12;
-    const double b1 = r1.dot(w), b2 = r2.dot(w);
-    const double a = (g22 * b1 - g12 * b2) / det, b = (g11 * b2 - g12 * b1) / det;
-    wefts.row(f) = (a * c1 + b * c2).transpose();
+    wefts.row(f) = (coefficients(f, 0) * c1 + coefficients(f, 1) * c2).transpose();
   }
   return wefts;
 }
@@ -252,6 +248,14 @@ SurfaceGeometry::SurfaceGeometry(const SurfaceTopology& topology, const RowVecto
   preparedAt_.assign(static_cast<size_t>(n), refreshIndex_);
   preparedCount_ = n;
 
+  faceWeftCoefficients_ = stain::faceWeftCoefficients(topology, restPositions, fabric.weftDirections);
+  edgeMarks_.assign(static_cast<size_t>(edgeCount), 0);
+  faceMarks_.assign(static_cast<size_t>(faceCount), 0);
+  vertexMarks_.assign(static_cast<size_t>(n), 0);
+  vertexMarks2_.assign(static_cast<size_t>(n), 0);
+  for (std::vector<int>* list : {&chosenEdges_, &edges1_, &edges2_}) list->reserve(static_cast<size_t>(edgeCount));
+  for (std::vector<int>* list : {&faces1_, &faces2_, &faces3_}) list->reserve(static_cast<size_t>(faceCount));
+  for (std::vector<int>* list : {&vertices1_, &vertices2_}) list->reserve(static_cast<size_t>(n));
   refreshIntrinsic();
 }
 
@@ -272,11 +276,10 @@ void SurfaceGeometry::setVertexRefresh(VertexRefresh mode) {
   if (mode == VertexRefresh::AllVertices) prepareAllVertices();
 }
 
-void SurfaceGeometry::refreshIntrinsic() {
-  const SurfaceTopology& topology = *topology_;
-  const RowVectors3& positions = dynamic_.extrinsic.nextPositions;
-  IntrinsicGeometry& in = dynamic_.intrinsic;
-  in.edgeLengths = edgeLengths(topology, positions);
+namespace {
+
+// Everything of the tier that follows from in.edgeLengths before the operators.
+void lengthQuantities(const SurfaceTopology& topology, IntrinsicGeometry& in) {
   in.faceCornerAngles = faceCornerAngles(topology, in.edgeLengths);
   in.faceAreas = faceAreas(topology, in.edgeLengths);
   in.edgeCotanWeights = edgeCotanWeights(topology, in.faceCornerAngles);
@@ -284,17 +287,171 @@ void SurfaceGeometry::refreshIntrinsic() {
   in.polarMap = geodesicPolarMap(topology, in.faceCornerAngles);
   in.edgeTransportAngles = edgeTransportAngles(topology, in.polarMap);
   in.faceTransportAngles = faceTransportAngles(topology, in.faceCornerAngles, in.polarMap);
+}
+
+}  // namespace
+
+void intrinsicGeometryFromLengths(const SurfaceTopology& topology, const Vector& lengths,
+                                  const Eigen::MatrixX3d& densityTensors, const Eigen::MatrixX3d& velocityTensors,
+                                  const Eigen::MatrixX2d& faceWeftCoefficients, IntrinsicGeometry& in) {
+  in.edgeLengths = lengths;
+  lengthQuantities(topology, in);
+  in.densityStiffness = anisotropicStiffnessFromLengths(topology, in.edgeLengths, densityTensors, faceWeftCoefficients);
+  in.velocityStiffness = connectionLaplacianFromLengths(topology, in.edgeLengths, in.faceTransportAngles,
+                                                        velocityTensors, faceWeftCoefficients);
+}
+
+void SurfaceGeometry::setIntrinsicRefresh(IntrinsicRefresh mode) {
+  if (mode == IntrinsicRefresh::Partial && intrinsicRefresh_ != mode && dynamic_.intrinsic.rebuildCount > 0) {
+    IntrinsicGeometry& in = dynamic_.intrinsic;
+    const Vector built = in.edgeLengths;
+    intrinsicGeometryFromLengths(*topology_, built, fabric_.densityTensors, fabric_.velocityTensors,
+                                 faceWeftCoefficients_, in);
+  }
+  intrinsicRefresh_ = mode;
+}
+
+void SurfaceGeometry::refreshIntrinsic() {
+  const RowVectors3& positions = dynamic_.extrinsic.nextPositions;
+  if (intrinsicRefresh_ == IntrinsicRefresh::Full) {
+    refreshIntrinsicFromPositions(positions);
+  } else if (dynamic_.intrinsic.rebuildCount == 0 || !refreshIntrinsicPartially(positions)) {
+    // The first build of a Partial geometry, or too much changed: every
+    // edge re-measured, the tier from the lengths.
+    IntrinsicGeometry& in = dynamic_.intrinsic;
+    intrinsicGeometryFromLengths(*topology_, edgeLengths(*topology_, positions), fabric_.densityTensors,
+                                 fabric_.velocityTensors, faceWeftCoefficients_, in);
+    dynamic_.inverseBuiltSquaredLengths = in.edgeLengths.array().square().inverse().matrix();
+    dynamic_.maxEdgeStrain = 0;
+    refreshedEdges_ = topology_->edgeCount();
+    refreshedFaces_ = topology_->faceCount();
+  }
+  ++dynamic_.intrinsic.rebuildCount;
+}
+
+void SurfaceGeometry::refreshIntrinsicFromPositions(const RowVectors3& positions) {
+  const SurfaceTopology& topology = *topology_;
+  IntrinsicGeometry& in = dynamic_.intrinsic;
+  in.edgeLengths = edgeLengths(topology, positions);
+  lengthQuantities(topology, in);
   // The first build is on the rest shape, where the given wefts apply as they are.
   const RowVectors3 wefts =
       in.rebuildCount == 0
           ? fabric_.weftDirections
-          : currentWeftDirections(topology, restPositions_, positions, fabric_.weftDirections);
+          : currentWeftDirections(topology, positions, faceWeftCoefficients_, fabric_.weftDirections);
   in.densityStiffness = anisotropicStiffness(topology, positions, fabric_.densityTensors, wefts);
   in.velocityStiffness = connectionLaplacian(topology, positions, in.faceTransportAngles,
                                              fabric_.velocityTensors, wefts);
   dynamic_.inverseBuiltSquaredLengths = in.edgeLengths.array().square().inverse().matrix();
-  ++in.rebuildCount;
   dynamic_.maxEdgeStrain = 0;
+  refreshedEdges_ = topology.edgeCount();
+  refreshedFaces_ = topology.faceCount();
+}
+
+bool SurfaceGeometry::refreshIntrinsicPartially(const RowVectors3& positions) {
+  const SurfaceTopology& topology = *topology_;
+  const int n = topology.vertexCount(), edgeCount = topology.edgeCount(), faceCount = topology.faceCount();
+  const Triangles& faces = topology.faces();
+  const Eigen::MatrixX3i& faceEdges = topology.faceEdges();
+  const Eigen::MatrixX2i& edges = topology.edgeVertices();
+  const std::vector<int>& offsets = topology.ringOffsets();
+  const std::vector<int>& ringFaces = topology.ringFaces();
+  const std::vector<int>& ringEdges = topology.ringEdges();
+  IntrinsicGeometry& in = dynamic_.intrinsic;
+  double* inverseBuilt = dynamic_.inverseBuiltSquaredLengths.data();
+
+  // Chosen edges: r_e = ℓ_e² / ℓ̂_e² outside [(1 − t)², (1 + t)²], t the
+  // fraction of the tolerance (the strain test's ratio, so no root per edge).
+  const double t = kPartialRefreshFraction * strainTolerance_;
+  const double high = (1 + t) * (1 + t), low = t < 1 ? (1 - t) * (1 - t) : 0.0;
+  chosenEdges_.clear();
+  double maxRatio = 1.0, minRatio = 1.0;
+  for (int e = 0; e < edgeCount; ++e) {
+    const Vector3 d = (positions.row(edges(e, 1)) - positions.row(edges(e, 0))).transpose();
+    const double ratio = d.squaredNorm() * inverseBuilt[e];
+    if (ratio > high || ratio < low) {
+      chosenEdges_.push_back(e);
+    } else {
+      maxRatio = std::max(maxRatio, ratio);
+      minRatio = std::min(minRatio, ratio);
+    }
+  }
+  if (static_cast<double>(chosenEdges_.size()) > kPartialRefreshMaxShare * edgeCount) return false;
+  for (const int e : chosenEdges_) {
+    // What edgeLengths() computes for this edge, and 1 / ℓ̂² as the whole path does.
+    in.edgeLengths(e) = (positions.row(edges(e, 1)) - positions.row(edges(e, 0))).norm();
+    inverseBuilt[e] = 1.0 / (in.edgeLengths(e) * in.edgeLengths(e));
+    edgeMarks_[static_cast<size_t>(e)] = 1;
+  }
+  // F1: faces with a chosen edge; V1 their vertices; their edges (cotan weights).
+  faces1_.clear();
+  for (int f = 0; f < faceCount; ++f) {
+    if (!(edgeMarks_[static_cast<size_t>(faceEdges(f, 0))] | edgeMarks_[static_cast<size_t>(faceEdges(f, 1))] |
+          edgeMarks_[static_cast<size_t>(faceEdges(f, 2))]))
+      continue;
+    faces1_.push_back(f);
+    for (int k = 0; k < 3; ++k) vertexMarks_[static_cast<size_t>(faces(f, k))] = 1;
+  }
+  for (const int e : chosenEdges_) edgeMarks_[static_cast<size_t>(e)] = 0;
+  for (const int f : faces1_)
+    for (int k = 0; k < 3; ++k) edgeMarks_[static_cast<size_t>(faceEdges(f, k))] = 1;
+  // The marked ids of `marks` (size `count`), ascending, into `list`; the
+  // marks are cleared unless `keep`.
+  const auto collect = [](std::vector<char>& marks, int count, std::vector<int>& list, bool keep) {
+    list.clear();
+    for (int i = 0; i < count; ++i) {
+      if (!marks[static_cast<size_t>(i)]) continue;
+      list.push_back(i);
+      if (!keep) marks[static_cast<size_t>(i)] = 0;
+    }
+  };
+  collect(edgeMarks_, edgeCount, edges1_, false);
+  collect(vertexMarks_, n, vertices1_, true);  // kept: the L_S re-assembly reads them
+  // F2: ring faces of V1; edges at V1 (transport angles).
+  for (const int v : vertices1_) {
+    for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m) {
+      const int f = ringFaces[static_cast<size_t>(m)];
+      if (f >= 0) faceMarks_[static_cast<size_t>(f)] = 1;
+      edgeMarks_[static_cast<size_t>(ringEdges[static_cast<size_t>(m)])] = 1;
+    }
+  }
+  collect(faceMarks_, faceCount, faces2_, false);
+  collect(edgeMarks_, edgeCount, edges2_, false);
+  // V2: vertices of F2 (kept for the connection re-assembly); F3: their ring faces.
+  for (const int f : faces2_)
+    for (int k = 0; k < 3; ++k) vertexMarks2_[static_cast<size_t>(faces(f, k))] = 1;
+  collect(vertexMarks2_, n, vertices2_, true);
+  for (const int v : vertices2_)
+    for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m) {
+      const int f = ringFaces[static_cast<size_t>(m)];
+      if (f >= 0) faceMarks_[static_cast<size_t>(f)] = 1;
+    }
+  collect(faceMarks_, faceCount, faces3_, false);
+
+  // The values, in dependency order (each update writes what the whole
+  // function writes for those elements).
+  const auto size = [](const std::vector<int>& list) { return static_cast<int>(list.size()); };
+  updateFaceAnglesAndAreas(topology, in.edgeLengths, faces1_.data(), size(faces1_), in.faceCornerAngles, in.faceAreas);
+  updateEdgeCotanWeights(topology, in.faceCornerAngles, edges1_.data(), size(edges1_), in.edgeCotanWeights);
+  updateVertexDualAreas(topology, in.faceAreas, vertices1_.data(), size(vertices1_), in.vertexDualAreas);
+  updateGeodesicPolarMap(topology, in.faceCornerAngles, vertices1_.data(), size(vertices1_), in.polarMap);
+  updateEdgeTransportAngles(topology, in.polarMap, edges2_.data(), size(edges2_), in.edgeTransportAngles);
+  updateFaceTransportAngles(topology, in.faceCornerAngles, in.polarMap, vertices1_.data(), size(vertices1_),
+                            in.faceTransportAngles);
+  // L_S: blocks of F1 changed; entries among V1, re-summed over F2 (every face at V1).
+  reassembleStiffnessFromLengths(topology, in.edgeLengths, fabric_.densityTensors, faceWeftCoefficients_,
+                                 vertexMarks_.data(), vertices1_.data(), size(vertices1_), faces2_.data(),
+                                 size(faces2_), in.densityStiffness);
+  // Connection: blocks of F2 changed (transport angles); entries among V2, over F3.
+  reassembleConnectionFromLengths(topology, in.edgeLengths, in.faceTransportAngles, fabric_.velocityTensors,
+                                  faceWeftCoefficients_, vertexMarks2_.data(), vertices2_.data(), size(vertices2_),
+                                  faces3_.data(), size(faces3_), in.velocityStiffness);
+  for (const int v : vertices1_) vertexMarks_[static_cast<size_t>(v)] = 0;
+  for (const int v : vertices2_) vertexMarks2_[static_cast<size_t>(v)] = 0;
+  dynamic_.maxEdgeStrain = std::max(std::sqrt(maxRatio) - 1.0, 1.0 - std::sqrt(minRatio));
+  refreshedEdges_ = size(chosenEdges_);
+  refreshedFaces_ = size(faces3_);
+  return true;
 }
 
 bool SurfaceGeometry::refreshExtrinsic(const RowVectors3& nextPositions, double h) {

@@ -22,13 +22,20 @@ int cornerOf(const Triangles& faces, int f, int v) {
 }  // namespace
 
 PolarMap geodesicPolarMap(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles) {
-  const Triangles& faces = topology.faces();
-  const std::vector<int>& offsets = topology.ringOffsets();
-  const std::vector<int>& ringFaces = topology.ringFaces();
   PolarMap map;
   map.ringAngles.resize(static_cast<Eigen::Index>(topology.ringNeighbors().size()));
   map.vertexAngleScales.resize(topology.vertexCount());
-  for (int v = 0; v < topology.vertexCount(); ++v) {
+  for (int v = 0; v < topology.vertexCount(); ++v) updateGeodesicPolarMap(topology, faceCornerAngles, &v, 1, map);
+  return map;
+}
+
+void updateGeodesicPolarMap(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles,
+                            const int* vertices, int count, PolarMap& map) {
+  const Triangles& faces = topology.faces();
+  const std::vector<int>& offsets = topology.ringOffsets();
+  const std::vector<int>& ringFaces = topology.ringFaces();
+  for (int n = 0; n < count; ++n) {
+    const int v = vertices[n];
     const int begin = offsets[static_cast<size_t>(v)], end = offsets[static_cast<size_t>(v) + 1];
     // Unscaled cumulative angles; entry m + 1 = entry m + corner of ring face m.
     double cumulative = 0.0;
@@ -42,36 +49,47 @@ PolarMap geodesicPolarMap(const SurfaceTopology& topology, const Eigen::MatrixX3
     map.vertexAngleScales(v) = scale;
     if (!boundary) map.ringAngles.segment(begin, end - begin) *= scale;
   }
-  return map;
 }
 
 Vector edgeTransportAngles(const SurfaceTopology& topology, const PolarMap& polarMap) {
-  const Eigen::MatrixX2i& ev = topology.edgeVertices();
-  const std::vector<int>& ringEdges = topology.ringEdges();
-  // α_ij (angle of the edge at its lower vertex) and α_ji (at its upper vertex).
-  Vector alphaLow(topology.edgeCount()), alphaHigh(topology.edgeCount());
-  for (int v = 0; v < topology.vertexCount(); ++v) {
-    const int begin = topology.ringOffsets()[static_cast<size_t>(v)];
-    const int end = topology.ringOffsets()[static_cast<size_t>(v) + 1];
-    for (int m = begin; m < end; ++m) {
-      const int e = ringEdges[static_cast<size_t>(m)];
-      (ev(e, 0) == v ? alphaLow : alphaHigh)(e) = polarMap.ringAngles(m);
-    }
-  }
   Vector theta(topology.edgeCount());
-  for (int e = 0; e < topology.edgeCount(); ++e) {
-    theta(e) = wrapAngle(alphaLow(e) - alphaHigh(e) + kPi);
-  }
+  for (int e = 0; e < topology.edgeCount(); ++e) updateEdgeTransportAngles(topology, polarMap, &e, 1, theta);
   return theta;
+}
+
+void updateEdgeTransportAngles(const SurfaceTopology& topology, const PolarMap& polarMap, const int* edges, int count,
+                               Vector& theta) {
+  const Eigen::MatrixX2i& ev = topology.edgeVertices();
+  const std::vector<int>& offsets = topology.ringOffsets();
+  const std::vector<int>& ringEdges = topology.ringEdges();
+  // α of edge e in the polar map of its end v (the ring entry of e at v).
+  const auto alpha = [&](int v, int e) {
+    for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m)
+      if (ringEdges[static_cast<size_t>(m)] == e) return polarMap.ringAngles(m);
+    return 0.0;  // unreachable: e is in the ring of both its ends
+  };
+  for (int n = 0; n < count; ++n) {
+    const int e = edges[n];
+    // α_ij (angle of the edge at its lower vertex) and α_ji (at its upper vertex).
+    theta(e) = wrapAngle(alpha(ev(e, 0), e) - alpha(ev(e, 1), e) + kPi);
+  }
 }
 
 Eigen::MatrixX3d faceTransportAngles(const SurfaceTopology& topology,
                                      const Eigen::MatrixX3d& faceCornerAngles,
                                      const PolarMap& polarMap) {
+  Eigen::MatrixX3d phi(topology.faceCount(), 3);
+  for (int v = 0; v < topology.vertexCount(); ++v)
+    updateFaceTransportAngles(topology, faceCornerAngles, polarMap, &v, 1, phi);
+  return phi;
+}
+
+void updateFaceTransportAngles(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles,
+                               const PolarMap& polarMap, const int* vertices, int count, Eigen::MatrixX3d& phi) {
   const Triangles& faces = topology.faces();
   const std::vector<int>& ringFaces = topology.ringFaces();
-  Eigen::MatrixX3d phi(topology.faceCount(), 3);
-  for (int v = 0; v < topology.vertexCount(); ++v) {
+  for (int n = 0; n < count; ++n) {
+    const int v = vertices[n];
     const int begin = topology.ringOffsets()[static_cast<size_t>(v)];
     const int end = topology.ringOffsets()[static_cast<size_t>(v) + 1];
     const double scale = polarMap.vertexAngleScales(v);
@@ -89,7 +107,6 @@ Eigen::MatrixX3d faceTransportAngles(const SurfaceTopology& topology,
       phi(f, k) = wrapAngle(firstEstimate + 0.5 * corner * (1.0 - scale));
     }
   }
-  return phi;
 }
 
 }  // namespace blot::stain

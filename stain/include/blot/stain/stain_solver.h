@@ -27,6 +27,10 @@ struct StainSolverDef {
   LiquidParameters liquid;
   Vector3 gravity = Vector3(0, 0, -9.8);  ///< world gravity (m/s²)
   double strainTolerance = 1e-3;          ///< intrinsic rebuild threshold (relative edge strain)
+  /// How a rebuild refreshes the intrinsic tier (SurfaceGeometry::setIntrinsicRefresh):
+  /// Full (default) or Partial (only the edges past half the tolerance; measured
+  /// less accurate, docs/accuracy.md "Strain tolerance").
+  IntrinsicRefresh intrinsicRefresh = IntrinsicRefresh::Full;
   /// OpenMP threads this solver's steps use (≥ 0). 0: the calling thread's
   /// OpenMP default when the solver is built (OMP_NUM_THREADS, else the
   /// cores). Each step sets it for its own parallel regions and restores the

@@ -7,6 +7,10 @@
 
 namespace blot::stain {
 
+/// Area of a triangle with sides a, b, c (m, any order): Kahan's stable Heron;
+/// 0 for sides that violate the triangle inequality by rounding.
+double triangleArea(double a, double b, double c);
+
 /// #E edge lengths from positions (#V by 3).
 Vector edgeLengths(const SurfaceTopology& topology, const RowVectors3& vertexPositions);
 
@@ -26,6 +30,20 @@ Vector edgeCotanWeights(const SurfaceTopology& topology, const Eigen::MatrixX3d&
 
 /// #V lumped (barycentric) mass: one third of the one-ring area.
 Vector vertexDualAreas(const SurfaceTopology& topology, const Vector& faceAreas);
+
+/// Partial updates (SurfaceGeometry's partial intrinsic rebuild): each writes,
+/// for the listed elements only (ids ascending, no repeats), bitwise the
+/// values the whole-mesh function above computes from the same inputs, and
+/// leaves the other entries alone. Allocate nothing.
+/// Corner angles and area of faces[0, count) from edgeLengths.
+void updateFaceAnglesAndAreas(const SurfaceTopology& topology, const Vector& edgeLengths, const int* faces,
+                              int count, Eigen::MatrixX3d& faceCornerAngles, Vector& faceAreas);
+/// Cotan weights of edges[0, count).
+void updateEdgeCotanWeights(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles,
+                            const int* edges, int count, Vector& edgeCotanWeights);
+/// Dual areas of vertices[0, count).
+void updateVertexDualAreas(const SurfaceTopology& topology, const Vector& faceAreas, const int* vertices, int count,
+                           Vector& vertexDualAreas);
 
 /// #V sum of corner angles at each vertex (γ_i); 2π − γ_i is the angle defect
 /// at interior vertices.

@@ -56,6 +56,45 @@ ComplexSparseMatrix connectionLaplacian(const SurfaceTopology& topology,
                                         const Eigen::MatrixX3d& faceTensors,
                                         const RowVectors3& faceWeftDirections);
 
+/// The same operators from edge lengths alone (the intrinsic tier of
+/// SurfaceGeometry): face f is laid out in 2D from its lengths ℓ(faceEdges(f,
+/// 0..2)) (corner 0 at the origin, corner 1 on +x, corner 2 above), and its
+/// weft is a c₁ + b c₂ with (a, b) = faceWeftCoefficients row f and c₁, c₂
+/// the laid-out edges from corner 0: the rest weft carried as a material
+/// line. Equal to the position-based functions up to rounding on the same
+/// shape. An anisotropic face whose weft has no length throws
+/// std::invalid_argument naming the face.
+SparseMatrix anisotropicStiffnessFromLengths(const SurfaceTopology& topology, const Vector& edgeLengths,
+                                             const Eigen::MatrixX3d& faceTensors,
+                                             const Eigen::MatrixX2d& faceWeftCoefficients);
+ComplexSparseMatrix connectionLaplacianFromLengths(const SurfaceTopology& topology, const Vector& edgeLengths,
+                                                   const Eigen::MatrixX3d& faceTransportAngles,
+                                                   const Eigen::MatrixX3d& faceTensors,
+                                                   const Eigen::MatrixX2d& faceWeftCoefficients);
+/// Partial re-assembly into L's existing pattern (a matrix built by the
+/// function above on the same topology): every entry (i, j) with both
+/// vertexMarks[i] and vertexMarks[j] set is summed again from zero over
+/// faces[0, faceCount), which must list, ascending, every face with a marked
+/// vertex; the other entries are kept. `vertices` lists the marked vertices.
+/// The entries come out bitwise as a whole assembly from the same inputs
+/// gives them (same terms, same order). Allocates nothing.
+void reassembleStiffnessFromLengths(const SurfaceTopology& topology, const Vector& edgeLengths,
+                                    const Eigen::MatrixX3d& faceTensors, const Eigen::MatrixX2d& faceWeftCoefficients,
+                                    const char* vertexMarks, const int* vertices, int vertexCount, const int* faces,
+                                    int faceCount, SparseMatrix& L);
+void reassembleConnectionFromLengths(const SurfaceTopology& topology, const Vector& edgeLengths,
+                                     const Eigen::MatrixX3d& faceTransportAngles, const Eigen::MatrixX3d& faceTensors,
+                                     const Eigen::MatrixX2d& faceWeftCoefficients, const char* vertexMarks,
+                                     const int* vertices, int vertexCount, const int* faces, int faceCount,
+                                     ComplexSparseMatrix& L);
+/// #F by 2: the weft of each face (faceWeftDirections, rest shape) as
+/// a ē₁ + b ē₂ of its rest edges from corner 0 (least squares: the weft's
+/// projection onto the face plane). Rows whose in-plane weft is zero (or
+/// shorter than 1e-12 of the weft) are NaN, which only anisotropic faces
+/// reject (at assembly).
+Eigen::MatrixX2d faceWeftCoefficients(const SurfaceTopology& topology, const RowVectors3& restPositions,
+                                      const RowVectors3& faceWeftDirections);
+
 /// The real 2#V by 2#V form of a complex Hermitian matrix: entry a + ib becomes
 /// the block [a −b; b a] (vector (x, y) of vertex i at rows 2i, 2i+1).
 SparseMatrix realForm(const ComplexSparseMatrix& complexMatrix);

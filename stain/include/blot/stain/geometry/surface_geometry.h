@@ -145,6 +145,39 @@ inline Vector3 dualEdgeNormal(const SurfaceTopology& topology, const RowVectors3
   return normal;
 }
 
+/// How refreshIntrinsic rebuilds the intrinsic tier.
+enum class IntrinsicRefresh {
+  /// default: every edge takes its current length and the whole tier is
+  /// rebuilt, the operators from the current positions (each face laid out
+  /// in its plane, the weft carried as a material line).
+  Full,
+  /// Only the edges whose strain against their own built length passes
+  /// kPartialRefreshFraction × the tolerance take their current length; the
+  /// values that depend on those lengths (their faces' angles, areas and
+  /// stiffness blocks; their vertices' dual areas, polar maps and transport
+  /// angles; the operator entries these touch) are recomputed in place, the
+  /// operators from the lengths (operators.h, *FromLengths). The result is
+  /// bitwise the whole tier built from the same per-edge lengths
+  /// (intrinsicGeometryFromLengths); more than kPartialRefreshMaxShare of the
+  /// edges chosen rebuilds it from all current lengths. Not the default:
+  /// the metric of mixed-age lengths costs far more accuracy than it saves
+  /// time (docs/accuracy.md, "Strain tolerance").
+  Partial
+};
+/// Share of the tolerance past which an edge is re-measured by a partial
+/// refresh: the refreshed edges then start again from strain 0, the others
+/// sit below half the tolerance, so the next trip needs a real change.
+inline constexpr double kPartialRefreshFraction = 0.5;
+/// Above this share of the edges chosen, a partial refresh rebuilds everything.
+inline constexpr double kPartialRefreshMaxShare = 0.25;
+
+/// The whole intrinsic tier from per-edge lengths (#E, m): what
+/// SurfaceGeometry's refreshIntrinsic stores (faceWeftCoefficients: see
+/// operators.h; the fabric's tensors per face). Allocates.
+void intrinsicGeometryFromLengths(const SurfaceTopology& topology, const Vector& edgeLengths,
+                                  const Eigen::MatrixX3d& densityTensors, const Eigen::MatrixX3d& velocityTensors,
+                                  const Eigen::MatrixX2d& faceWeftCoefficients, IntrinsicGeometry& geometry);
+
 /// How refreshExtrinsic fits the per-vertex rotations U_i.
 enum class RotationFitMethod {
   WarmStartedNewton,  ///< default: Newton on SO(3) from the rotation of the vertex's normal and
@@ -224,8 +257,21 @@ class SurfaceGeometry {
   /// Whether the last refresh's t + h slot is fitted (a deforming refresh).
   bool fittedRefresh() const { return nextRule_.kind == SlotKind::Fitted && !nextEqualsCurrent_; }
 
-  /// Rebuilds the intrinsic tier from the current positions (t + h).
+  /// Rebuilds the intrinsic tier from the current positions (t + h), wholly
+  /// or partially (setIntrinsicRefresh; the mode should be set before the
+  /// first refresh after construction). The partial path allocates nothing.
   void refreshIntrinsic();
+  /// Switching to Partial rebuilds the tier from its built lengths
+  /// (intrinsicGeometryFromLengths), so that every later partial refresh
+  /// starts from a tier it is bitwise consistent with; allocates.
+  void setIntrinsicRefresh(IntrinsicRefresh mode);
+  IntrinsicRefresh intrinsicRefresh() const { return intrinsicRefresh_; }
+  /// Edges re-measured and faces whose stiffness block was recomputed by the
+  /// last refreshIntrinsic (#E and #F after a whole rebuild).
+  int refreshedEdgeCount() const { return refreshedEdges_; }
+  int refreshedFaceCount() const { return refreshedFaces_; }
+  /// #F by 2, the rest wefts as combinations of the rest faces' edges (operators.h).
+  const Eigen::MatrixX2d& faceWeftCoefficients() const { return faceWeftCoefficients_; }
   /// max_e |ℓ_e(t+h)/ℓ_e,built − 1| from the last refreshExtrinsic.
   double maxEdgeStrain() const { return dynamic_.maxEdgeStrain; }
 
@@ -342,6 +388,18 @@ class SurfaceGeometry {
   RateRule rates_;
   bool currentEqualsPrevious_ = true, nextEqualsCurrent_ = true;  // p(t) == p(t − h), p(t + h) == p(t)
   RowVectors3 restNormals_;  // the rest shape's vertex normals (SlotKind::Rest)
+  // The intrinsic rebuild: mode, the rest wefts as edge combinations, and
+  // preallocated marks and index lists of the partial path (see the design
+  // note): chosen edges; faces with one (F1), their vertices (V1) and edges;
+  // the ring faces of V1 (F2) and edges at V1; the vertices of F2 (V2) and
+  // their ring faces (F3).
+  void refreshIntrinsicFromPositions(const RowVectors3& positions);
+  bool refreshIntrinsicPartially(const RowVectors3& positions);
+  IntrinsicRefresh intrinsicRefresh_ = IntrinsicRefresh::Full;
+  Eigen::MatrixX2d faceWeftCoefficients_;
+  std::vector<char> edgeMarks_, faceMarks_, vertexMarks_, vertexMarks2_;
+  std::vector<int> chosenEdges_, faces1_, vertices1_, edges1_, faces2_, edges2_, vertices2_, faces3_;
+  int refreshedEdges_ = 0, refreshedFaces_ = 0;
 };
 
 /// Best rotation (Kabsch, via SVD of the 3x3 covariance) taking the rest

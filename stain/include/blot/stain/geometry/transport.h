@@ -39,4 +39,18 @@ Eigen::MatrixX3d faceTransportAngles(const SurfaceTopology& topology,
                                      const Eigen::MatrixX3d& faceCornerAngles,
                                      const PolarMap& polarMap);
 
+/// Partial updates (SurfaceGeometry's partial intrinsic rebuild): for the
+/// listed elements only, bitwise what the whole-mesh functions above give from
+/// the same inputs; other entries are left alone. Allocate nothing.
+/// The polar map (ring angles and scale) of vertices[0, count).
+void updateGeodesicPolarMap(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles,
+                            const int* vertices, int count, PolarMap& polarMap);
+/// θ of edges[0, count).
+void updateEdgeTransportAngles(const SurfaceTopology& topology, const PolarMap& polarMap, const int* edges, int count,
+                               Vector& edgeTransportAngles);
+/// φ(f, k) of every ring face f of vertices[0, count), at the corner k of that vertex.
+void updateFaceTransportAngles(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles,
+                               const PolarMap& polarMap, const int* vertices, int count,
+                               Eigen::MatrixX3d& faceTransportAngles);
+
 }  // namespace blot::stain
