@@ -96,6 +96,35 @@ int firstBadVertex(const StainState& s, double relativeTolerance) {
   return -1;
 }
 
+/// firstBadVertex over `vertices` only (the ones a step changed): the
+/// smallest listed vertex with a non-finite value or a density below
+/// −tol × the largest listed magnitude, or -1.
+int firstBadVertexAmong(const StainState& s, const std::vector<int>& vertices, double relativeTolerance) {
+  const Vector* fields[] = {&s.solvent, &s.solute, &s.absorbedSolvent, &s.absorbedSolute, &s.adsorbedSolute};
+  constexpr double kLargest = std::numeric_limits<double>::max();
+  double largest = 0, smallest = 0;
+  bool finite = true;
+  for (const int i : vertices) {
+    for (const Vector* f : fields) {
+      const double v = (*f)[i];
+      largest = std::max(largest, v);
+      smallest = std::min(smallest, v);
+      finite &= std::abs(v) <= kLargest;  // false for NaN and ±inf
+    }
+    finite &= std::abs(s.velocities[i].real()) <= kLargest && std::abs(s.velocities[i].imag()) <= kLargest;
+  }
+  const double scale = std::max(largest, -smallest);
+  if (finite && smallest >= -relativeTolerance * scale) return -1;
+  const double floor = -relativeTolerance * scale;
+  int first = -1;
+  for (const int i : vertices) {
+    bool bad = !std::isfinite(s.velocities[i].real()) || !std::isfinite(s.velocities[i].imag());
+    for (const Vector* f : fields) bad |= !std::isfinite((*f)[i]) || (*f)[i] < floor;
+    if (bad && (first < 0 || i < first)) first = i;
+  }
+  return first;
+}
+
 double weightedSum(const Vector& density, const Vector& areas) { return density.dot(areas); }
 
 /// `def` when every parameter is usable, checked before anything is built from
@@ -152,6 +181,7 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   const int n = topology.vertexCount();
   state_.resize(n);
   backup_.resize(n);
+  validateAll_ = true;
   diffusionScratch_.resize(n);
   velocityScratch_.resize(n);
   densityScratch_.resize(n, topology.edgeCount());
@@ -236,26 +266,44 @@ void StainSolver::abandonStep(const RowVectors3& positions, const RowVectors3& v
     restoreBackup();
     time_ = backupTime_;
     --steps_;
-  } else if (inStep_ && backedUp_) {
+  } else if (inStep_ && backup_.any()) {
     restoreBackup();
   }
   inStep_ = false;
   restartMotion(positions, velocities);
 }
 
-void StainSolver::keepBackup() {
-  if (backedUp_) return;
-  backup_ = state_;  // same sizes: no allocation
-  backedUp_ = true;
+StainState& StainSolver::mutableState() {
+  stateWrittenOutside();
+  return state_;
+}
+
+void StainSolver::stateWrittenOutside() {
+  backup_.markStale();
+  band_.scanAll = true;
+  validateAll_ = true;
+}
+
+void StainSolver::noteChanged(const int* vertices, int count) {
+  backup_.note(vertices, count);
+  band_.noteChanged(vertices, count);
+}
+
+void StainSolver::noteAllChanged() {
+  backup_.noteAll();
+  band_.scanAll = true;
 }
 
 void StainSolver::restoreBackup() {
-  if (!backedUp_) return;  // the step changed nothing yet
-  state_ = backup_;
-  if (profile_.intrinsicRefreshes > 0)
+  if (!backup_.any()) return;  // the step changed nothing yet
+  backup_.restore(state_);
+  if (profile_.intrinsicRefreshes > 0) {
     for (Vector* f : {&state_.solvent, &state_.solute, &state_.absorbedSolvent, &state_.absorbedSolute,
                       &state_.adsorbedSolute})
       f->array() *= areaScratch_.array();
+    backup_.markStale();  // the rescaled state is no longer the mirror
+    band_.scanAll = true;
+  }
 }
 
 void StainSolver::injectFaultForTesting(const InjectedFault& fault) {
@@ -294,6 +342,7 @@ bool StainSolver::runStage(Stage stage, bool active, StepReport& report, Work&& 
 
 bool StainSolver::checkStage(Stage stage, StepReport& report) {
   if (fault_.armed && fault_.step == steps_ + 1 && fault_.stage == stage) {
+    noteChanged(&fault_.vertex, 1);
     state_.solvent[fault_.vertex] = std::numeric_limits<double>::quiet_NaN();
     fault_.armed = false;  // fires once
   }
@@ -349,6 +398,7 @@ bool StainSolver::checkStage(Stage stage, StepReport& report) {
 
 void StainSolver::addDrop(const DropDef& drop) {
   undoable_ = false;
+  stateWrittenOutside();
   // Every vertex's frame and ω: u is turned below wherever it is stored, and
   // the drop lands on vertices that may be outside the last band.
   {
@@ -398,7 +448,7 @@ void StainSolver::prepareBand() {
   // The wet set, then the band around it with u extended onto it
   // (liquid_band.h). A whole-mesh direct velocity solve reads u everywhere,
   // so then the band (and the extension) covers the mesh.
-  markWetVertices(def_.liquid.wetThreshold, state_, band_);
+  updateWetVertices(def_.liquid.wetThreshold, state_, band_);
   // The per-vertex geometry where this step reads it (the wet set now, each
   // ring as the band grows) and where the coupling does (traces of liquid).
   geometry_.prepareVertices(band_.dampVertices);
@@ -407,7 +457,6 @@ void StainSolver::prepareBand() {
     return;
   }
   geometry_.prepareVertices(band_.vertices);
-  keepBackup();
   const PhysicsSwitches& on = ctx_.switches;
   // u of the wet vertices into F^t first (the discrete frame change), so the
   // extension reads and writes one frame convention.
@@ -421,6 +470,9 @@ void StainSolver::prepareBand() {
   const bool directVelocitySolve = on.velocityDiffusion && !systems_.vectorIterative();
   inputs.extraRings = directVelocitySolve ? state_.vertexCount() : 0;
   growLiquidBand(inputs, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), band_, state_, &geometry_);
+  // The half rotation wrote the wet u, the extension the rest of the band;
+  // every later stage but the diffusion and the interaction writes inside it.
+  noteChanged(band_.vertices.data(), band_.size());
   profile_.wetVertices = band_.wetCount();
   profile_.haloVertices = band_.haloCount;
   profile_.bandVertices = band_.size();
@@ -486,10 +538,10 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
   const ThreadScope threads(threads_);
   profile_ = StepProfile{};
   profile_.vertexCount = state_.vertexCount();
-  // The backup (a copy of every field, O(#V)) is taken only before the first
-  // change to the state: the area rescale of a rebuild, or the first stage.
-  // A dry step without sources changes nothing and copies nothing.
-  backedUp_ = false;
+  // The rollback point: the mirror takes the last step's changes (O(changed
+  // vertices)); this step then lists the vertices it may change. A dry step
+  // without sources lists none and copies nothing.
+  backup_.commit(state_);
   undoable_ = false;
   backupTime_ = time_;
   ScopedTimer total(profile_.total);
@@ -508,7 +560,7 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
                                                 : geometry_.refreshExtrinsic(nextPositions, h);
   profile_.maxEdgeStrain = geometry_.maxEdgeStrain();
   if (rebuild) {
-    keepBackup();
+    noteAllChanged();  // every density is rescaled
     // Densities are per area: when the dual areas change, rescale them so
     // each vertex keeps its mass (A_old σ_old = A_new σ_new).
     areaScratch_ = geometry_.intrinsic().vertexDualAreas;
@@ -557,10 +609,18 @@ StepReport StainSolver::advanceStages() {
   }
   const ThreadScope threads(threads_);
   ScopedTimer total(profile_.total);
+  if (evaporationWritten_) {  // the coupling reads it after every step
+    // The last interaction wrote it on its band and absorbing vertices
+    // (band_ still holds them until prepareBand).
+    for (const int i : band_.vertices) evaporatedMass_[i] = 0.0;
+    for (const int i : band_.absorbingVertices) evaporatedMass_[i] = 0.0;
+    evaporationWritten_ = false;
+  }
   // Held regions are topped up first, so liquid they add this step is in the
   // band and gets this step's forces.
   if (!runStage(Stage::Sources, ctx_.switches.sources, report, [&] {
-        keepBackup();
+        for (const HeldRegion& region : heldRegions_)
+          noteChanged(region.vertices.data(), static_cast<int>(region.vertices.size()));
         applySources(ctx_, heldRegions_, geometry_.intrinsic(), state_);
         profile_.markRan(StepTerm::Sources);
       }))
@@ -580,10 +640,6 @@ StepReport StainSolver::advanceStages() {
   // the frame increment in prepareBand, the frame velocity along the
   // backtrack and the other half after the velocity advection.
   const bool frameChange = on.coriolis && on.velocityAdvection && on.coriolisScheme == CoriolisScheme::ExactRotation;
-  if (evaporationWritten_) {  // the coupling reads it after every step
-    evaporatedMass_.setZero();
-    evaporationWritten_ = false;
-  }
 
   // clang-format off
   const std::vector<char>& band = band_.bandMask;    // forces act here, u is defined here
@@ -596,7 +652,8 @@ StepReport StainSolver::advanceStages() {
                                                                         : applyCoriolis(ctx, extrinsic, band, state_); }) ||
       !runStage(Stage::AdvectDensity, on.densityAdvection, report, [&] { recordAdvection(advectDensities(ctx, topology, intrinsic, extrinsic, band_.wetMask, densityScratch_, state_, &geometry_.restEdgeFrameNormals(), &reach)); }) ||
       !runStage(Stage::Diffuse, on.densityDiffusion || on.velocityDiffusion, report, [&] { return recordDiffusion(diffuse(ctx, intrinsic, systems_, diffusionScratch_, state_, &band_.diffusionMask)); }) ||
-      !runStage(Stage::Interact, on.absorption || on.adsorption || on.evaporation, report, [&] { interact(ctx, topology, intrinsic, reach, state_, &evaporatedMass_); evaporationWritten_ = on.evaporation;
+      !runStage(Stage::Interact, on.absorption || on.adsorption || on.evaporation, report, [&] { noteChanged(band_.absorbingVertices.data(), static_cast<int>(band_.absorbingVertices.size()));
+                                                                                                   interact(ctx, topology, intrinsic, reach, state_, &evaporatedMass_); evaporationWritten_ = on.evaporation;
                                                                                                    markTerms({{StepTerm::Absorption, on.absorption}, {StepTerm::Adsorption, on.adsorption}, {StepTerm::Evaporation, on.evaporation}}); }))
     return report;
   // clang-format on
@@ -620,6 +677,21 @@ SolverStatus StainSolver::recordDiffusion(const DiffusionReport& r) {
   profile_.limiterMovedMass = r.limiterMovedMass;
   profile_.factorizations = r.factorizations;
   if (r.factorizations > 0) profile_.markRan(StepTerm::Factorization);
+  // What the solves wrote. CG densities: the active rows only (the limiter
+  // moves mass only to vertices with σ > 0, all of them in the active set,
+  // which starts from every nonzero density); CG velocities: the rows of
+  // band_.diffusionMask, inside the band (noted). Any other method writes
+  // whole fields.
+  if (r.densityMethod == DiffusionMethod::ConjugateGradient) {
+    noteChanged(diffusionScratch_.densityActive.data(), r.densityActiveVertices);
+  } else if (r.densityMethod != DiffusionMethod::None) {
+    noteAllChanged();
+  }
+  if (r.velocityMethod == DiffusionMethod::ConjugateGradient) {
+    noteChanged(diffusionScratch_.velocityActive.data(), r.velocityActiveVertices);
+  } else if (r.velocityMethod != DiffusionMethod::None) {
+    noteAllChanged();
+  }
   const int n = state_.vertexCount();
   if (r.densityMethod != DiffusionMethod::None) {
     const bool krylov = r.densityMethod == DiffusionMethod::ConjugateGradient;
@@ -637,11 +709,16 @@ SolverStatus StainSolver::recordDiffusion(const DiffusionReport& r) {
 StepReport StainSolver::finishStep() {
   StepReport report;
   inStep_ = false;
-  // Validated even when nothing ran (a bad value put in through
-  // mutableState is reported the same way); restored only if changed.
-  const int bad = firstBadVertex(state_, kNegativeDensityTolerance);
+  // The vertices this step changed: the others hold values that passed an
+  // earlier validation, unless written from outside (mutableState, drops,
+  // restore), which makes this validation (and each later one until it
+  // passes) scan every vertex: a bad value put in through mutableState is
+  // reported the same way even when nothing ran. Restored only if changed.
+  const bool everyVertex = validateAll_ || backup_.all();
+  const int bad = everyVertex ? firstBadVertex(state_, kNegativeDensityTolerance)
+                              : firstBadVertexAmong(state_, backup_.vertices(), kNegativeDensityTolerance);
   if (bad >= 0) {
-    if (backedUp_) restoreBackup();
+    restoreBackup();
     report.status = StepStatus::NonFinite;
     report.stage = Stage::Validate;
     report.vertex = bad;
@@ -649,6 +726,7 @@ StepReport StainSolver::finishStep() {
                      std::to_string(steps_ + 1) + "; state restored";
     return report;
   }
+  if (everyVertex) validateAll_ = false;
   time_ += ctx_.h;
   ++steps_;
   undoable_ = true;
@@ -718,7 +796,7 @@ void StainSolver::restore(const StainSolverSnapshot& s) {
                                toString(status));
   }
   state_ = s.state;
-  backup_ = s.state;
+  stateWrittenOutside();
   heldRegions_ = s.heldRegions;
   initialVelocities_ = s.initialVelocities;
   time_ = s.time;
