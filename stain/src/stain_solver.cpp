@@ -186,6 +186,7 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   velocityScratch_.resize(n);
   densityScratch_.resize(n, topology.edgeCount());
   band_.resize(n);
+  interactionScratch_.reserve(static_cast<size_t>(n));
   surfaceVelocityScratch_ = RowVectors3::Zero(n, 3);
   initialVelocities_ = RowVectors3::Zero(n, 3);
   evaporatedMass_ = Vector::Zero(n);
@@ -461,7 +462,8 @@ void StainSolver::prepareBand() {
   // u of the wet vertices into F^t first (the discrete frame change), so the
   // extension reads and writes one frame convention.
   const bool frameChange = on.coriolis && on.velocityAdvection && on.coriolisScheme == CoriolisScheme::ExactRotation;
-  if (frameChange && !firstStep_) applyHalfFrameRotation(ctx_, geometry_.extrinsic(), band_.wetMask, state_);
+  if (frameChange && !firstStep_)
+    applyHalfFrameRotation(ctx_, geometry_.extrinsic(), band_.wetMask, state_, &band_.vertices);  // the wet set, so far
   LiquidBandInputs inputs;
   inputs.h = ctx_.h;
   inputs.gravity = on.gravity ? ctx_.gravity : Vector3::Zero();
@@ -644,20 +646,42 @@ StepReport StainSolver::advanceStages() {
   // clang-format off
   const std::vector<char>& band = band_.bandMask;    // forces act here, u is defined here
   const std::vector<char>& reach = band_.reachMask;  // where liquid can be after this step
-  if (!runStage(Stage::BodyForces, on.gravity || on.linearInertia, report, [&] { applyBodyForces(ctx, extrinsic, band, state_); markTerms({{StepTerm::Gravity, on.gravity}, {StepTerm::LinearInertia, on.linearInertia}}); }) ||
+  const std::vector<int>* among = smallBand() ? &band_.vertices : nullptr;  // the masked loops visit the band, not #V
+  if (!runStage(Stage::BodyForces, on.gravity || on.linearInertia, report, [&] { applyBodyForces(ctx, extrinsic, band, state_, among); markTerms({{StepTerm::Gravity, on.gravity}, {StepTerm::LinearInertia, on.linearInertia}}); }) ||
       !runStage(Stage::FilmPressure, on.filmPressure, report, [&] { applyFilmPressure(ctx, topology, extrinsic, band, state_); profile_.markRan(StepTerm::FilmPressure); }) ||
-      !runStage(Stage::AdvectVelocity, on.velocityAdvection, report, [&] { advectVelocity(ctx, topology, intrinsic, reach, velocityScratch_, state_); profile_.markRan(StepTerm::VelocityAdvection); }) ||
+      !runStage(Stage::AdvectVelocity, on.velocityAdvection, report, [&] { advectVelocity(ctx, topology, intrinsic, reach, velocityScratch_, state_, among); profile_.markRan(StepTerm::VelocityAdvection); }) ||
       !runStage(Stage::Coriolis, on.coriolis, report, [&] { profile_.markRan(StepTerm::Coriolis);
-                                                            frameChange ? applyFrameVelocityChange(ctx, extrinsic, velocityScratch_.footVertices, velocityScratch_.footWeights, reach, state_)
-                                                                        : applyCoriolis(ctx, extrinsic, band, state_); }) ||
-      !runStage(Stage::AdvectDensity, on.densityAdvection, report, [&] { recordAdvection(advectDensities(ctx, topology, intrinsic, extrinsic, band_.wetMask, densityScratch_, state_, &geometry_.restEdgeFrameNormals(), &reach)); }) ||
+                                                            frameChange ? applyFrameVelocityChange(ctx, extrinsic, velocityScratch_.footVertices, velocityScratch_.footWeights, reach, state_, among)
+                                                                        : applyCoriolis(ctx, extrinsic, band, state_, among); }) ||
+      !runStage(Stage::AdvectDensity, on.densityAdvection, report, [&] { recordAdvection(advectDensities(ctx, topology, intrinsic, extrinsic, band_.wetMask, densityScratch_, state_, &geometry_.restEdgeFrameNormals(), &reach, among)); }) ||
       !runStage(Stage::Diffuse, on.densityDiffusion || on.velocityDiffusion, report, [&] { return recordDiffusion(diffuse(ctx, intrinsic, systems_, diffusionScratch_, state_, &band_.diffusionMask)); }) ||
       !runStage(Stage::Interact, on.absorption || on.adsorption || on.evaporation, report, [&] { noteChanged(band_.absorbingVertices.data(), static_cast<int>(band_.absorbingVertices.size()));
-                                                                                                   interact(ctx, topology, intrinsic, reach, state_, &evaporatedMass_); evaporationWritten_ = on.evaporation;
+                                                                                                   interact(ctx, topology, intrinsic, reach, state_, &evaporatedMass_, interactionVertices());
+                                                                                                   evaporationWritten_ = on.evaporation;
                                                                                                    markTerms({{StepTerm::Absorption, on.absorption}, {StepTerm::Adsorption, on.adsorption}, {StepTerm::Evaporation, on.evaporation}}); }))
     return report;
   // clang-format on
   return finishStep();
+}
+
+bool StainSolver::smallBand() const {
+  // A list in band order reads the fields out of order and the interaction's
+  // needs a sort: worth it below a quarter of the mesh (the same results).
+  return 4 * static_cast<long long>(band_.size()) < state_.vertexCount();
+}
+
+const std::vector<int>* StainSolver::interactionVertices() {
+  // The reach set and the absorbing traces outside it (each once), in index
+  // order: a superset of what the interaction processes (interaction.h).
+  if (!smallBand() || 4 * band_.absorbingVertices.size() >= static_cast<size_t>(state_.vertexCount())) return nullptr;
+  std::vector<int>& list = interactionScratch_;
+  list.clear();
+  for (const int i : band_.vertices)
+    if (band_.reachMask[static_cast<size_t>(i)]) list.push_back(i);
+  for (const int i : band_.absorbingVertices)
+    if (!band_.reachMask[static_cast<size_t>(i)]) list.push_back(i);
+  std::sort(list.begin(), list.end());
+  return &list;
 }
 
 void StainSolver::markTerms(std::initializer_list<std::pair<StepTerm, bool>> terms) {

@@ -33,7 +33,7 @@ inline Complex unitRotation(double a) {
 }  // namespace
 
 void applyBodyForces(const StepContext& ctx, const ExtrinsicGeometry& geometry, const std::vector<char>& wet,
-                     StainState& state) {
+                     StainState& state, const std::vector<int>* among) {
   const PhysicsSwitches& on = ctx.switches;
   const int n = static_cast<int>(state.velocities.size());
   // A static mesh may provide no accelerations at all.
@@ -42,8 +42,10 @@ void applyBodyForces(const StepContext& ctx, const ExtrinsicGeometry& geometry, 
   const bool allWet = wet.empty();
   const double h = ctx.h;
   const Vector3 gravity = on.gravity ? ctx.gravity : Vector3::Zero();
-#pragma omp parallel for schedule(static) if (n >= kMinParallelVertices)
-  for (int i = 0; i < n; ++i) {
+  const int visits = visitCount(n, among);
+#pragma omp parallel for schedule(static) if (visits >= kMinParallelVertices)
+  for (int k = 0; k < visits; ++k) {
+    const int i = visited(k, among);
     if (!allWet && !wet[static_cast<size_t>(i)]) continue;
     Vector3 a = gravity;
     if (useInertia) a -= geometry.vertexAccelerations.row(i).transpose();
@@ -53,15 +55,17 @@ void applyBodyForces(const StepContext& ctx, const ExtrinsicGeometry& geometry, 
 }
 
 void applyCoriolis(const StepContext& ctx, const ExtrinsicGeometry& geometry, const std::vector<char>& wet,
-                   StainState& state) {
+                   StainState& state, const std::vector<int>* among) {
   const PhysicsSwitches& on = ctx.switches;
   const int n = static_cast<int>(state.velocities.size());
   if (!on.coriolis || geometry.vertexAngularVelocities.rows() != n) return;
   const bool allWet = wet.empty();
   const double h = ctx.h;
   const bool exact = on.coriolisScheme != CoriolisScheme::Explicit;
-#pragma omp parallel for schedule(static) if (n >= kMinParallelVertices)
-  for (int i = 0; i < n; ++i) {
+  const int visits = visitCount(n, among);
+#pragma omp parallel for schedule(static) if (visits >= kMinParallelVertices)
+  for (int k = 0; k < visits; ++k) {
+    const int i = visited(k, among);
     if (!allWet && !wet[static_cast<size_t>(i)]) continue;
     const double omegaN = geometry.vertexAngularVelocities(i, 2);
     if (omegaN == 0.0) continue;
@@ -81,13 +85,15 @@ void applyExternalForces(const StepContext& ctx, const ExtrinsicGeometry& geomet
 }
 
 void applyHalfFrameRotation(const StepContext& ctx, const ExtrinsicGeometry& geometry, const std::vector<char>& wet,
-                            StainState& state) {
+                            StainState& state, const std::vector<int>* among) {
   const int n = static_cast<int>(state.velocities.size());
   if (geometry.vertexAngularVelocities.rows() != n) return;
   const bool allWet = wet.empty();
   const double h = ctx.h;
-#pragma omp parallel for schedule(static) if (n >= kMinParallelVertices)
-  for (int i = 0; i < n; ++i) {
+  const int visits = visitCount(n, among);
+#pragma omp parallel for schedule(static) if (visits >= kMinParallelVertices)
+  for (int k = 0; k < visits; ++k) {
+    const int i = visited(k, among);
     if (!allWet && !wet[static_cast<size_t>(i)]) continue;
     const double omegaN = geometry.vertexAngularVelocities(i, 2);
     if (omegaN != 0.0) state.velocities(i) *= unitRotation(-0.5 * omegaN * h);
@@ -96,7 +102,7 @@ void applyHalfFrameRotation(const StepContext& ctx, const ExtrinsicGeometry& geo
 
 void applyFrameVelocityChange(const StepContext& ctx, const ExtrinsicGeometry& geometry,
                               const FootVertices& footVertices, const FootWeights& footWeights,
-                              const std::vector<char>& wet, StainState& state) {
+                              const std::vector<char>& wet, StainState& state, const std::vector<int>* among) {
   const int n = static_cast<int>(state.velocities.size());
   if (geometry.vertexAngularVelocities.rows() != n || footVertices.rows() != n || footWeights.rows() != n ||
       geometry.positions.rows() != n || geometry.nextPositions.rows() != n ||
@@ -108,8 +114,10 @@ void applyFrameVelocityChange(const StepContext& ctx, const ExtrinsicGeometry& g
   const RowVectors3& p2 = geometry.nextPositions;
   const auto frameVelocity = [&](int k) -> Vector3 { return (p2.row(k) - p1.row(k)).transpose() * invH; };
 
-#pragma omp parallel for schedule(static) if (n >= kMinParallelVertices)
-  for (int i = 0; i < n; ++i) {
+  const int visits = visitCount(n, among);
+#pragma omp parallel for schedule(static) if (visits >= kMinParallelVertices)
+  for (int k = 0; k < visits; ++k) {
+    const int i = visited(k, among);
     if (!allWet && !wet[static_cast<size_t>(i)]) continue;
     Vector3 change = -frameVelocity(i);
     for (int c = 0; c < 3; ++c) {

@@ -96,7 +96,8 @@ void markWetVertices(double wetThreshold, const StainState& state, LiquidBand& b
 }
 
 void updateWetVertices(double wetThreshold, const StainState& state, LiquidBand& band) {
-  if (band.scanAll) {
+  // Sorting more than an eighth of the mesh costs more than the scan.
+  if (band.scanAll || 8 * band.candidates.size() > band.candidateMarks.size()) {
     markWetVertices(wetThreshold, state, band);
     return;
   }

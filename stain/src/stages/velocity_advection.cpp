@@ -249,7 +249,8 @@ void VelocityAdvectionScratch::prepare(const SurfaceTopology& topology, const In
 
 VelocityAdvectionReport advectVelocity(const StepContext& ctx, const SurfaceTopology& topology,
                                        const IntrinsicGeometry& geometry, const std::vector<char>& wet,
-                                       VelocityAdvectionScratch& scratch, StainState& state) {
+                                       VelocityAdvectionScratch& scratch, StainState& state,
+                                       const std::vector<int>* among) {
   const int n = topology.vertexCount();
   if (scratch.preparedRebuildCount != geometry.rebuildCount || scratch.advected.size() != n ||
       scratch.footVertices.rows() != n ||
@@ -267,9 +268,12 @@ VelocityAdvectionReport advectVelocity(const StepContext& ctx, const SurfaceTopo
   const double h = ctx.h;
   int stripSteps = 0, boundaryStops = 0, cappedWalks = 0;
 
+  // Every walk reads u as it was (advected is written, u only after).
+  const int visits = visitCount(n, among);
 #pragma omp parallel for schedule(dynamic, 256) reduction(+ : stripSteps, boundaryStops, cappedWalks) \
-    if (n >= kMinParallelVertices)
-  for (int i = 0; i < n; ++i) {
+    if (visits >= kMinParallelVertices)
+  for (int k = 0; k < visits; ++k) {
+    const int i = visited(k, among);
     if (!allWet && !wet[static_cast<size_t>(i)]) continue;
     const Walk walk = backtrack(tables, u, i, -h * u(i));
     advected(i) = walk.value;
@@ -282,8 +286,9 @@ VelocityAdvectionReport advectVelocity(const StepContext& ctx, const SurfaceTopo
     cappedWalks += walk.capped ? 1 : 0;
   }
 
-#pragma omp parallel for schedule(static) if (n >= kMinParallelVertices)
-  for (int i = 0; i < n; ++i) {
+#pragma omp parallel for schedule(static) if (visits >= kMinParallelVertices)
+  for (int k = 0; k < visits; ++k) {
+    const int i = visited(k, among);
     if (allWet || wet[static_cast<size_t>(i)]) state.velocities(i) = advected(i);
   }
 

@@ -220,6 +220,11 @@ class StainSolver {
   /// and negative densities. Fills `report` and restores the state when one
   /// is bad; returns false then.
   bool checkStage(Stage stage, StepReport& report);
+  /// The band is small enough for the stages to visit its list (vertex_visits.h).
+  bool smallBand() const;
+  /// The vertices the interaction visits (interaction.h's `among`), or null
+  /// for all when the band is not small.
+  const std::vector<int>* interactionVertices();
   /// Marks each term whose condition is true as run this step.
   void markTerms(std::initializer_list<std::pair<StepTerm, bool>> terms);
   /// The profile's record of a density advection and of a diffusion.
@@ -246,6 +251,7 @@ class StainSolver {
   DensityAdvectionScratch densityScratch_;
   std::vector<HeldRegion> heldRegions_;
   LiquidBand band_;  // this step's band; its vertices are the stage checks' domain
+  std::vector<int> interactionScratch_;  // interactionVertices(), reserved #V
   RowVectors3 surfaceVelocityScratch_;  // addDrop: surfaceVelocity of every vertex
   bool surfaceMoved_ = false;           // this step's surface moved (refreshGeometry)
   Vector areaScratch_;

@@ -72,7 +72,8 @@ class StateBackup {
   /// Start of a step: the mirror becomes the state (the listed vertices, or
   /// all of it when stale or after noteAll), the list empties.
   void commit(const StainState& state);
-  /// Vertex i (or `count` vertices) may change in this step.
+  /// Vertex i (or `count` vertices; a list that would pass #V/4 is noteAll)
+  /// may change in this step.
   void note(int i) {
     if (all_ || marks_[static_cast<size_t>(i)]) return;
     marks_[static_cast<size_t>(i)] = 1;
@@ -80,6 +81,11 @@ class StateBackup {
   }
   void note(const int* list, int count) {
     if (all_) return;
+    // Past a quarter of the mesh, listing costs more than the full copies.
+    if (4 * (vertices_.size() + static_cast<size_t>(count)) > marks_.size()) {
+      noteAll();
+      return;
+    }
     for (int k = 0; k < count; ++k) note(list[k]);
   }
   /// Every vertex may change in this step.

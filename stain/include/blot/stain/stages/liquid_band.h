@@ -71,7 +71,8 @@ struct LiquidBand {
   /// Level-0 count (vertices holding liquid).
   int wetCount() const { return ringEnds.empty() ? 0 : ringEnds[0]; }
   int size() const { return static_cast<int>(vertices.size()); }
-  /// Vertex v (or `count` vertices) may have changed since the last scan.
+  /// Vertex v (or `count` vertices; a list that would pass #V/8 sets
+  /// scanAll) may have changed since the last scan.
   void noteChanged(int v) {
     if (candidateMarks[static_cast<size_t>(v)]) return;
     candidateMarks[static_cast<size_t>(v)] = 1;
@@ -79,6 +80,11 @@ struct LiquidBand {
   }
   void noteChanged(const int* list, int count) {
     if (scanAll) return;
+    // Past an eighth of the mesh the sorted visit costs more than the scan.
+    if (8 * (candidates.size() + static_cast<size_t>(count)) > candidateMarks.size()) {
+      scanAll = true;
+      return;
+    }
     for (int k = 0; k < count; ++k) noteChanged(list[k]);
   }
 };
@@ -103,8 +109,9 @@ struct LiquidBandInputs {
 void markWetVertices(double wetThreshold, const StainState& state, LiquidBand& band);
 /// markWetVertices from the incremental wet set: the same wet set, damp and
 /// absorbing lists, in the same order, scanning only band.candidates
-/// (sorted; O(k log k) for k candidates) unless band.scanAll, which makes
-/// it the full scan. Afterwards the candidates are what it found.
+/// (sorted; O(k log k) for k candidates) unless band.scanAll or more than
+/// #V/8 candidates, which make it the full scan. Afterwards the candidates
+/// are what it found.
 void updateWetVertices(double wetThreshold, const StainState& state, LiquidBand& band);
 
 /// Grows the band marked by markWetVertices ring by ring and extends the
