@@ -821,6 +821,7 @@ void StainSolver::restore(const StainSolverSnapshot& s) {
   }
   state_ = s.state;
   stateWrittenOutside();
+  backup_.commit(state_);  // the rollback point is the restored state (as a full backup of it was)
   heldRegions_ = s.heldRegions;
   initialVelocities_ = s.initialVelocities;
   time_ = s.time;
