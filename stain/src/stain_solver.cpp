@@ -543,10 +543,10 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
   // The rollback point: the mirror takes the last step's changes (O(changed
   // vertices)); this step then lists the vertices it may change. A dry step
   // without sources lists none and copies nothing.
+  ScopedTimer total(profile_.total);  // the commit is the step's own pass ("other")
   backup_.commit(state_);
   undoable_ = false;
   backupTime_ = time_;
-  ScopedTimer total(profile_.total);
   ScopedTimer t(profile_.milliseconds[static_cast<size_t>(Stage::Geometry)]);
   report.stage = Stage::Geometry;
 
