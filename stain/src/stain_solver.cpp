@@ -1,7 +1,8 @@
 // The stain step, written once as the stage list of DESIGN.md: each stage is
 // one line of advanceStages (docs/architecture.md). Which terms run is decided
 // once per step (activeTerms); a failed stage leaves the state as the step
-// found it (a preallocated backup, copied before the first change).
+// found it (StateBackup: a preallocated mirror, from which the vertices the
+// step listed as changed are copied back).
 #include <blot/stain/stages/external_forces.h>
 #include <blot/stain/stages/film_pressure.h>
 #include <blot/stain/stages/interaction.h>
