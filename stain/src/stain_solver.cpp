@@ -1,7 +1,8 @@
 // The stain step, written once as the stage list of DESIGN.md: each stage is
 // one line of advanceStages (docs/architecture.md). Which terms run is decided
 // once per step (activeTerms); a failed stage leaves the state as the step
-// found it (a preallocated backup, copied before the first change).
+// found it (StateBackup: a preallocated mirror, from which the vertices the
+// step listed as changed are copied back).
 #include <blot/stain/stages/external_forces.h>
 #include <blot/stain/stages/film_pressure.h>
 #include <blot/stain/stages/interaction.h>
@@ -96,6 +97,35 @@ int firstBadVertex(const StainState& s, double relativeTolerance) {
   return -1;
 }
 
+/// firstBadVertex over `vertices` only (the ones a step changed): the
+/// smallest listed vertex with a non-finite value or a density below
+/// −tol × the largest listed magnitude, or -1.
+int firstBadVertexAmong(const StainState& s, const std::vector<int>& vertices, double relativeTolerance) {
+  const Vector* fields[] = {&s.solvent, &s.solute, &s.absorbedSolvent, &s.absorbedSolute, &s.adsorbedSolute};
+  constexpr double kLargest = std::numeric_limits<double>::max();
+  double largest = 0, smallest = 0;
+  bool finite = true;
+  for (const int i : vertices) {
+    for (const Vector* f : fields) {
+      const double v = (*f)[i];
+      largest = std::max(largest, v);
+      smallest = std::min(smallest, v);
+      finite &= std::abs(v) <= kLargest;  // false for NaN and ±inf
+    }
+    finite &= std::abs(s.velocities[i].real()) <= kLargest && std::abs(s.velocities[i].imag()) <= kLargest;
+  }
+  const double scale = std::max(largest, -smallest);
+  if (finite && smallest >= -relativeTolerance * scale) return -1;
+  const double floor = -relativeTolerance * scale;
+  int first = -1;
+  for (const int i : vertices) {
+    bool bad = !std::isfinite(s.velocities[i].real()) || !std::isfinite(s.velocities[i].imag());
+    for (const Vector* f : fields) bad |= !std::isfinite((*f)[i]) || (*f)[i] < floor;
+    if (bad && (first < 0 || i < first)) first = i;
+  }
+  return first;
+}
+
 double weightedSum(const Vector& density, const Vector& areas) { return density.dot(areas); }
 
 /// `def` when every parameter is usable, checked before anything is built from
@@ -153,10 +183,12 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   const int n = topology.vertexCount();
   state_.resize(n);
   backup_.resize(n);
+  validateAll_ = true;
   diffusionScratch_.resize(n);
   velocityScratch_.resize(n);
   densityScratch_.resize(n, topology.edgeCount());
   band_.resize(n);
+  interactionScratch_.reserve(static_cast<size_t>(n));
   surfaceVelocityScratch_ = RowVectors3::Zero(n, 3);
   initialVelocities_ = RowVectors3::Zero(n, 3);
   evaporatedMass_ = Vector::Zero(n);
@@ -237,26 +269,44 @@ void StainSolver::abandonStep(const RowVectors3& positions, const RowVectors3& v
     restoreBackup();
     time_ = backupTime_;
     --steps_;
-  } else if (inStep_ && backedUp_) {
+  } else if (inStep_ && backup_.any()) {
     restoreBackup();
   }
   inStep_ = false;
   restartMotion(positions, velocities);
 }
 
-void StainSolver::keepBackup() {
-  if (backedUp_) return;
-  backup_ = state_;  // same sizes: no allocation
-  backedUp_ = true;
+StainState& StainSolver::mutableState() {
+  stateWrittenOutside();
+  return state_;
+}
+
+void StainSolver::stateWrittenOutside() {
+  backup_.markStale();
+  band_.scanAll = true;
+  validateAll_ = true;
+}
+
+void StainSolver::noteChanged(const int* vertices, int count) {
+  backup_.note(vertices, count);
+  band_.noteChanged(vertices, count);
+}
+
+void StainSolver::noteAllChanged() {
+  backup_.noteAll();
+  band_.scanAll = true;
 }
 
 void StainSolver::restoreBackup() {
-  if (!backedUp_) return;  // the step changed nothing yet
-  state_ = backup_;
-  if (profile_.intrinsicRefreshes > 0)
+  if (!backup_.any()) return;  // the step changed nothing yet
+  backup_.restore(state_);
+  if (profile_.intrinsicRefreshes > 0) {
     for (Vector* f : {&state_.solvent, &state_.solute, &state_.absorbedSolvent, &state_.absorbedSolute,
                       &state_.adsorbedSolute})
       f->array() *= areaScratch_.array();
+    backup_.markStale();  // the rescaled state is no longer the mirror
+    band_.scanAll = true;
+  }
 }
 
 void StainSolver::injectFaultForTesting(const InjectedFault& fault) {
@@ -295,6 +345,7 @@ bool StainSolver::runStage(Stage stage, bool active, StepReport& report, Work&& 
 
 bool StainSolver::checkStage(Stage stage, StepReport& report) {
   if (fault_.armed && fault_.step == steps_ + 1 && fault_.stage == stage) {
+    noteChanged(&fault_.vertex, 1);
     state_.solvent[fault_.vertex] = std::numeric_limits<double>::quiet_NaN();
     fault_.armed = false;  // fires once
   }
@@ -350,6 +401,7 @@ bool StainSolver::checkStage(Stage stage, StepReport& report) {
 
 void StainSolver::addDrop(const DropDef& drop) {
   undoable_ = false;
+  stateWrittenOutside();
   // Every vertex's frame and ω: u is turned below wherever it is stored, and
   // the drop lands on vertices that may be outside the last band.
   {
@@ -399,7 +451,7 @@ void StainSolver::prepareBand() {
   // The wet set, then the band around it with u extended onto it
   // (liquid_band.h). A whole-mesh direct velocity solve reads u everywhere,
   // so then the band (and the extension) covers the mesh.
-  markWetVertices(def_.liquid.wetThreshold, state_, band_);
+  updateWetVertices(def_.liquid.wetThreshold, state_, band_);
   // The per-vertex geometry where this step reads it (the wet set now, each
   // ring as the band grows) and where the coupling does (traces of liquid).
   geometry_.prepareVertices(band_.dampVertices);
@@ -408,12 +460,12 @@ void StainSolver::prepareBand() {
     return;
   }
   geometry_.prepareVertices(band_.vertices);
-  keepBackup();
   const PhysicsSwitches& on = ctx_.switches;
   // u of the wet vertices into F^t first (the discrete frame change), so the
   // extension reads and writes one frame convention.
   const bool frameChange = on.coriolis && on.velocityAdvection && on.coriolisScheme == CoriolisScheme::ExactRotation;
-  if (frameChange && !firstStep_) applyHalfFrameRotation(ctx_, geometry_.extrinsic(), band_.wetMask, state_);
+  if (frameChange && !firstStep_)
+    applyHalfFrameRotation(ctx_, geometry_.extrinsic(), band_.wetMask, state_, &band_.vertices);  // the wet set, so far
   LiquidBandInputs inputs;
   inputs.h = ctx_.h;
   inputs.gravity = on.gravity ? ctx_.gravity : Vector3::Zero();
@@ -422,6 +474,9 @@ void StainSolver::prepareBand() {
   const bool directVelocitySolve = on.velocityDiffusion && !systems_.vectorIterative();
   inputs.extraRings = directVelocitySolve ? state_.vertexCount() : 0;
   growLiquidBand(inputs, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), band_, state_, &geometry_);
+  // The half rotation wrote the wet u, the extension the rest of the band;
+  // every later stage but the diffusion and the interaction writes inside it.
+  noteChanged(band_.vertices.data(), band_.size());
   profile_.wetVertices = band_.wetCount();
   profile_.haloVertices = band_.haloCount;
   profile_.bandVertices = band_.size();
@@ -487,13 +542,13 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
   const ThreadScope threads(threads_);
   profile_ = StepProfile{};
   profile_.vertexCount = state_.vertexCount();
-  // The backup (a copy of every field, O(#V)) is taken only before the first
-  // change to the state: the area rescale of a rebuild, or the first stage.
-  // A dry step without sources changes nothing and copies nothing.
-  backedUp_ = false;
+  // The rollback point: the mirror takes the last step's changes (O(changed
+  // vertices)); this step then lists the vertices it may change. A dry step
+  // without sources lists none and copies nothing.
+  ScopedTimer total(profile_.total);  // the commit is the step's own pass ("other")
+  backup_.commit(state_);
   undoable_ = false;
   backupTime_ = time_;
-  ScopedTimer total(profile_.total);
   ScopedTimer t(profile_.milliseconds[static_cast<size_t>(Stage::Geometry)]);
   report.stage = Stage::Geometry;
 
@@ -509,7 +564,7 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
                                                 : geometry_.refreshExtrinsic(nextPositions, h);
   profile_.maxEdgeStrain = geometry_.maxEdgeStrain();
   if (rebuild) {
-    keepBackup();
+    noteAllChanged();  // every density is rescaled
     // Densities are per area: when the dual areas change, rescale them so
     // each vertex keeps its mass (A_old σ_old = A_new σ_new).
     areaScratch_ = geometry_.intrinsic().vertexDualAreas;
@@ -558,10 +613,18 @@ StepReport StainSolver::advanceStages() {
   }
   const ThreadScope threads(threads_);
   ScopedTimer total(profile_.total);
+  if (evaporationWritten_) {  // the coupling reads it after every step
+    // The last interaction wrote it on its band and absorbing vertices
+    // (band_ still holds them until prepareBand).
+    for (const int i : band_.vertices) evaporatedMass_[i] = 0.0;
+    for (const int i : band_.absorbingVertices) evaporatedMass_[i] = 0.0;
+    evaporationWritten_ = false;
+  }
   // Held regions are topped up first, so liquid they add this step is in the
   // band and gets this step's forces.
   if (!runStage(Stage::Sources, ctx_.switches.sources, report, [&] {
-        keepBackup();
+        for (const HeldRegion& region : heldRegions_)
+          noteChanged(region.vertices.data(), static_cast<int>(region.vertices.size()));
         applySources(ctx_, heldRegions_, geometry_.intrinsic(), state_);
         profile_.markRan(StepTerm::Sources);
       }))
@@ -581,27 +644,46 @@ StepReport StainSolver::advanceStages() {
   // the frame increment in prepareBand, the frame velocity along the
   // backtrack and the other half after the velocity advection.
   const bool frameChange = on.coriolis && on.velocityAdvection && on.coriolisScheme == CoriolisScheme::ExactRotation;
-  if (evaporationWritten_) {  // the coupling reads it after every step
-    evaporatedMass_.setZero();
-    evaporationWritten_ = false;
-  }
 
   // clang-format off
   const std::vector<char>& band = band_.bandMask;    // forces act here, u is defined here
   const std::vector<char>& reach = band_.reachMask;  // where liquid can be after this step
-  if (!runStage(Stage::BodyForces, on.gravity || on.linearInertia, report, [&] { applyBodyForces(ctx, extrinsic, band, state_); markTerms({{StepTerm::Gravity, on.gravity}, {StepTerm::LinearInertia, on.linearInertia}}); }) ||
+  const std::vector<int>* among = smallBand() ? &band_.vertices : nullptr;  // the masked loops visit the band, not #V
+  if (!runStage(Stage::BodyForces, on.gravity || on.linearInertia, report, [&] { applyBodyForces(ctx, extrinsic, band, state_, among); markTerms({{StepTerm::Gravity, on.gravity}, {StepTerm::LinearInertia, on.linearInertia}}); }) ||
       !runStage(Stage::FilmPressure, on.filmPressure, report, [&] { applyFilmPressure(ctx, topology, extrinsic, band, state_); profile_.markRan(StepTerm::FilmPressure); }) ||
-      !runStage(Stage::AdvectVelocity, on.velocityAdvection, report, [&] { advectVelocity(ctx, topology, intrinsic, reach, velocityScratch_, state_); profile_.markRan(StepTerm::VelocityAdvection); }) ||
+      !runStage(Stage::AdvectVelocity, on.velocityAdvection, report, [&] { advectVelocity(ctx, topology, intrinsic, reach, velocityScratch_, state_, among); profile_.markRan(StepTerm::VelocityAdvection); }) ||
       !runStage(Stage::Coriolis, on.coriolis, report, [&] { profile_.markRan(StepTerm::Coriolis);
-                                                            frameChange ? applyFrameVelocityChange(ctx, extrinsic, velocityScratch_.footVertices, velocityScratch_.footWeights, reach, state_)
-                                                                        : applyCoriolis(ctx, extrinsic, band, state_); }) ||
-      !runStage(Stage::AdvectDensity, on.densityAdvection, report, [&] { recordAdvection(advectDensities(ctx, topology, intrinsic, extrinsic, band_.wetMask, densityScratch_, state_, &geometry_.restEdgeFrameNormals(), &reach)); }) ||
+                                                            frameChange ? applyFrameVelocityChange(ctx, extrinsic, velocityScratch_.footVertices, velocityScratch_.footWeights, reach, state_, among)
+                                                                        : applyCoriolis(ctx, extrinsic, band, state_, among); }) ||
+      !runStage(Stage::AdvectDensity, on.densityAdvection, report, [&] { recordAdvection(advectDensities(ctx, topology, intrinsic, extrinsic, band_.wetMask, densityScratch_, state_, &geometry_.restEdgeFrameNormals(), &reach, among)); }) ||
       !runStage(Stage::Diffuse, on.densityDiffusion || on.velocityDiffusion, report, [&] { return recordDiffusion(diffuse(ctx, intrinsic, systems_, diffusionScratch_, state_, &band_.diffusionMask)); }) ||
-      !runStage(Stage::Interact, on.absorption || on.adsorption || on.evaporation, report, [&] { interact(ctx, topology, intrinsic, reach, state_, &evaporatedMass_); evaporationWritten_ = on.evaporation;
+      !runStage(Stage::Interact, on.absorption || on.adsorption || on.evaporation, report, [&] { noteChanged(band_.absorbingVertices.data(), static_cast<int>(band_.absorbingVertices.size()));
+                                                                                                   interact(ctx, topology, intrinsic, reach, state_, &evaporatedMass_, interactionVertices());
+                                                                                                   evaporationWritten_ = on.evaporation;
                                                                                                    markTerms({{StepTerm::Absorption, on.absorption}, {StepTerm::Adsorption, on.adsorption}, {StepTerm::Evaporation, on.evaporation}}); }))
     return report;
   // clang-format on
   return finishStep();
+}
+
+bool StainSolver::smallBand() const {
+  // A list in band order reads the fields out of order and the interaction's
+  // needs a sort: worth it below a quarter of the mesh (the same results).
+  return 4 * static_cast<long long>(band_.size()) < state_.vertexCount();
+}
+
+const std::vector<int>* StainSolver::interactionVertices() {
+  // The reach set and the absorbing traces outside it (each once), in index
+  // order: a superset of what the interaction processes (interaction.h).
+  if (!smallBand() || 4 * band_.absorbingVertices.size() >= static_cast<size_t>(state_.vertexCount())) return nullptr;
+  std::vector<int>& list = interactionScratch_;
+  list.clear();
+  for (const int i : band_.vertices)
+    if (band_.reachMask[static_cast<size_t>(i)]) list.push_back(i);
+  for (const int i : band_.absorbingVertices)
+    if (!band_.reachMask[static_cast<size_t>(i)]) list.push_back(i);
+  std::sort(list.begin(), list.end());
+  return &list;
 }
 
 void StainSolver::markTerms(std::initializer_list<std::pair<StepTerm, bool>> terms) {
@@ -621,6 +703,21 @@ SolverStatus StainSolver::recordDiffusion(const DiffusionReport& r) {
   profile_.limiterMovedMass = r.limiterMovedMass;
   profile_.factorizations = r.factorizations;
   if (r.factorizations > 0) profile_.markRan(StepTerm::Factorization);
+  // What the solves wrote. CG densities: the active rows only (the limiter
+  // moves mass only to vertices with σ > 0, all of them in the active set,
+  // which starts from every nonzero density); CG velocities: the rows of
+  // band_.diffusionMask, inside the band (noted). Any other method writes
+  // whole fields.
+  if (r.densityMethod == DiffusionMethod::ConjugateGradient) {
+    noteChanged(diffusionScratch_.densityActive.data(), r.densityActiveVertices);
+  } else if (r.densityMethod != DiffusionMethod::None) {
+    noteAllChanged();
+  }
+  if (r.velocityMethod == DiffusionMethod::ConjugateGradient) {
+    noteChanged(diffusionScratch_.velocityActive.data(), r.velocityActiveVertices);
+  } else if (r.velocityMethod != DiffusionMethod::None) {
+    noteAllChanged();
+  }
   const int n = state_.vertexCount();
   if (r.densityMethod != DiffusionMethod::None) {
     const bool krylov = r.densityMethod == DiffusionMethod::ConjugateGradient;
@@ -638,11 +735,16 @@ SolverStatus StainSolver::recordDiffusion(const DiffusionReport& r) {
 StepReport StainSolver::finishStep() {
   StepReport report;
   inStep_ = false;
-  // Validated even when nothing ran (a bad value put in through
-  // mutableState is reported the same way); restored only if changed.
-  const int bad = firstBadVertex(state_, kNegativeDensityTolerance);
+  // The vertices this step changed: the others hold values that passed an
+  // earlier validation, unless written from outside (mutableState, drops,
+  // restore), which makes this validation (and each later one until it
+  // passes) scan every vertex: a bad value put in through mutableState is
+  // reported the same way even when nothing ran. Restored only if changed.
+  const bool everyVertex = validateAll_ || backup_.all();
+  const int bad = everyVertex ? firstBadVertex(state_, kNegativeDensityTolerance)
+                              : firstBadVertexAmong(state_, backup_.vertices(), kNegativeDensityTolerance);
   if (bad >= 0) {
-    if (backedUp_) restoreBackup();
+    restoreBackup();
     report.status = StepStatus::NonFinite;
     report.stage = Stage::Validate;
     report.vertex = bad;
@@ -650,6 +752,7 @@ StepReport StainSolver::finishStep() {
                      std::to_string(steps_ + 1) + "; state restored";
     return report;
   }
+  if (everyVertex) validateAll_ = false;
   time_ += ctx_.h;
   ++steps_;
   undoable_ = true;
@@ -719,7 +822,8 @@ void StainSolver::restore(const StainSolverSnapshot& s) {
                                toString(status));
   }
   state_ = s.state;
-  backup_ = s.state;
+  stateWrittenOutside();
+  backup_.commit(state_);  // the rollback point is the restored state (as a full backup of it was)
   heldRegions_ = s.heldRegions;
   initialVelocities_ = s.initialVelocities;
   time_ = s.time;

@@ -7,8 +7,9 @@
 // fraction of its area, from 0 (dry) to 100 %. Each row reports ms per stain
 // step (manual time = StainSolver::stepRigid, the surface positions built
 // outside the timer) and the per-phase times of StepProfile, so the fixed
-// cost per step (geometry on all #V, the state backup and validation) can be
-// told from the cost that grows with the wet area (forces, advection,
+// cost per step (the positions' copy and comparison, the deforming strain
+// test; the rollback point and validation once they covered #V) can be told
+// from the cost that grows with the wet area (forces, advection,
 // diffusion on the Krylov support, interaction). The stain is set directly in
 // the state (a uniform film on the disc) instead of with addDrop, whose bump
 // would make the wet area depend on the threshold. Two fabrics: diffusivity
@@ -178,7 +179,8 @@ void BM_WetArea(benchmark::State& state) {
   state.counters["advection_ms"] = (sum.time(Stage::AdvectVelocity) + sum.time(Stage::AdvectDensity)) * k;
   state.counters["diffusion_ms"] = sum.time(Stage::Diffuse) * k;
   state.counters["interaction_ms"] = (sum.time(Stage::Interact) + sum.time(Stage::Sources)) * k;
-  // Backup, wet mask and validation: the step's own passes over #V.
+  // The rollback point's copies and the validation (the step's own passes
+  // over the vertices it changed).
   state.counters["other_ms"] = (sum.total - stages) * k;
   state.counters["total_ms"] = sum.total * k;
   state.counters["terms"] = terms;

@@ -530,5 +530,62 @@ TEST(LiquidBand, BandRestrictedGeometryIsBitIdenticalForOneAndTwoThreads) {
   }
 }
 
+// The incremental wet set (LiquidBand::candidates): on a small stain on a
+// turning cloth, with an absorbed trace far from it and a drop landing on the
+// dry side later, each step's wet set, damp and absorbing lists equal a full
+// scan of the state the step began with (markWetVertices), in the same
+// order, while the band stays a small part of the mesh; and the per-vertex
+// evaporation output holds this step's values only (zeroed on the last
+// step's vertices, not on #V): it sums to the step's evaporated mass.
+TEST(LiquidBand, IncrementalWetSetEqualsTheFullScan) {
+  const TriangleMesh mesh = gridMesh(60, 60, 1.0, 1.0);
+  const int n = static_cast<int>(mesh.vertexPositions.rows());
+  const SurfaceTopology topology(mesh.faces, n);
+  StainSolverDef def;
+  def.liquid.evaporationRate = 1e-3;
+  def.liquid.wetThreshold = 1e-4;
+  StainSolver solver(topology, mesh.vertexPositions,
+                     isotropicFabricField(static_cast<int>(mesh.faces.rows()), 5e-3, 1e-4), def);
+  const Vector3 axis = Vector3(0.4, 0.2, 1.0).normalized();
+  const auto rotation = [&](double t) { return Eigen::AngleAxisd(t, axis).toRotationMatrix(); };
+  RowVectors3 velocities(n, 3);
+  for (int i = 0; i < n; ++i) velocities.row(i) = axis.cross(Vector3(mesh.vertexPositions.row(i))).transpose();
+  solver.setInitialMotion(mesh.vertexPositions, velocities);
+  DropDef drop;
+  drop.centerPoint = Vector3(0.3, 0.6, 0.0);
+  drop.radius = 0.05;
+  drop.solventMass = 2e-3;
+  drop.soluteMass = 2e-4;
+  solver.addDrop(drop);
+  solver.mutableState().absorbedSolvent[0] = 5e-5;  // a trace: absorbing, not wet
+  const double h = 0.01;
+  int smallSteps = 0;
+  for (int step = 1; step <= 30; ++step) {
+    if (step == 15) {
+      DropDef second = drop;
+      second.centerPoint = Vector3(0.8, 0.2, 0.0);
+      second.solventMass = 5e-4;
+      solver.addDrop(second);
+    }
+    LiquidBand reference;
+    reference.resize(n);
+    markWetVertices(def.liquid.wetThreshold, solver.state(), reference);
+    const double evaporatedBefore = solver.state().evaporatedSolvent;
+    const Matrix3 R = rotation(step * h);
+    ASSERT_EQ(solver.stepRigid(h, mesh.vertexPositions * R.transpose(), R).status, StepStatus::Ok);
+    const LiquidBand& band = solver.band();
+    ASSERT_EQ(band.wetCount(), reference.wetCount()) << "step " << step;
+    EXPECT_TRUE(std::equal(reference.vertices.begin(), reference.vertices.end(), band.vertices.begin()))
+        << "step " << step;
+    EXPECT_EQ(band.dampVertices, reference.dampVertices) << "step " << step;
+    EXPECT_EQ(band.absorbingVertices, reference.absorbingVertices) << "step " << step;
+    const double evaporated = solver.state().evaporatedSolvent - evaporatedBefore;
+    EXPECT_NEAR(solver.evaporatedMass().sum(), evaporated, 1e-12 * evaporated) << "step " << step;
+    smallSteps += 4 * band.size() < n ? 1 : 0;
+  }
+  EXPECT_FALSE(solver.band().absorbingVertices.empty()) << "the trace should still be drying";
+  EXPECT_EQ(smallSteps, 30) << "the band should stay under a quarter of the mesh";
+}
+
 }  // namespace
 }  // namespace blot::stain

@@ -150,6 +150,101 @@ TEST(StageFault, AbandonStepReturnsToTheStateBeforeTheLastStep) {
   EXPECT_EQ(solver->stepCount(), 1);
 }
 
+// A small stain on a large, turning cloth: the step changes a small part of
+// the state (the band, the CG diffusion's rows beyond it, an absorbed trace
+// far away that the interaction dries), its rollback point and validation
+// cover only those vertices; a fault after the last stage, or an abandoned
+// step, must still give back the whole state to the bit.
+struct SmallStain {
+  TriangleMesh mesh = gridMesh(60, 60, 1.0, 1.0);
+  SurfaceTopology topology{mesh.faces, static_cast<int>(mesh.vertexPositions.rows())};
+  int centre = -1;
+  int trace = 0;  // a corner, far from the drop: absorbed solvent below the wet threshold
+
+  static Matrix3 rotation(double t) {
+    return Eigen::AngleAxisd(1.0 * t, Vector3(0.4, 0.2, 1.0).normalized()).toRotationMatrix();
+  }
+  RowVectors3 positions(int step) const { return mesh.vertexPositions * rotation(step * kH).transpose(); }
+
+  std::unique_ptr<StainSolver> solver() const {
+    StainSolverDef def;
+    def.liquid.evaporationRate = 1e-4;
+    def.liquid.wetThreshold = 1e-4;
+    const int n = static_cast<int>(mesh.vertexPositions.rows());
+    auto s = std::make_unique<StainSolver>(
+        topology, mesh.vertexPositions, isotropicFabricField(static_cast<int>(mesh.faces.rows()), 5e-3, 1e-4), def);
+    RowVectors3 velocities(n, 3);
+    const Vector3 omega = Vector3(0.4, 0.2, 1.0).normalized();
+    for (int i = 0; i < n; ++i) velocities.row(i) = omega.cross(Vector3(mesh.vertexPositions.row(i))).transpose();
+    s->setInitialMotion(mesh.vertexPositions, velocities);
+    DropDef drop;
+    drop.centerVertex = centre;
+    drop.radius = 0.05;
+    drop.solventMass = 2e-3;
+    drop.soluteMass = 2e-4;
+    s->addDrop(drop);
+    s->mutableState().absorbedSolvent[trace] = 5e-5;
+    return s;
+  }
+
+  SmallStain() {
+    Eigen::Index best = 0;
+    (mesh.vertexPositions.rowwise() - Eigen::RowVector3d(0.3, 0.6, 0)).rowwise().squaredNorm().minCoeff(&best);
+    centre = static_cast<int>(best);
+  }
+};
+
+TEST(StageFault, ABandRestrictedStepIsRolledBackToTheBit) {
+  const SmallStain scene;
+  const int n = static_cast<int>(scene.mesh.vertexPositions.rows());
+  for (const char* stage : {"interact", "diffuse", "forces"}) {
+    SCOPED_TRACE(stage);
+    auto solver = scene.solver();
+    for (int k = 1; k <= 4; ++k) ASSERT_EQ(solver->stepRigid(kH, scene.positions(k), SmallStain::rotation(k * kH)).status, StepStatus::Ok);
+    // The path under test: a band of a few percent of the mesh, CG rows
+    // beyond it, and the trace dried by the interaction.
+    const StepProfile& p = solver->profile();
+    ASSERT_LT(4 * p.bandVertices, n);
+    ASSERT_GT(p.densityDiffusionVertices, p.bandVertices);
+    ASSERT_GT(solver->state().absorbedSolvent[scene.trace], 0.0);
+    ASSERT_EQ(solver->band().levels[static_cast<size_t>(scene.trace)], -1) << "the trace must lie outside the band";
+    const StainState before = solver->state();
+    const double traceBefore = before.absorbedSolvent[scene.trace];
+    InjectedFault fault;
+    ASSERT_TRUE(parseStage(stage, fault.stage));
+    fault.step = 5;
+    fault.vertex = scene.centre;
+    solver->injectFaultForTesting(fault);
+    const StepReport r = solver->stepRigid(kH, scene.positions(5), SmallStain::rotation(5 * kH));
+    EXPECT_EQ(r.status, StepStatus::NonFinite);
+    EXPECT_STREQ(r.stageName(), stage);
+    EXPECT_TRUE(sameState(solver->state(), before)) << "the state before the failed step must be kept, every vertex";
+    EXPECT_EQ(solver->stepCount(), 4);
+
+    // The step again, then abandoned after it succeeded (a later coupled
+    // stage failing): back to the same bits.
+    solver->restartMotion(scene.positions(4), RowVectors3::Zero(n, 3));
+    ASSERT_EQ(solver->stepRigid(kH, scene.positions(5), SmallStain::rotation(5 * kH)).status, StepStatus::Ok);
+    ASSERT_LT(solver->state().absorbedSolvent[scene.trace], traceBefore) << "the interaction did not dry the trace";
+    int outside = 0;  // free densities the CG diffusion changed beyond the band
+    for (int i = 0; i < n; ++i)
+      outside += solver->band().levels[static_cast<size_t>(i)] < 0 &&
+                 (solver->state().solvent[i] != before.solvent[i] || solver->state().solute[i] != before.solute[i]);
+    ASSERT_GT(outside, 0) << "the diffusion should write beyond the band";
+    ASSERT_FALSE(sameState(solver->state(), before));
+    solver->abandonStep(scene.positions(4), RowVectors3::Zero(n, 3));
+    EXPECT_TRUE(sameState(solver->state(), before)) << "abandonStep after a band-restricted step";
+    // And a NaN written from outside (mutableState) far from the liquid is
+    // still found by the validation after a step that did not touch it.
+    solver->mutableState().adsorbedSolute[n - 1] = std::nan("");
+    const StainState poisoned = solver->state();
+    const StepReport bad = solver->stepRigid(kH, scene.positions(5), SmallStain::rotation(5 * kH));
+    EXPECT_EQ(bad.status, StepStatus::NonFinite);
+    EXPECT_EQ(bad.vertex, n - 1);
+    EXPECT_TRUE(sameState(solver->state(), poisoned));
+  }
+}
+
 TEST(StageFault, UnknownStagesAndVerticesAreRefused) {
   const Scene scene;
   auto solver = scene.solver();

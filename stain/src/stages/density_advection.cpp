@@ -73,7 +73,7 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
                                        const IntrinsicGeometry& intrinsic, const ExtrinsicGeometry& extrinsic,
                                        const std::vector<char>& wet, DensityAdvectionScratch& scratch,
                                        StainState& state, const EdgeFrameNormals* restEdgeFrameNormals,
-                                       const std::vector<char>* reach) {
+                                       const std::vector<char>* reach, const std::vector<int>* among) {
   const int n = topology.vertexCount();
   const int edgeCount = topology.edgeCount();
   if (static_cast<int>(scratch.activeMarks.size()) != n || scratch.massSolvent.size() != n ||
@@ -91,8 +91,9 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
 
   // Layer 0: the wet vertices (or everything).
   int wetCount = 0;
+  const int visits = visitCount(n, among);
   if (!wet.empty()) {
-    for (int i = 0; i < n; ++i) wetCount += wet[static_cast<size_t>(i)] ? 1 : 0;
+    for (int k = 0; k < visits; ++k) wetCount += wet[static_cast<size_t>(visited(k, among))] ? 1 : 0;
   }
   // With a reach set the rings are built even for a large wet set: liquid
   // must not leave the band (its outer rings hold no advected velocity).
@@ -102,7 +103,8 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
     for (int i = 0; i < n; ++i) active.push_back(i);
     std::fill(marks.begin(), marks.end(), 1);
   } else {
-    for (int i = 0; i < n; ++i) {
+    for (int k = 0; k < visits; ++k) {
+      const int i = visited(k, among);
       if (wet[static_cast<size_t>(i)]) {
         active.push_back(i);
         marks[static_cast<size_t>(i)] = 1;

@@ -35,7 +35,7 @@ inline Complex unitRotation(double a) {
 }  // namespace
 
 void applyBodyForces(const StepContext& ctx, const ExtrinsicGeometry& geometry, const std::vector<char>& wet,
-                     StainState& state) {
+                     StainState& state, const std::vector<int>* among) {
   const PhysicsSwitches& on = ctx.switches;
   const int n = static_cast<int>(state.velocities.size());
   // A static mesh may provide no accelerations at all.
@@ -44,9 +44,11 @@ void applyBodyForces(const StepContext& ctx, const ExtrinsicGeometry& geometry, 
   const bool allWet = wet.empty();
   const double h = ctx.h;
   const Vector3 gravity = on.gravity ? ctx.gravity : Vector3::Zero();
-  threads::runLoop(n >= kMinParallelVertices, [&] {
+  const int visits = visitCount(n, among);
+  threads::runLoop(visits >= kMinParallelVertices, [&] {
 #pragma omp for schedule(static)
-    for (int i = 0; i < n; ++i) {
+    for (int k = 0; k < visits; ++k) {
+      const int i = visited(k, among);
       if (!allWet && !wet[static_cast<size_t>(i)]) continue;
       Vector3 a = gravity;
       if (useInertia) a -= geometry.vertexAccelerations.row(i).transpose();
@@ -57,16 +59,18 @@ void applyBodyForces(const StepContext& ctx, const ExtrinsicGeometry& geometry, 
 }
 
 void applyCoriolis(const StepContext& ctx, const ExtrinsicGeometry& geometry, const std::vector<char>& wet,
-                   StainState& state) {
+                   StainState& state, const std::vector<int>* among) {
   const PhysicsSwitches& on = ctx.switches;
   const int n = static_cast<int>(state.velocities.size());
   if (!on.coriolis || geometry.vertexAngularVelocities.rows() != n) return;
   const bool allWet = wet.empty();
   const double h = ctx.h;
   const bool exact = on.coriolisScheme != CoriolisScheme::Explicit;
-  threads::runLoop(n >= kMinParallelVertices, [&] {
+  const int visits = visitCount(n, among);
+  threads::runLoop(visits >= kMinParallelVertices, [&] {
 #pragma omp for schedule(static)
-    for (int i = 0; i < n; ++i) {
+    for (int k = 0; k < visits; ++k) {
+      const int i = visited(k, among);
       if (!allWet && !wet[static_cast<size_t>(i)]) continue;
       const double omegaN = geometry.vertexAngularVelocities(i, 2);
       if (omegaN == 0.0) continue;
@@ -87,14 +91,16 @@ void applyExternalForces(const StepContext& ctx, const ExtrinsicGeometry& geomet
 }
 
 void applyHalfFrameRotation(const StepContext& ctx, const ExtrinsicGeometry& geometry, const std::vector<char>& wet,
-                            StainState& state) {
+                            StainState& state, const std::vector<int>* among) {
   const int n = static_cast<int>(state.velocities.size());
   if (geometry.vertexAngularVelocities.rows() != n) return;
   const bool allWet = wet.empty();
   const double h = ctx.h;
-  threads::runLoop(n >= kMinParallelVertices, [&] {
+  const int visits = visitCount(n, among);
+  threads::runLoop(visits >= kMinParallelVertices, [&] {
 #pragma omp for schedule(static)
-    for (int i = 0; i < n; ++i) {
+    for (int k = 0; k < visits; ++k) {
+      const int i = visited(k, among);
       if (!allWet && !wet[static_cast<size_t>(i)]) continue;
       const double omegaN = geometry.vertexAngularVelocities(i, 2);
       if (omegaN != 0.0) state.velocities(i) *= unitRotation(-0.5 * omegaN * h);
@@ -104,7 +110,7 @@ void applyHalfFrameRotation(const StepContext& ctx, const ExtrinsicGeometry& geo
 
 void applyFrameVelocityChange(const StepContext& ctx, const ExtrinsicGeometry& geometry,
                               const FootVertices& footVertices, const FootWeights& footWeights,
-                              const std::vector<char>& wet, StainState& state) {
+                              const std::vector<char>& wet, StainState& state, const std::vector<int>* among) {
   const int n = static_cast<int>(state.velocities.size());
   if (geometry.vertexAngularVelocities.rows() != n || footVertices.rows() != n || footWeights.rows() != n ||
       geometry.positions.rows() != n || geometry.nextPositions.rows() != n ||
@@ -116,9 +122,11 @@ void applyFrameVelocityChange(const StepContext& ctx, const ExtrinsicGeometry& g
   const RowVectors3& p2 = geometry.nextPositions;
   const auto frameVelocity = [&](int k) -> Vector3 { return (p2.row(k) - p1.row(k)).transpose() * invH; };
 
-  threads::runLoop(n >= kMinParallelVertices, [&] {
+  const int visits = visitCount(n, among);
+  threads::runLoop(visits >= kMinParallelVertices, [&] {
 #pragma omp for schedule(static)
-    for (int i = 0; i < n; ++i) {
+    for (int k = 0; k < visits; ++k) {
+      const int i = visited(k, among);
       if (!allWet && !wet[static_cast<size_t>(i)]) continue;
       Vector3 change = -frameVelocity(i);
       for (int c = 0; c < 3; ++c) {

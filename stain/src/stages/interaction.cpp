@@ -88,7 +88,8 @@ inline double interactVertex(const Rates& r, bool onBoundary, double& free, doub
 }  // namespace
 
 void interact(const StepContext& ctx, const SurfaceTopology& topology, const IntrinsicGeometry& geometry,
-              const std::vector<char>& wet, StainState& state, Vector* evaporatedMass) {
+              const std::vector<char>& wet, StainState& state, Vector* evaporatedMass,
+              const std::vector<int>* among) {
   const PhysicsSwitches& switches = ctx.switches;
   if (!switches.absorption && !switches.adsorption && !switches.evaporation) return;
   const LiquidParameters& liquid = ctx.liquid;
@@ -145,9 +146,21 @@ void interact(const StepContext& ctx, const SurfaceTopology& topology, const Int
     }
     evaporated[c] = sum;
   };
-  // Small meshes and one-thread engines stay serial without entering an
-  // OpenMP region at all (numerics/threads.h: a one-thread region allocates).
-  if (threads::worthThreads(n > kParallelThreshold)) {
+  if (among != nullptr && !allWet) {
+    // The listed vertices, in index order: each chunk's sum adds the same
+    // terms in the same order as processChunk, so the total is the same bits.
+    for (const int i : *among) {
+      if (!wet[static_cast<size_t>(i)] && !(absorbed[i] > 0.0)) continue;
+      const bool exposed = boundary[static_cast<size_t>(i)] != 0 || (wetFront && onWetFront(i));
+      const double gone = interactVertex(rates, exposed, free[i], solute[i],
+                                         absorbed[i], absorbedSolute[i], adsorbed[i]);
+      const double mass = gone * areas[i];
+      if (vapour != nullptr) vapour[i] = mass;
+      evaporated[i / chunkSize] += mass;
+    }
+  } else if (threads::worthThreads(n > kParallelThreshold)) {
+    // Small meshes and one-thread engines stay serial without entering an
+    // OpenMP region at all (numerics/threads.h: a one-thread region allocates).
 #pragma omp parallel for schedule(static)
     for (int c = 0; c < kChunks; ++c) processChunk(c);
   } else {

@@ -21,6 +21,7 @@ void clearBand(LiquidBand& band) {
   band.vertices.clear();
   band.ringEnds.clear();
   band.dampVertices.clear();
+  band.absorbingVertices.clear();
   band.rings = band.reachRings = band.haloCount = 0;
   band.speedBound = 0;
 }
@@ -43,6 +44,12 @@ void LiquidBand::resize(int vertexCount) {
   ringEnds.reserve(n + 1);
   dampVertices.clear();
   dampVertices.reserve(n);
+  absorbingVertices.clear();
+  absorbingVertices.reserve(n);
+  candidates.clear();
+  candidates.reserve(n);
+  candidateMarks.assign(n, 0);
+  scanAll = true;
   levels.assign(n, -1);
   wetMask.assign(n, 0);
   haloMask.assign(n, 0);
@@ -54,21 +61,63 @@ void LiquidBand::resize(int vertexCount) {
   speedBound = 0;
 }
 
+namespace {
+
+// Files vertex i under the wet set, the damp or the absorbing list (index
+// order when called in index order); false when it is none of them.
+bool classify(double wetThreshold, const StainState& state, int i, LiquidBand& band) {
+  if (!(state.solvent[i] > wetThreshold || state.absorbedSolvent[i] > wetThreshold ||
+        state.solute[i] > wetThreshold)) {
+    const bool damp = state.solvent[i] + state.solute[i] > 0;
+    const bool absorbing = state.absorbedSolvent[i] > 0;
+    if (damp) band.dampVertices.push_back(i);
+    if (absorbing) band.absorbingVertices.push_back(i);
+    return damp || absorbing;
+  }
+  const size_t k = static_cast<size_t>(i);
+  band.vertices.push_back(i);
+  band.levels[k] = 0;
+  band.wetMask[k] = band.haloMask[k] = band.reachMask[k] = band.bandMask[k] = band.diffusionMask[k] =
+      LiquidBand::kHoldsLiquid;
+  return true;
+}
+
+}  // namespace
+
 void markWetVertices(double wetThreshold, const StainState& state, LiquidBand& band) {
   clearBand(band);
+  for (const int v : band.candidates) band.candidateMarks[static_cast<size_t>(v)] = 0;
+  band.candidates.clear();
   const int n = state.vertexCount();
-  for (int i = 0; i < n; ++i) {
-    if (!(state.solvent[i] > wetThreshold || state.absorbedSolvent[i] > wetThreshold ||
-          state.solute[i] > wetThreshold)) {
-      if (state.solvent[i] + state.solute[i] > 0) band.dampVertices.push_back(i);
-      continue;
-    }
-    const size_t k = static_cast<size_t>(i);
-    band.vertices.push_back(i);
-    band.levels[k] = 0;
-    band.wetMask[k] = band.haloMask[k] = band.reachMask[k] = band.bandMask[k] = band.diffusionMask[k] =
-        LiquidBand::kHoldsLiquid;
+  for (int i = 0; i < n; ++i)
+    if (classify(wetThreshold, state, i, band)) band.noteChanged(i);
+  band.ringEnds.push_back(static_cast<int>(band.vertices.size()));
+  band.scanAll = false;
+}
+
+void updateWetVertices(double wetThreshold, const StainState& state, LiquidBand& band) {
+  // Sorting more than an eighth of the mesh costs more than the scan.
+  if (band.scanAll || 8 * band.candidates.size() > band.candidateMarks.size()) {
+    markWetVertices(wetThreshold, state, band);
+    return;
   }
+  clearBand(band);
+  // The vertices outside the candidates are none of wet, damp or absorbing
+  // (LiquidBand::candidates), so visiting the candidates in index order
+  // files every vertex the full scan would, in its order. The list shrinks
+  // to those filed, in place.
+  std::vector<int>& list = band.candidates;
+  std::sort(list.begin(), list.end());
+  size_t kept = 0;
+  for (size_t k = 0; k < list.size(); ++k) {
+    const int i = list[k];
+    if (classify(wetThreshold, state, i, band)) {
+      list[kept++] = i;
+    } else {
+      band.candidateMarks[static_cast<size_t>(i)] = 0;
+    }
+  }
+  list.resize(kept);
   band.ringEnds.push_back(static_cast<int>(band.vertices.size()));
 }
 

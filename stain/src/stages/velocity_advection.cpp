@@ -251,7 +251,8 @@ void VelocityAdvectionScratch::prepare(const SurfaceTopology& topology, const In
 
 VelocityAdvectionReport advectVelocity(const StepContext& ctx, const SurfaceTopology& topology,
                                        const IntrinsicGeometry& geometry, const std::vector<char>& wet,
-                                       VelocityAdvectionScratch& scratch, StainState& state) {
+                                       VelocityAdvectionScratch& scratch, StainState& state,
+                                       const std::vector<int>* among) {
   const int n = topology.vertexCount();
   if (scratch.preparedRebuildCount != geometry.rebuildCount || scratch.advected.size() != n ||
       scratch.footVertices.rows() != n ||
@@ -269,9 +270,12 @@ VelocityAdvectionReport advectVelocity(const StepContext& ctx, const SurfaceTopo
   const double h = ctx.h;
   int stripSteps = 0, boundaryStops = 0, cappedWalks = 0;
 
+  // Every walk reads u as it was (advected is written, u only after).
+  const int visits = visitCount(n, among);
   // Walks differ in length: a dynamic schedule on threads, a plain loop
   // otherwise (an orphaned dynamic loop would allocate; numerics/threads.h).
-  const auto walkFrom = [&](int i, int& steps, int& stops, int& capped) {
+  const auto walkFrom = [&](int k, int& steps, int& stops, int& capped) {
+    const int i = visited(k, among);
     if (!allWet && !wet[static_cast<size_t>(i)]) return;
     const Walk walk = backtrack(tables, u, i, -h * u(i));
     advected(i) = walk.value;
@@ -283,16 +287,17 @@ VelocityAdvectionReport advectVelocity(const StepContext& ctx, const SurfaceTopo
     stops += walk.boundaryStop ? 1 : 0;
     capped += walk.capped ? 1 : 0;
   };
-  if (threads::worthThreads(n >= kMinParallelVertices)) {
+  if (threads::worthThreads(visits >= kMinParallelVertices)) {
 #pragma omp parallel for schedule(dynamic, 256) reduction(+ : stripSteps, boundaryStops, cappedWalks)
-    for (int i = 0; i < n; ++i) walkFrom(i, stripSteps, boundaryStops, cappedWalks);
+    for (int k = 0; k < visits; ++k) walkFrom(k, stripSteps, boundaryStops, cappedWalks);
   } else {
-    for (int i = 0; i < n; ++i) walkFrom(i, stripSteps, boundaryStops, cappedWalks);
+    for (int k = 0; k < visits; ++k) walkFrom(k, stripSteps, boundaryStops, cappedWalks);
   }
 
-  threads::runLoop(n >= kMinParallelVertices, [&] {
+  threads::runLoop(visits >= kMinParallelVertices, [&] {
 #pragma omp for schedule(static)
-    for (int i = 0; i < n; ++i) {
+    for (int k = 0; k < visits; ++k) {
+      const int i = visited(k, among);
       if (allWet || wet[static_cast<size_t>(i)]) state.velocities(i) = advected(i);
     }
   });

@@ -152,7 +152,11 @@ class StainSolver {
   /// Valid until the next step.
   const std::vector<int>& bandVertices() const { return band_.vertices; }
   const LiquidBand& band() const { return band_; }
-  StainState& mutableState() { return state_; }
+  /// The state for writing from outside a step (tests, tools). The next
+  /// step then validates and scans every vertex and copies the whole state
+  /// as its rollback point: write through the reference before the next
+  /// step, and call mutableState() again for writes after it.
+  StainState& mutableState();
   /// The geometry: in VertexRefresh::OnDemand its per-vertex extrinsic values
   /// are this step's only where SurfaceGeometry::vertexPrepared (the band);
   /// completeGeometry() computes them on every vertex (for views and outputs).
@@ -198,9 +202,15 @@ class StainSolver {
   /// The terms this step runs: def_'s switches, less those with nothing to
   /// act on (no liquid, a surface that did not move, a zero coefficient).
   PhysicsSwitches activeTerms(bool surfaceMoved, bool anyLiquid) const;
-  /// Copies the state into backup_ before the step's first change to it.
-  void keepBackup();
-  /// state_ = backup_, rescaled to the present dual areas when the step being
+  /// Lists vertices this step may change (the rollback point's and the
+  /// incremental wet set's), before or after it changes them; noteAllChanged:
+  /// every vertex (a metric rebuild, a whole-mesh solve).
+  void noteChanged(const int* vertices, int count);
+  void noteAllChanged();
+  /// The state was written outside a step (mutableState, addDrop, restore):
+  /// the next step copies, scans and validates every vertex.
+  void stateWrittenOutside();
+  /// The state as the step found it (backup_.restore), rescaled to the present dual areas when the step being
   /// abandoned rebuilt the metric (each vertex keeps its mass).
   void restoreBackup();
   /// One line of the stage list: when `active`, runs `work` (void, or a
@@ -214,6 +224,11 @@ class StainSolver {
   /// and negative densities. Fills `report` and restores the state when one
   /// is bad; returns false then.
   bool checkStage(Stage stage, StepReport& report);
+  /// The band is small enough for the stages to visit its list (vertex_visits.h).
+  bool smallBand() const;
+  /// The vertices the interaction visits (interaction.h's `among`), or null
+  /// for all when the band is not small.
+  const std::vector<int>* interactionVertices();
   /// Marks each term whose condition is true as run this step.
   void markTerms(std::initializer_list<std::pair<StepTerm, bool>> terms);
   /// The profile's record of a density advection and of a diffusion.
@@ -225,12 +240,13 @@ class StainSolver {
 
   StainSolverDef def_;
   SurfaceGeometry geometry_;
-  StainState state_, backup_;
+  StainState state_;
+  StateBackup backup_;       // the rollback point: a mirror of the state and the vertices this step changed
+  bool validateAll_ = true;  // written from outside since the last full validation passed
   double backupTime_ = 0;   // time_ when backup_ was taken
   InjectedFault fault_;      // testing; armed when set
   StepContext ctx_;          // this step's constants and active terms (refreshGeometry)
   bool undoable_ = false;   // the last step succeeded and undoLastStep has not run
-  bool backedUp_ = false;   // backup_ holds the state this step began with
   bool inStep_ = false;     // refreshGeometry succeeded and the step has not finished
   bool firstStep_ = false;  // this step is the solver's first (u is in the frames at t)
   DiffusionSystems systems_;
@@ -239,6 +255,7 @@ class StainSolver {
   DensityAdvectionScratch densityScratch_;
   std::vector<HeldRegion> heldRegions_;
   LiquidBand band_;  // this step's band; its vertices are the stage checks' domain
+  std::vector<int> interactionScratch_;  // interactionVertices(), reserved #V
   RowVectors3 surfaceVelocityScratch_;  // addDrop: surfaceVelocity of every vertex
   bool surfaceMoved_ = false;           // this step's surface moved (refreshGeometry)
   Vector areaScratch_;

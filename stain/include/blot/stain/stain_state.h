@@ -4,6 +4,8 @@
 /// mass a vertex holds is density × its dual area (IntrinsicGeometry).
 #include <blot/stain/types.h>
 
+#include <vector>
+
 namespace blot::stain {
 
 struct StainState {
@@ -49,5 +51,62 @@ struct StainState {
 // A field added to StainState without a line in fields() fails here first.
 static_assert(sizeof(StainState) == 5 * sizeof(Vector) + sizeof(ComplexVector) + 3 * sizeof(double),
               "StainState changed: list the new field in StainState::fields");
+
+/// The rollback point of a step that touches few vertices: a mirror of the
+/// state (every field, #V) that equals it at every vertex the step has not
+/// changed, and holds the values the step began with at those it has. A
+/// step lists the vertices it may change (note, before or after it changes
+/// them: the mirror keeps the old values until commit); restore() puts them
+/// back, commit() (at the start of the next step) copies them over, each
+/// O(listed). A change to every vertex (noteAll: a metric rebuild, a
+/// whole-mesh solve) makes both a full copy. markStale() says the state was
+/// written from outside (StainSolver::mutableState, addDrop, restore): the
+/// next commit copies everything. No allocation after resize.
+class StateBackup {
+ public:
+  /// Sizes the mirror, list and marks (allocates; build time), stale.
+  void resize(int vertexCount);
+  /// The state was written outside a step: the mirror is no longer its copy.
+  void markStale() { stale_ = true; }
+  bool stale() const { return stale_; }
+  /// Start of a step: the mirror becomes the state (the listed vertices, or
+  /// all of it when stale or after noteAll), the list empties.
+  void commit(const StainState& state);
+  /// Vertex i (or `count` vertices; a list that would pass #V/4 is noteAll)
+  /// may change in this step.
+  void note(int i) {
+    if (all_ || marks_[static_cast<size_t>(i)]) return;
+    marks_[static_cast<size_t>(i)] = 1;
+    vertices_.push_back(i);
+  }
+  void note(const int* list, int count) {
+    if (all_) return;
+    // Past a quarter of the mesh, listing costs more than the full copies.
+    if (4 * (vertices_.size() + static_cast<size_t>(count)) > marks_.size()) {
+      noteAll();
+      return;
+    }
+    for (int k = 0; k < count; ++k) note(list[k]);
+  }
+  /// Every vertex may change in this step.
+  void noteAll() { all_ = true; }
+  /// This step changed something (a vertex listed, or all).
+  bool any() const { return all_ || !vertices_.empty(); }
+  bool all() const { return all_; }
+  /// The listed vertices (meaningful when !all()), in the order noted.
+  const std::vector<int>& vertices() const { return vertices_; }
+  /// The state as the step found it: the listed vertices (or every one) and
+  /// the totals copied back from the mirror; the list empties.
+  void restore(StainState& state);
+
+ private:
+  void clearList();
+
+  StainState mirror_;
+  std::vector<int> vertices_;
+  std::vector<char> marks_;
+  bool all_ = false;
+  bool stale_ = true;
+};
 
 }  // namespace blot::stain

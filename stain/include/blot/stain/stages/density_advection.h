@@ -5,6 +5,7 @@
 #include <blot/stain/stain_state.h>
 #include <blot/stain/step_context.h>
 #include <blot/stain/geometry/surface_geometry.h>
+#include <blot/stain/stages/vertex_visits.h>
 
 #include <vector>
 
@@ -65,12 +66,15 @@ struct DensityAdvectionReport {
 /// instead of the positions' dual normals and frames when extrinsic.rigid.
 /// reach (optional, #V, nonzero = inside): the rings stop at its edge, so no
 /// mass enters a vertex outside it (the liquid band's reach set; mass stays
-/// exact, edges leaving it are closed).
+/// exact, edges leaving it are closed). among (optional): the vertices
+/// searched for wet ones instead of all #V, a superset of them listing the
+/// wet ones in index order (vertex_visits.h; the band's vertices).
 DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopology& topology,
                                        const IntrinsicGeometry& intrinsic,
                                        const ExtrinsicGeometry& extrinsic, const std::vector<char>& wet,
                                        DensityAdvectionScratch& scratch, StainState& state,
                                        const EdgeFrameNormals* restEdgeFrameNormals = nullptr,
-                                       const std::vector<char>* reach = nullptr);
+                                       const std::vector<char>* reach = nullptr,
+                                       const std::vector<int>* among = nullptr);
 
 }  // namespace blot::stain

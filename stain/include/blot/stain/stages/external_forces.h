@@ -6,6 +6,7 @@
 #include <blot/stain/step_context.h>
 #include <blot/stain/geometry/surface_geometry.h>
 #include <blot/stain/stages/velocity_advection.h>
+#include <blot/stain/stages/vertex_visits.h>
 
 namespace blot::stain {
 
@@ -13,18 +14,22 @@ namespace blot::stain {
 /// each term as ctx.switches has it on (gravity, linearInertia). Forward Euler
 /// is exact here: the forcing does not depend on u.
 /// `wet` (#V, nonzero = worked on; the solver passes the liquid band)
-/// restricts the work; pass an empty vector for all.
+/// restricts the work; pass an empty vector for all. `among` (optional): the
+/// vertices visited instead of all #V, a superset of those `wet` marks
+/// (visitCount; each vertex's update reads no other's, so the result is the
+/// same bit for bit).
 void applyBodyForces(const StepContext& ctx, const ExtrinsicGeometry& geometry, const std::vector<char>& wet,
-                     StainState& state);
+                     StainState& state, const std::vector<int>* among = nullptr);
 
 /// Stage Coriolis for a liquid that is not advected (or SplitRotation,
 /// Explicit): with ω_n = ω_i·z (frame coordinates), ExactRotation and
 /// SplitRotation multiply u_i by exp(−2iω_n h) (|u| preserved), Explicit adds
 /// −2h ω_n (i u_i) (|u| grows by √(1 + 4ω_n²h²) each step; comparison only).
 /// After a velocity advection with ExactRotation the solver uses
-/// applyHalfFrameRotation and applyFrameVelocityChange instead. `wet` as above.
+/// applyHalfFrameRotation and applyFrameVelocityChange instead. `wet` and
+/// `among` as above (also for the two below).
 void applyCoriolis(const StepContext& ctx, const ExtrinsicGeometry& geometry, const std::vector<char>& wet,
-                   StainState& state);
+                   StainState& state, const std::vector<int>* among = nullptr);
 
 /// applyBodyForces then applyCoriolis (the paper's whole force term, for tests
 /// and callers without an advection between them).
@@ -46,10 +51,11 @@ void applyExternalForces(const StepContext& ctx, const ExtrinsicGeometry& geomet
 /// any ωh and no kinetic energy is created (tests/stain/coriolis_frame_test).
 /// Only wet vertices (`wet` as above) are touched.
 void applyHalfFrameRotation(const StepContext& ctx, const ExtrinsicGeometry& geometry, const std::vector<char>& wet,
-                            StainState& state);
+                            StainState& state, const std::vector<int>* among = nullptr);
 /// See applyHalfFrameRotation.
 void applyFrameVelocityChange(const StepContext& ctx, const ExtrinsicGeometry& geometry,
                               const FootVertices& footVertices, const FootWeights& footWeights,
-                              const std::vector<char>& wet, StainState& state);
+                              const std::vector<char>& wet, StainState& state,
+                              const std::vector<int>* among = nullptr);
 
 }  // namespace blot::stain

@@ -23,7 +23,12 @@ namespace blot::stain {
 ///  drying      solute left with no free solvent is deposited (moved to σ_s,a),
 ///              and desorption needs free solvent to dissolve into.
 /// Solute is conserved exactly (moved between its three pools, never created).
+/// Processed: the vertices `wet` marks (all when empty) and those with σ_p > 0.
+/// among (optional, with a `wet` mask): the vertices visited instead of all
+/// #V, in increasing index order, a superset of those processed (the
+/// evaporated total is then summed in the same order, the same bits).
 void interact(const StepContext& ctx, const SurfaceTopology& topology, const IntrinsicGeometry& geometry,
-              const std::vector<char>& wet, StainState& state, Vector* evaporatedMass = nullptr);
+              const std::vector<char>& wet, StainState& state, Vector* evaporatedMass = nullptr,
+              const std::vector<int>* among = nullptr);
 
 }  // namespace blot::stain

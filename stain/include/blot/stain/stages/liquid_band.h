@@ -49,6 +49,20 @@ struct LiquidBand {
   /// trace below wetThreshold), in index order: no stage works on them, but
   /// the coupling reads their frames (their relative momentum).
   std::vector<int> dampVertices;
+  /// Vertices not in the wet set whose absorbed solvent σ_p is > 0 (below
+  /// wetThreshold), in index order: the interaction dries them wherever they
+  /// are, so a step that runs it changes them.
+  std::vector<int> absorbingVertices;
+  /// The incremental wet set (updateWetVertices): a superset of the vertices
+  /// that are wet, damp or absorbing now, namely those the last scan found
+  /// plus every vertex noted as changed since (noteChanged). A vertex outside
+  /// it kept the values a scan found neither wet, damp nor absorbing, so it
+  /// still is none of them. scanAll: a change the list does not hold (a
+  /// whole-mesh write, a write from outside a step): the next update scans
+  /// every vertex.
+  std::vector<int> candidates;
+  std::vector<char> candidateMarks;  ///< #V: 1 on `candidates`
+  bool scanAll = true;
   double minEdgeLength = 0;  ///< ℓ_min over the mesh (m), intrinsic
   int preparedRebuildCount = -1;  ///< IntrinsicGeometry::rebuildCount of the tables (−1: never)
 
@@ -57,6 +71,22 @@ struct LiquidBand {
   /// Level-0 count (vertices holding liquid).
   int wetCount() const { return ringEnds.empty() ? 0 : ringEnds[0]; }
   int size() const { return static_cast<int>(vertices.size()); }
+  /// Vertex v (or `count` vertices; a list that would pass #V/8 sets
+  /// scanAll) may have changed since the last scan.
+  void noteChanged(int v) {
+    if (candidateMarks[static_cast<size_t>(v)]) return;
+    candidateMarks[static_cast<size_t>(v)] = 1;
+    candidates.push_back(v);
+  }
+  void noteChanged(const int* list, int count) {
+    if (scanAll) return;
+    // Past an eighth of the mesh the sorted visit costs more than the scan.
+    if (8 * (candidates.size() + static_cast<size_t>(count)) > candidateMarks.size()) {
+      scanAll = true;
+      return;
+    }
+    for (int k = 0; k < count; ++k) noteChanged(list[k]);
+  }
 };
 
 /// What decides the band of a step.
@@ -77,6 +107,12 @@ struct LiquidBandInputs {
 /// for the masks, O(#V) for the scan). Call after the sources of the step.
 /// Also lists the band's dampVertices (same scan).
 void markWetVertices(double wetThreshold, const StainState& state, LiquidBand& band);
+/// markWetVertices from the incremental wet set: the same wet set, damp and
+/// absorbing lists, in the same order, scanning only band.candidates
+/// (sorted; O(k log k) for k candidates) unless band.scanAll or more than
+/// #V/8 candidates, which make it the full scan. Afterwards the candidates
+/// are what it found.
+void updateWetVertices(double wetThreshold, const StainState& state, LiquidBand& band);
 
 /// Grows the band marked by markWetVertices ring by ring and extends the
 /// velocity onto it: state.velocities on band vertices outside the wet set

@@ -5,6 +5,7 @@
 #include <blot/stain/stain_state.h>
 #include <blot/stain/step_context.h>
 #include <blot/stain/geometry/surface_geometry.h>
+#include <blot/stain/stages/vertex_visits.h>
 
 namespace blot::stain {
 
@@ -68,9 +69,11 @@ struct VelocityAdvectionReport {
 /// than 1000 triangles stop where they are. Only vertices marked in `wet`
 /// (nonzero, or all when empty; the solver passes the liquid band's reach
 /// set) are advected; the others keep u. Reads state.velocities,
-/// writes them back.
+/// writes them back. `among` (optional): the vertices visited instead of all
+/// #V, a superset of those `wet` marks (vertex_visits.h).
 VelocityAdvectionReport advectVelocity(const StepContext& ctx, const SurfaceTopology& topology,
                                        const IntrinsicGeometry& geometry, const std::vector<char>& wet,
-                                       VelocityAdvectionScratch& scratch, StainState& state);
+                                       VelocityAdvectionScratch& scratch, StainState& state,
+                                       const std::vector<int>* among = nullptr);
 
 }  // namespace blot::stain
