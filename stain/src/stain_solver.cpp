@@ -153,6 +153,7 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   state_.resize(n);
   backup_.resize(n);
   diffusionScratch_.resize(n);
+  systems_.setSolverChoice(def_.diffusionSolver);
   velocityScratch_.resize(n);
   densityScratch_.resize(n, topology.edgeCount());
   band_.resize(n);
@@ -622,12 +623,12 @@ SolverStatus StainSolver::recordDiffusion(const DiffusionReport& r) {
   if (r.factorizations > 0) profile_.markRan(StepTerm::Factorization);
   const int n = state_.vertexCount();
   if (r.densityMethod != DiffusionMethod::None) {
-    const bool krylov = r.densityMethod == DiffusionMethod::ConjugateGradient;
+    const bool krylov = r.densityMethod != DiffusionMethod::Direct;  // CG or RKL2: on the liquid
     profile_.markRan(krylov ? StepTerm::DensityDiffusionKrylov : StepTerm::DensityDiffusionDirect);
     profile_.densityDiffusionVertices = krylov ? r.densityActiveVertices : n;
   }
   if (r.velocityMethod != DiffusionMethod::None) {
-    const bool krylov = r.velocityMethod == DiffusionMethod::ConjugateGradient;
+    const bool krylov = r.velocityMethod != DiffusionMethod::Direct;  // CG or RKL2: on the band
     profile_.markRan(krylov ? StepTerm::VelocityDiffusionKrylov : StepTerm::VelocityDiffusionDirect);
     profile_.velocityDiffusionVertices = krylov ? r.velocityActiveVertices : n;
   }

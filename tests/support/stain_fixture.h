@@ -148,6 +148,7 @@ inline Vector integrateDiffusion(const LiquidMesh& g, const Vector& initial, dou
                                  bool crankNicolson) {
   const double h = crankNicolson ? endTime / steps / 2 : endTime / steps;
   DiffusionSystems systems;
+  systems.setSolverChoice(DiffusionSolverChoice::Direct);  // backward Euler, not Auto's RKL2
   if (systems.factorize(g.intrinsic, h) != SolverStatus::Ok) throw std::runtime_error("factorize failed");
   DiffusionScratch scratch;
   scratch.resize(g.vertexCount());
