@@ -28,16 +28,6 @@ StepContext context(double h, bool limiter = true) {
   return makeStepContext(h, Vector3(0, 0, -9.8), switches, LiquidParameters{});
 }
 
-// Smooth compact spot (1 − r²/R²)² of peak `peak` at `center` (z = 0 plane).
-Vector spot(const LiquidMesh& g, const Vector2& center, double radius, double peak) {
-  Vector s = Vector::Zero(g.vertexCount());
-  for (int i = 0; i < g.vertexCount(); ++i) {
-    const double r = (g.position(i).head<2>() - center).norm() / radius;
-    if (r < 1) s[i] = peak * (1 - r * r) * (1 - r * r);
-  }
-  return s;
-}
-
 // 60x60 grid, anisotropic (ratio 10, weft at 30°): D_weft = 1e-3 m²/s; at
 // h = 0.05 s, h D / dx² ≈ 0.18 per direction (max h L_ii / A_i ≈ 0.4).
 LiquidMesh anisotropicGrid() {

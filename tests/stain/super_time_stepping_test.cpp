@@ -40,16 +40,6 @@ LiquidMesh anisotropicGrid(int n, double weft) {
                                                         fabricTensor(0.1 * weft, 0.1 * weft), kPi / 6));
 }
 
-// Smooth compact spot (1 − r²/R²)² of peak `peak`.
-Vector spot(const LiquidMesh& g, const Vector2& center, double radius, double peak) {
-  Vector s = Vector::Zero(g.vertexCount());
-  for (int i = 0; i < g.vertexCount(); ++i) {
-    const double r = (g.position(i).head<2>() - center).norm() / radius;
-    if (r < 1) s[i] = peak * (1 - r * r) * (1 - r * r);
-  }
-  return s;
-}
-
 // R_s(z): the RKL2 recursion applied to the scalar equation y' = λy, z = τλ.
 double amplification(int s, double z) {
   double y0 = 1.0, g0 = z, previous2 = 1.0;

@@ -177,6 +177,16 @@ inline Vector semiDiscreteReference(const LiquidMesh& g, const Vector& initial, 
   return (4 * fine - coarse) / 3;
 }
 
+/// Smooth compact spot (1 − r²/R²)² of peak `peak` at `center` (z = 0 plane).
+inline Vector spot(const LiquidMesh& g, const Vector2& center, double radius, double peak) {
+  Vector s = Vector::Zero(g.vertexCount());
+  for (int i = 0; i < g.vertexCount(); ++i) {
+    const double r = (g.position(i).head<2>() - center).norm() / radius;
+    if (r < 1) s[i] = peak * (1 - r * r) * (1 - r * r);
+  }
+  return s;
+}
+
 /// Relative mass-weighted L2 error sqrt(Σ A (a − b)²) / sqrt(Σ A b²).
 inline double relativeL2(const Vector& areas, const Vector& a, const Vector& reference) {
   return std::sqrt((areas.array() * (a - reference).array().square()).sum() /
