@@ -5,7 +5,7 @@
 // support, RKL2 on the support, and Auto (docs/performance.md, "The cheapest
 // solver"). Arguments: spot radius in % of the side (10: ~3 % wet, 45: ~60 %),
 // and h D_weft / dx² × 100 (the tensor is (D, D/10) at 30°; max h L_ii / A_i
-// is ~2.6× that ratio). Counters: rows (the solve's rows), work (RKL2 stages
+// is ~3.3× that ratio). Counters: rows (the solve's rows), work (RKL2 stages
 // or CG iterations of the density solve), method (DiffusionMethod).
 // Run: diffusion_methods_bench --benchmark_format=json > out.json.
 #include <benchmark/benchmark.h>
