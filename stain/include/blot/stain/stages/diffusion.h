@@ -207,9 +207,16 @@ struct DiffusionReport {
 /// per iteration, so iteration k works on the liquid and its k-ring halo only,
 /// and the result is the CG iterate of the whole-mesh system (nothing is
 /// truncated). Solvent and solute share each pass over the matrix.
+/// Densities by RKL2 (DiffusionMethod::SuperTimeStepping): one explicit
+/// super-time-step of s stages (DiffusionSystems::scalarStages) on the
+/// support, one ring more per stage: the whole-mesh RKL2 step, second order in
+/// h; the mass is restored to rounding and the limiter runs as after CG.
+/// Which of the two, or the factor, runs is chosen per solve (Auto: by
+/// predicted cost, DiffusionSolverChoice); the velocity the same way between
+/// CG and RKL2 when vectorIterative(), on the mask below.
 /// `wet` (optional, #V, 0 = outside; StainSolver passes the liquid band less
 /// its outermost ring, LiquidBand::diffusionMask): the velocity is then
-/// diffused by CG only on the marked vertices, with the velocities of their
+/// diffused (CG or RKL2) only on the marked vertices, with the velocities of their
 /// unmarked neighbours (the band's extended values) as fixed boundary values
 /// (u matters only where there is liquid); without it the velocity solve
 /// covers the mesh like the densities'. A direct velocity solve always covers
