@@ -185,6 +185,7 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   backup_.resize(n);
   validateAll_ = true;
   diffusionScratch_.resize(n);
+  systems_.setSolverChoice(def_.diffusionSolver);
   velocityScratch_.resize(n);
   densityScratch_.resize(n, topology.edgeCount());
   band_.resize(n);
@@ -703,29 +704,33 @@ SolverStatus StainSolver::recordDiffusion(const DiffusionReport& r) {
   profile_.limiterMovedMass = r.limiterMovedMass;
   profile_.factorizations = r.factorizations;
   if (r.factorizations > 0) profile_.markRan(StepTerm::Factorization);
-  // What the solves wrote. CG densities: the active rows only (the limiter
-  // moves mass only to vertices with σ > 0, all of them in the active set,
-  // which starts from every nonzero density); CG velocities: the rows of
-  // band_.diffusionMask, inside the band (noted). Any other method writes
+  // What the solves wrote. CG or RKL2 densities: the active rows only (RKL2
+  // grows them one ring per stage; the limiter moves mass only to vertices
+  // with σ > 0, all of them in the active set, which starts from every
+  // nonzero density); CG or RKL2 velocities: the rows of
+  // band_.diffusionMask, inside the band (noted). The direct solve writes
   // whole fields.
-  if (r.densityMethod == DiffusionMethod::ConjugateGradient) {
+  const auto onRows = [](DiffusionMethod m) {
+    return m == DiffusionMethod::ConjugateGradient || m == DiffusionMethod::SuperTimeStepping;
+  };
+  if (onRows(r.densityMethod)) {
     noteChanged(diffusionScratch_.densityActive.data(), r.densityActiveVertices);
   } else if (r.densityMethod != DiffusionMethod::None) {
     noteAllChanged();
   }
-  if (r.velocityMethod == DiffusionMethod::ConjugateGradient) {
+  if (onRows(r.velocityMethod)) {
     noteChanged(diffusionScratch_.velocityActive.data(), r.velocityActiveVertices);
   } else if (r.velocityMethod != DiffusionMethod::None) {
     noteAllChanged();
   }
   const int n = state_.vertexCount();
   if (r.densityMethod != DiffusionMethod::None) {
-    const bool krylov = r.densityMethod == DiffusionMethod::ConjugateGradient;
+    const bool krylov = r.densityMethod != DiffusionMethod::Direct;  // CG or RKL2: on the liquid
     profile_.markRan(krylov ? StepTerm::DensityDiffusionKrylov : StepTerm::DensityDiffusionDirect);
     profile_.densityDiffusionVertices = krylov ? r.densityActiveVertices : n;
   }
   if (r.velocityMethod != DiffusionMethod::None) {
-    const bool krylov = r.velocityMethod == DiffusionMethod::ConjugateGradient;
+    const bool krylov = r.velocityMethod != DiffusionMethod::Direct;  // CG or RKL2: on the band
     profile_.markRan(krylov ? StepTerm::VelocityDiffusionKrylov : StepTerm::VelocityDiffusionDirect);
     profile_.velocityDiffusionVertices = krylov ? r.velocityActiveVertices : n;
   }

@@ -515,7 +515,9 @@ TEST(EngineTest, CallerSuppliedFramesReproduceAMeshSequenceRunBitIdentically) {
     ASSERT_EQ(callerRun.stateHash(), sequenceRun->stateHash()) << "step " << k;
   }
   EXPECT_GT(callerRun.positions().col(2).maxCoeff(), 0.001);  // the surface moved
-  EXPECT_GT(callerRun.solvent().sum(), 0.0);                    // and carries the stain
+  // and carries the stain (free or absorbed: the drop is absorbed completely
+  // around step 24, so the free part alone depends on the diffusion scheme)
+  EXPECT_GT(callerRun.solvent().sum() + callerRun.absorbedSolvent().sum(), 0.0);
   // Without velocities the finite difference is used, and a step without a
   // frame holds the surface still.
   const Eigen::MatrixX3d before = callerRun.positions();

@@ -148,6 +148,7 @@ inline Vector integrateDiffusion(const LiquidMesh& g, const Vector& initial, dou
                                  bool crankNicolson) {
   const double h = crankNicolson ? endTime / steps / 2 : endTime / steps;
   DiffusionSystems systems;
+  systems.setSolverChoice(DiffusionSolverChoice::Direct);  // backward Euler, not Auto's RKL2
   if (systems.factorize(g.intrinsic, h) != SolverStatus::Ok) throw std::runtime_error("factorize failed");
   DiffusionScratch scratch;
   scratch.resize(g.vertexCount());
@@ -174,6 +175,16 @@ inline Vector semiDiscreteReference(const LiquidMesh& g, const Vector& initial, 
   const Vector coarse = integrateDiffusion(g, initial, endTime, steps, true);
   const Vector fine = integrateDiffusion(g, initial, endTime, 2 * steps, true);
   return (4 * fine - coarse) / 3;
+}
+
+/// Smooth compact spot (1 − r²/R²)² of peak `peak` at `center` (z = 0 plane).
+inline Vector spot(const LiquidMesh& g, const Vector2& center, double radius, double peak) {
+  Vector s = Vector::Zero(g.vertexCount());
+  for (int i = 0; i < g.vertexCount(); ++i) {
+    const double r = (g.position(i).head<2>() - center).norm() / radius;
+    if (r < 1) s[i] = peak * (1 - r * r) * (1 - r * r);
+  }
+  return s;
 }
 
 /// Relative mass-weighted L2 error sqrt(Σ A (a − b)²) / sqrt(Σ A b²).

@@ -5,6 +5,7 @@
 #include <algorithm>
 
 #include "numerics/krylov_solver.h"
+#include "numerics/super_time_stepping.h"
 
 namespace blot::stain {
 using namespace diffusion_internal;
@@ -108,17 +109,33 @@ SolverStatus DiffusionSystems::assemble(const IntrinsicGeometry& geometry, doubl
   } else {
     vectorSystem_.resize(0, 0);
   }
-  // Method per system from its conditioning (see the design note).
-  const auto iterative = [&](double ratio) {
-    return choice_ == DiffusionSolverChoice::Iterative ||
-           (choice_ == DiffusionSolverChoice::Auto && ratio <= kIterativeStiffnessRatio);
+  // Which methods may run per system (the per-solve choice among them is
+  // diffuse()'s; design note).
+  const bool cgForced = choice_ == DiffusionSolverChoice::Iterative;
+  const bool rklForced = choice_ == DiffusionSolverChoice::SuperTimeStepping;
+  const bool automatic = choice_ == DiffusionSolverChoice::Auto;
+  const auto cgAllowed = [&](double ratio) { return cgForced || (automatic && ratio <= kIterativeStiffnessRatio); };
+  // Auto takes RKL2 only where it is at least as accurate as backward Euler
+  // (h λ ≤ kRklAutoStepStiffness; docs/accuracy.md); forced, up to kMaxRklStages.
+  const auto stages = [&](double bound) {
+    if (rklForced) return rkl2Stages(h * bound);
+    return automatic && h * bound <= kRklAutoStepStiffness ? rkl2Stages(h * bound) : 0;
   };
   scalarRatio_ = inverseDiagonal(scalarSystem_, areas, scalarInverseDiagonal_);
-  scalarIterative_ = iterative(scalarRatio_);
+  scalarBound_ = spectralBound(scalarStiffness, areas);
+  scalarCg_ = cgAllowed(scalarRatio_);
+  scalarStages_ = stages(scalarBound_);
+  scalarIterative_ = scalarCg_ || scalarStages_ > 0;
   if (vectorStiffness.rows() != 0) {
     vectorRatio_ = inverseDiagonal(vectorSystem_, areas, vectorInverseDiagonal_);
-    vectorIterative_ = iterative(vectorRatio_);
+    vectorBound_ = spectralBound(vectorStiffness, areas);
+    vectorCg_ = cgAllowed(vectorRatio_);
+    vectorStages_ = stages(vectorBound_);
+    vectorIterative_ = vectorCg_ || vectorStages_ > 0;
   } else {
+    vectorBound_ = 0;
+    vectorCg_ = false;
+    vectorStages_ = 0;
     vectorIterative_ = false;
   }
   return SolverStatus::Ok;

@@ -48,6 +48,8 @@ class ActiveSet {
   }
   int size() const { return size_; }
   const int* list() const { return list_; }
+  /// Membership marks, #V (1: in the set).
+  const char* marks() const { return marks_; }
   /// Start of the outermost layer (the last ring grow() added) in list().
   int layerBegin() const { return layerBegin_; }
 

@@ -13,6 +13,7 @@
 #include "numerics/diffusion_system.h"
 #include "numerics/krylov_solver.h"
 #include "numerics/positivity_limiter.h"
+#include "numerics/super_time_stepping.h"
 #include "numerics/threads.h"
 
 namespace blot::stain {
@@ -26,6 +27,9 @@ bool allZero(const Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& v) {
   }
   return true;
 }
+
+// A cost no method reaches (the method may not run).
+constexpr double kNever = 1e300;
 
 double massOf(const Vector& rhs) {
   CompensatedSum sum;
@@ -94,10 +98,12 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
   const bool solute = switches.densityDiffusion && !allZero(state.solute);
   const bool velocity = switches.velocityDiffusion && !allZero(state.velocities);
 
-  // Densities by CG (both fields in one pass) into densityX, on densityActive.
+  // Densities on their support (CG or RKL2, both fields in one pass) into
+  // densityX, on densityActive; or the whole-mesh factor below.
   const SparseMatrix& scalarSystem = systems.scalarSystem();
+  const double entriesPerRow = n > 0 ? static_cast<double>(scalarSystem.nonZeros()) / static_cast<double>(n) : 0.0;
   ActiveSet densityActive(scratch.densityActive, scratch.densityMarks);
-  bool densityByCg = false;
+  bool densityOnSupport = false;
   double* dx = scratch.densityX.data();
   if ((solvent || solute) && systems.scalarIterative()) {
     const int vertices = static_cast<int>(n);
@@ -106,24 +112,57 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
     for (int i = 0; i < vertices; ++i) {
       if (s0[i] != 0.0 || s1[i] != 0.0) densityActive.add(i);
     }
-    // r0 = −h L σ reaches one ring further.
-    densityActive.grow(scalarSystem.outerIndexPtr(), scalarSystem.innerIndexPtr());
+    // r0 = −h L σ (and L σ for RKL2's first stage) reaches one ring further.
+    const int ring = densityActive.grow(scalarSystem.outerIndexPtr(), scalarSystem.innerIndexPtr());
     const double* x0[2] = {s0, s1};
     double mass[2];
-    const KrylovOutcome outcome = pairConjugateGradients<false>(
-        scalarSystem.outerIndexPtr(), scalarSystem.innerIndexPtr(), scalarSystem.valuePtr(),
-        systems.scalarInverseDiagonal().data(), areas.data(), x0, 1, dx, scratch.densityR.data(),
-        scratch.densityP.data(), scratch.densityQ.data(), densityActive, true, mass, scratch.krylovPartials.data());
-    report.densityIterations = outcome.iterations;
-    report.densityActiveVertices = densityActive.size();
-    if (!outcome.finite) {
-      releaseActive(densityActive, {dx, scratch.densityR.data(), scratch.densityP.data()});
-      report.status = SolverStatus::NonFinite;
-      return report;
+    const int stages = systems.scalarStages();
+    const int rows = densityActive.size();
+    const int iterations = predictedCgIterations(systems.scalarStiffnessRatio());
+    const double rkl = stages > 0 ? rklCost(stages, rows, ring, entriesPerRow) : kNever;
+    const double cg = systems.scalarCgAllowed() ? cgCost(iterations, rows, ring, entriesPerRow) : kNever;
+    const double direct = systems.solverChoice() == DiffusionSolverChoice::Auto
+                              ? directCost(vertices, int(solvent) + int(solute))
+                              : kNever;
+    report.densityPredictedCost = std::min({rkl, cg, direct});
+    if (rkl <= cg && rkl <= direct && rkl < kNever) {
+      const RklOutcome outcome =
+          rkl2Step<false>(geometry.densityStiffness, areas.data(), x0, 1, stages, ctx.h, dx, scratch.densityR.data(),
+                          scratch.densityP.data(), densityActive, true, mass, scratch.krylovPartials.data());
+      report.densityStages = outcome.stages;
+      report.densityActiveVertices = densityActive.size();
+      if (!outcome.finite) {
+        releaseActive(densityActive, {dx, scratch.densityR.data(), scratch.densityP.data()});
+        report.status = SolverStatus::NonFinite;
+        return report;
+      }
+      densityOnSupport = true;
+      report.densityMethod = DiffusionMethod::SuperTimeStepping;
+    } else if (cg <= direct && cg < kNever) {
+      const KrylovOutcome outcome = pairConjugateGradients<false>(
+          scalarSystem.outerIndexPtr(), scalarSystem.innerIndexPtr(), scalarSystem.valuePtr(),
+          systems.scalarInverseDiagonal().data(), areas.data(), x0, 1, dx, scratch.densityR.data(),
+          scratch.densityP.data(), scratch.densityQ.data(), densityActive, true, mass, scratch.krylovPartials.data());
+      report.densityIterations = outcome.iterations;
+      report.densityActiveVertices = densityActive.size();
+      if (!outcome.finite) {
+        releaseActive(densityActive, {dx, scratch.densityR.data(), scratch.densityP.data()});
+        report.status = SolverStatus::NonFinite;
+        return report;
+      }
+      if (outcome.converged) {
+        densityOnSupport = true;
+        report.densityMethod = DiffusionMethod::ConjugateGradient;
+      } else {
+        releaseActive(densityActive, {dx, scratch.densityR.data(), scratch.densityP.data()});
+        densityActive = ActiveSet(scratch.densityActive, scratch.densityMarks);
+        ++report.fallbacks;
+      }
+    } else {  // the factor is predicted cheaper
+      densityActive.clearMarks();
+      densityActive = ActiveSet(scratch.densityActive, scratch.densityMarks);
     }
-    if (outcome.converged) {
-      densityByCg = true;
-      report.densityMethod = DiffusionMethod::ConjugateGradient;
+    if (densityOnSupport) {
       // Flush the far tail and restore the exact mass (design note), over
       // the active rows only.
       // Chunked like the CG's sums (the same bits for any thread count).
@@ -162,15 +201,11 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
           });
         }
       }
-    } else {
-      releaseActive(densityActive, {dx, scratch.densityR.data(), scratch.densityP.data()});
-      densityActive = ActiveSet(scratch.densityActive, scratch.densityMarks);
-      ++report.fallbacks;
     }
   }
   // Direct solves into scratch: σ_f -> solution, σ_s -> rhs (in place).
   const int factorizationsBefore = systems.factorizationCount();
-  if (!densityByCg && (solvent || solute)) {
+  if (!densityOnSupport && (solvent || solute)) {
     report.densityMethod = DiffusionMethod::Direct;
     if (solvent) {
       massTimes(areas, state.solvent, scratch.rhs);
@@ -192,17 +227,18 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
   // A failed velocity solve must leave the densities as they were: undo the
   // CG bookkeeping before returning.
   const auto abandonDensities = [&] {
-    if (densityByCg) releaseActive(densityActive, {dx, scratch.densityR.data(), scratch.densityP.data()});
+    if (densityOnSupport) releaseActive(densityActive, {dx, scratch.densityR.data(), scratch.densityP.data()});
   };
 
-  // Velocity: CG on the wet region (or the Krylov support) into velocityX.
+  // Velocity on the wet region (or its support): CG or RKL2 into velocityX.
   const ComplexSparseMatrix& vectorSystem = systems.vectorSystem();
   ActiveSet velocityActive(scratch.velocityActive, scratch.velocityMarks);
-  bool velocityByCg = false;
+  bool velocityOnBand = false;
   double* ux = scratch.velocityX.data();
   if (velocity && systems.vectorIterative()) {
     const int vertices = static_cast<int>(n);
     const Complex* u0 = state.velocities.data();
+    int ring = 0;
     if (wet != nullptr) {
       for (int i = 0; i < vertices; ++i) {
         if ((*wet)[static_cast<size_t>(i)]) velocityActive.add(i);
@@ -211,34 +247,59 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
       for (int i = 0; i < vertices; ++i) {
         if (u0[i] != Complex(0.0)) velocityActive.add(i);
       }
-      velocityActive.grow(vectorSystem.outerIndexPtr(), vectorSystem.innerIndexPtr());
+      ring = velocityActive.grow(vectorSystem.outerIndexPtr(), vectorSystem.innerIndexPtr());
     }
     // std::complex<double> is two doubles (re, im) by the standard's array rule.
     const double* u0Pairs = reinterpret_cast<const double*>(u0);
     const double* x0[2] = {u0Pairs, u0Pairs + 1};
     double mass[2];
-    const KrylovOutcome outcome = pairConjugateGradients<true>(
-        vectorSystem.outerIndexPtr(), vectorSystem.innerIndexPtr(),
-        reinterpret_cast<const double*>(vectorSystem.valuePtr()), systems.vectorInverseDiagonal().data(),
-        areas.data(), x0, 2, ux, scratch.velocityR.data(), scratch.velocityP.data(), scratch.velocityQ.data(),
-        velocityActive, wet == nullptr, mass, scratch.krylovPartials.data());
-    report.velocityIterations = outcome.iterations;
-    report.velocityActiveVertices = velocityActive.size();
-    if (!outcome.finite) {
-      releaseActive(velocityActive, {ux, scratch.velocityR.data(), scratch.velocityP.data()});
-      abandonDensities();
-      report.status = SolverStatus::NonFinite;
-      return report;
-    }
-    if (outcome.converged) {
-      velocityByCg = true;
-      report.velocityMethod = DiffusionMethod::ConjugateGradient;
+    // The band was sized for a restricted solve (assemble chose it): the
+    // factor is not a candidate here.
+    const int stages = systems.vectorStages();
+    const int rows = velocityActive.size();
+    const double rkl = stages > 0 ? rklCost(stages, rows, ring, entriesPerRow) : kNever;
+    const double cg = systems.vectorCgAllowed()
+                          ? cgCost(predictedCgIterations(systems.vectorStiffnessRatio()), rows, ring, entriesPerRow)
+                          : kNever;
+    report.velocityPredictedCost = std::min(rkl, cg);
+    if (rkl <= cg) {
+      const RklOutcome outcome =
+          rkl2Step<true>(geometry.velocityStiffness, areas.data(), x0, 2, stages, ctx.h, ux, scratch.velocityR.data(),
+                         scratch.velocityP.data(), velocityActive, wet == nullptr, mass, scratch.krylovPartials.data());
+      report.velocityStages = outcome.stages;
+      report.velocityActiveVertices = velocityActive.size();
+      if (!outcome.finite) {
+        releaseActive(velocityActive, {ux, scratch.velocityR.data(), scratch.velocityP.data()});
+        abandonDensities();
+        report.status = SolverStatus::NonFinite;
+        return report;
+      }
+      velocityOnBand = true;
+      report.velocityMethod = DiffusionMethod::SuperTimeStepping;
     } else {
-      releaseActive(velocityActive, {ux, scratch.velocityR.data(), scratch.velocityP.data()});
-      ++report.fallbacks;
+      const KrylovOutcome outcome = pairConjugateGradients<true>(
+          vectorSystem.outerIndexPtr(), vectorSystem.innerIndexPtr(),
+          reinterpret_cast<const double*>(vectorSystem.valuePtr()), systems.vectorInverseDiagonal().data(),
+          areas.data(), x0, 2, ux, scratch.velocityR.data(), scratch.velocityP.data(), scratch.velocityQ.data(),
+          velocityActive, wet == nullptr, mass, scratch.krylovPartials.data());
+      report.velocityIterations = outcome.iterations;
+      report.velocityActiveVertices = velocityActive.size();
+      if (!outcome.finite) {
+        releaseActive(velocityActive, {ux, scratch.velocityR.data(), scratch.velocityP.data()});
+        abandonDensities();
+        report.status = SolverStatus::NonFinite;
+        return report;
+      }
+      if (outcome.converged) {
+        velocityOnBand = true;
+        report.velocityMethod = DiffusionMethod::ConjugateGradient;
+      } else {
+        releaseActive(velocityActive, {ux, scratch.velocityR.data(), scratch.velocityP.data()});
+        ++report.fallbacks;
+      }
     }
   }
-  if (velocity && !velocityByCg) {
+  if (velocity && !velocityOnBand) {
     report.velocityMethod = DiffusionMethod::Direct;
     massTimes(areas, state.velocities, scratch.complexRhs);
     report.status = systems.solveVector(scratch.complexRhs, scratch.complexSolution);
@@ -251,7 +312,7 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
 
   // Commit (copies, not swaps: the state's arrays keep their addresses).
   double minimum = 0.0;
-  if (densityByCg) {
+  if (densityOnSupport) {
     const int* list = densityActive.list();
     for (int k = 0; k < densityActive.size(); ++k) {
       const int i = list[k];
@@ -266,7 +327,7 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
     if (solvent) minimum = std::min(minimum, state.solvent.minCoeff());
     if (solute) minimum = std::min(minimum, state.solute.minCoeff());
   }
-  if (velocityByCg) {
+  if (velocityOnBand) {
     const int* list = velocityActive.list();
     for (int k = 0; k < velocityActive.size(); ++k) {
       const int i = list[k];
@@ -284,7 +345,7 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
   const MatrixRings rings{geometry.densityStiffness};
   for (Vector* field : {solvent ? &state.solvent : nullptr, solute ? &state.solute : nullptr}) {
     if (field == nullptr) continue;
-    const auto [count, mass] = densityByCg ? limit(rings, areas, *field, densityActive.list(), densityActive.size())
+    const auto [count, mass] = densityOnSupport ? limit(rings, areas, *field, densityActive.list(), densityActive.size())
                                            : limit(rings, areas, *field);
     report.limiterCorrectedVertices += count;
     report.limiterMovedMass += mass;

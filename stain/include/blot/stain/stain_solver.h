@@ -45,6 +45,10 @@ struct StainSolverDef {
   /// rest. AllVertices: every vertex every step, the reference: the state
   /// after any step is bitwise the same in both modes.
   VertexRefresh geometryVertices = VertexRefresh::OnDemand;
+  /// How the diffusion systems are solved (DiffusionSolverChoice): Auto, the
+  /// per-solve choice by predicted cost (docs/performance.md, "The cheapest
+  /// solver"), or one method forced (tests, studies, a reference run).
+  DiffusionSolverChoice diffusionSolver = DiffusionSolverChoice::Auto;
 };
 
 /// Totals for the mass budget (kg). solute* sum to addedSolute; solvent

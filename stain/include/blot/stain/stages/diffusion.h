@@ -13,17 +13,25 @@
 
 namespace blot::stain {
 
-/// How a diffusion system is solved. Auto (the default) picks per system at
-/// assemble() from its conditioning: Jacobi-preconditioned conjugate
-/// gradients restricted to the liquid when max_i h L_ii / A_i is at most
-/// kIterativeStiffnessRatio (the Jacobi-scaled system then has a condition
-/// number below ~2(1 + ratio) and converges in a few iterations), the direct
-/// factorization otherwise. Direct and Iterative force one method (tests,
-/// benchmarks); Iterative still falls back to the factor when CG stalls.
-enum class DiffusionSolverChoice { Auto, Direct, Iterative };
+/// How a diffusion system is solved. Auto (the default) chooses per solve by
+/// predicted cost (docs/performance.md, "The cheapest solver"): among
+/// Jacobi-preconditioned conjugate gradients on the liquid's support (only
+/// while max_i h L_ii / A_i ≤ kIterativeStiffnessRatio, where the
+/// Jacobi-scaled system has a condition number below ~2(1 + ratio)), the
+/// explicit RKL2 super-time-stepping on the liquid's rows (only while its
+/// stage count is at most kMaxRklStages, and for Auto while h λ ≤
+/// kRklAutoStepStiffness, where it is the more accurate) and the whole-mesh factorization
+/// (its numeric factorization counted once per assembly, amortized over the
+/// solves that reuse it). Direct, Iterative and SuperTimeStepping force one
+/// method (tests, benchmarks, studies); Iterative still falls back to the
+/// factor when CG stalls, SuperTimeStepping uses the factor only where the
+/// stage count would pass kMaxRklStages.
+enum class DiffusionSolverChoice { Auto, Direct, Iterative, SuperTimeStepping };
 
-/// The method one system used on the last solve.
-enum class DiffusionMethod { None, Direct, ConjugateGradient };
+/// The method one system used on the last solve. SuperTimeStepping is one
+/// RKL2 step (second order in time) of the same semi-discrete equation
+/// M σ' = −L σ that the other two integrate by backward Euler.
+enum class DiffusionMethod { None, Direct, ConjugateGradient, SuperTimeStepping };
 
 /// Largest max_i h L_ii / A_i for which Auto chooses conjugate gradients.
 inline constexpr double kIterativeStiffnessRatio = 4.0;
@@ -44,6 +52,19 @@ inline constexpr int kKrylovChunkRows = 1024;
 inline constexpr int kKrylovParallelRows = 16384;
 /// Partial sums stored per chunk (DiffusionScratch::krylovPartials).
 inline constexpr int kKrylovPartialsPerChunk = 10;
+/// Most RKL2 stages one step may take (s ≈ √(2 h λ_max), so h λ_max ≲ 2,000);
+/// beyond, the explicit scheme is never chosen.
+inline constexpr int kMaxRklStages = 64;
+/// Largest h λ (λ the Gershgorin bound of λ_max(M⁻¹L)) for which Auto
+/// considers RKL2 (at most 8 stages): up to it, RKL2's second-order error is
+/// below backward Euler's on the exact semi-discrete solution; from
+/// h λ_max ≈ 50 its weakly damped stiff modes make it the less accurate
+/// (tests/stain/super_time_stepping_test.cpp, docs/accuracy.md).
+inline constexpr double kRklAutoStepStiffness = 32.0;
+/// Relative margin on the Gershgorin bound of λ_max(M⁻¹L) when the RKL2
+/// stage count is chosen (the bound itself over-estimates λ_max; the margin
+/// covers its rounding).
+inline constexpr double kRklStabilityMargin = 1e-6;
 
 /// The diffusion systems M + h L and their factors. assemble() refills the
 /// systems in place (and chooses each system's method); the numeric Cholesky
@@ -87,9 +108,24 @@ class DiffusionSystems {
   /// Method policy; takes effect at the next assemble() (default Auto).
   void setSolverChoice(DiffusionSolverChoice choice) { choice_ = choice; }
   DiffusionSolverChoice solverChoice() const { return choice_; }
-  /// Whether the density (scalar) / velocity (connection) system is solved by CG.
+  /// Whether a system may be solved on the liquid (by CG or RKL2) rather
+  /// than by the whole-mesh factor. The densities then choose per solve by
+  /// predicted cost (the factor stays a candidate); the velocity's choice
+  /// between the band and the whole mesh is made here, at assemble(),
+  /// because the band's extent depends on it (StainSolver reads
+  /// vectorIterative()): the band whenever CG or RKL2 may run.
   bool scalarIterative() const { return scalarIterative_; }
   bool vectorIterative() const { return vectorIterative_; }
+  /// Gershgorin bound of λ_max(M⁻¹L) per system (1/s; from the stiffness at assemble()).
+  double scalarSpectralBound() const { return scalarBound_; }
+  double vectorSpectralBound() const { return vectorBound_; }
+  /// RKL2 stages one step h takes per system (0: more than kMaxRklStages, or
+  /// the method is not allowed by the solver choice).
+  int scalarStages() const { return scalarStages_; }
+  int vectorStages() const { return vectorStages_; }
+  /// Whether CG may run on a system (Auto: ratio ≤ kIterativeStiffnessRatio).
+  bool scalarCgAllowed() const { return scalarCg_; }
+  bool vectorCgAllowed() const { return vectorCg_; }
   /// max_i h L_ii / A_i of each system (dimensionless; ~h D / dx² × 4 on a grid).
   double scalarStiffnessRatio() const { return scalarRatio_; }
   double vectorStiffnessRatio() const { return vectorRatio_; }
@@ -111,6 +147,9 @@ class DiffusionSystems {
   ComplexSparseMatrix vectorSystem_;
   Vector scalarInverseDiagonal_, vectorInverseDiagonal_;
   double scalarRatio_ = 0, vectorRatio_ = 0;
+  double scalarBound_ = 0, vectorBound_ = 0;
+  int scalarStages_ = 0, vectorStages_ = 0;
+  bool scalarCg_ = false, vectorCg_ = false;
   bool scalarIterative_ = false, vectorIterative_ = false;
   // The factor matches the system's values; the pattern changed since the
   // last analysis (the next factorization analyses first).
@@ -149,6 +188,10 @@ struct DiffusionReport {
   double limiterMovedMass = 0;         ///< kg
   DiffusionMethod densityMethod = DiffusionMethod::None, velocityMethod = DiffusionMethod::None;
   int densityIterations = 0, velocityIterations = 0;  ///< CG iterations (0 for direct solves)
+  int densityStages = 0, velocityStages = 0;  ///< RKL2 stages (0 unless SuperTimeStepping ran)
+  /// The cost model's prediction for the method each system used on the
+  /// support (matrix entries visited; 0 when no restricted solve was considered).
+  double densityPredictedCost = 0, velocityPredictedCost = 0;
   int densityActiveVertices = 0, velocityActiveVertices = 0;  ///< rows the CG worked on
   int fallbacks = 0;  ///< CG solves that stalled and were redone with the factor
   int factorizations = 0;  ///< numeric factorizations the direct solves needed (0–2)
@@ -164,9 +207,16 @@ struct DiffusionReport {
 /// per iteration, so iteration k works on the liquid and its k-ring halo only,
 /// and the result is the CG iterate of the whole-mesh system (nothing is
 /// truncated). Solvent and solute share each pass over the matrix.
+/// Densities by RKL2 (DiffusionMethod::SuperTimeStepping): one explicit
+/// super-time-step of s stages (DiffusionSystems::scalarStages) on the
+/// support, one ring more per stage: the whole-mesh RKL2 step, second order in
+/// h; the mass is restored to rounding and the limiter runs as after CG.
+/// Which of the two, or the factor, runs is chosen per solve (Auto: by
+/// predicted cost, DiffusionSolverChoice); the velocity the same way between
+/// CG and RKL2 when vectorIterative(), on the mask below.
 /// `wet` (optional, #V, 0 = outside; StainSolver passes the liquid band less
 /// its outermost ring, LiquidBand::diffusionMask): the velocity is then
-/// diffused by CG only on the marked vertices, with the velocities of their
+/// diffused (CG or RKL2) only on the marked vertices, with the velocities of their
 /// unmarked neighbours (the band's extended values) as fixed boundary values
 /// (u matters only where there is liquid); without it the velocity solve
 /// covers the mesh like the densities'. A direct velocity solve always covers
