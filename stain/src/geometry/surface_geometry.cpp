@@ -549,13 +549,20 @@ bool SurfaceGeometry::refreshExtrinsicWith(const RowVectors3& nextPositions, dou
       const double* inverseBuilt = dynamic_.inverseBuiltSquaredLengths.data();
       double maxRatio = 1.0, minRatio = 1.0;
       threads::runLoop(edgeCount >= 4 * kMinParallelVertices, [&] {
-#pragma omp for schedule(static) reduction(max : maxRatio) reduction(min : minRatio)
+        decltype(maxRatio) maxRatioHere = threads::lowest<decltype(maxRatio)>();
+        decltype(minRatio) minRatioHere = threads::highest<decltype(minRatio)>();
+#pragma omp for schedule(static) nowait
         for (int e = 0; e < edgeCount; ++e) {
           const int a = edges(e, 0), b = edges(e, 1);
           const double dx = x[b] - x[a], dy = y[b] - y[a], dz = z[b] - z[a];
           const double ratio = (dx * dx + dy * dy + dz * dz) * inverseBuilt[e];
-          maxRatio = std::max(maxRatio, ratio);
-          minRatio = std::min(minRatio, ratio);
+          maxRatioHere = std::max(maxRatioHere, ratio);
+          minRatioHere = std::min(minRatioHere, ratio);
+        }
+#pragma omp critical(blot_threads_combine)
+        {
+          maxRatio = std::max(maxRatio, maxRatioHere);
+          minRatio = std::min(minRatio, minRatioHere);
         }
       });
       dynamic_.maxEdgeStrain = std::max(std::sqrt(maxRatio) - 1.0, 1.0 - std::sqrt(minRatio));
@@ -696,16 +703,27 @@ void SurfaceGeometry::prepareVertices(const int* vertices, int count) {
   // Repeated ids would race: the parallel loop is for lists without repeats
   // (the band), which is what large lists are.
   threads::runLoop(count >= kMinParallelVertices, [&] {
-#pragma omp for schedule(static) reduction(+ : fitted, fallbacks, iterations, prepared)
+    decltype(fitted) fittedHere = 0;
+    decltype(fallbacks) fallbacksHere = 0;
+    decltype(iterations) iterationsHere = 0;
+    decltype(prepared) preparedHere = 0;
+#pragma omp for schedule(static) nowait
     for (int k = 0; k < count; ++k) {
       const int i = vertices[k];
       if (preparedAt_[static_cast<size_t>(i)] == refreshIndex_) continue;
       FitCounts counts;
       prepareOne(i, counts);
-      fitted += counts.fitted;
-      fallbacks += counts.fallbacks;
-      iterations += counts.iterations;
-      ++prepared;
+      fittedHere += counts.fitted;
+      fallbacksHere += counts.fallbacks;
+      iterationsHere += counts.iterations;
+      ++preparedHere;
+    }
+#pragma omp critical(blot_threads_combine)
+    {
+      fitted += fittedHere;
+      fallbacks += fallbacksHere;
+      iterations += iterationsHere;
+      prepared += preparedHere;
     }
   });
   preparedCount_ += prepared;
@@ -717,15 +735,26 @@ void SurfaceGeometry::prepareAllVertices() {
   int fitted = 0, fallbacks = 0, prepared = 0;
   long iterations = 0;
   threads::runLoop(n >= kMinParallelVertices, [&] {
-#pragma omp for schedule(static) reduction(+ : fitted, fallbacks, iterations, prepared)
+    decltype(fitted) fittedHere = 0;
+    decltype(fallbacks) fallbacksHere = 0;
+    decltype(iterations) iterationsHere = 0;
+    decltype(prepared) preparedHere = 0;
+#pragma omp for schedule(static) nowait
     for (int i = 0; i < n; ++i) {
       if (preparedAt_[static_cast<size_t>(i)] == refreshIndex_) continue;
       FitCounts counts;
       prepareOne(i, counts);
-      fitted += counts.fitted;
-      fallbacks += counts.fallbacks;
-      iterations += counts.iterations;
-      ++prepared;
+      fittedHere += counts.fitted;
+      fallbacksHere += counts.fallbacks;
+      iterationsHere += counts.iterations;
+      ++preparedHere;
+    }
+#pragma omp critical(blot_threads_combine)
+    {
+      fitted += fittedHere;
+      fallbacks += fallbacksHere;
+      iterations += iterationsHere;
+      prepared += preparedHere;
     }
   });
   preparedCount_ += prepared;

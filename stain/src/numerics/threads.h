@@ -15,16 +15,31 @@
 // static loop runs every iteration on the calling thread without touching the
 // heap. The static schedule hands a thread the same iterations as the
 // `parallel for schedule(static)` it replaces, so results are unchanged bit
-// for bit; reductions named on the orphaned loop (max, min, integer sums)
-// combine the same way. Only static schedules: an orphaned dynamic loop
-// allocates its work share when no team exists.
+// for bit. Reductions are written out: clang refuses a reduction clause on a
+// variable that the callable captured, so each thread keeps its own partial
+// (initialised by lowest / highest / 0) and adds it to the shared variable in
+// `#pragma omp critical(blot_threads_combine)` after the loop; max, min and
+// integer sums give the same bits in any order. Only static schedules: an
+// orphaned dynamic loop allocates its work share when no team exists.
 #include <omp.h>
+
+#include <limits>
 
 namespace blot::stain::threads {
 
 /// True when a loop with `large` set should run on the calling thread's
 /// OpenMP threads: it is large enough and more than one thread is available.
 inline bool worthThreads(bool large) { return large && omp_get_max_threads() > 1; }
+
+/// Identities of a max and a min reduction over T.
+template <typename T>
+constexpr T lowest() {
+  return std::numeric_limits<T>::has_infinity ? -std::numeric_limits<T>::infinity() : std::numeric_limits<T>::lowest();
+}
+template <typename T>
+constexpr T highest() {
+  return std::numeric_limits<T>::has_infinity ? std::numeric_limits<T>::infinity() : std::numeric_limits<T>::max();
+}
 
 /// Runs `loop()` (whose body is an orphaned `#pragma omp for
 /// schedule(static)`) on the calling thread's OpenMP threads when

@@ -150,7 +150,8 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
   auto ringSpeedsAndOutflowRigid = [&](int from, int to) {
     double maxCourant = 0.0;
     threads::runLoop(to - from >= kMinParallelVertices, [&] {
-#pragma omp for schedule(static) reduction(max : maxCourant)
+      decltype(maxCourant) maxCourantHere = threads::lowest<decltype(maxCourant)>();
+#pragma omp for schedule(static) nowait
       for (int k = from; k < to; ++k) {
         const int i = active[static_cast<size_t>(k)];
         double outflow = 0.0;
@@ -167,7 +168,11 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
         }
         scratch.outflowRates(i) = outflow;
         if (wet.empty() || wet[static_cast<size_t>(i)])
-          maxCourant = std::max(maxCourant, h * outflow / areas(i));
+          maxCourantHere = std::max(maxCourantHere, h * outflow / areas(i));
+      }
+#pragma omp critical(blot_threads_combine)
+      {
+        maxCourant = std::max(maxCourant, maxCourantHere);
       }
     });
     return maxCourant;
@@ -176,7 +181,8 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
     if (rigid) return ringSpeedsAndOutflowRigid(from, to);
     double maxCourant = 0.0;
     threads::runLoop(to - from >= kMinParallelVertices, [&] {
-#pragma omp for schedule(static) reduction(max : maxCourant)
+      decltype(maxCourant) maxCourantHere = threads::lowest<decltype(maxCourant)>();
+#pragma omp for schedule(static) nowait
       for (int k = from; k < to; ++k) {
         const int i = active[static_cast<size_t>(k)];
         const double* ui = velocities3 + 3 * static_cast<size_t>(i);
@@ -196,7 +202,11 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
         }
         scratch.outflowRates(i) = outflow;
         if (wet.empty() || wet[static_cast<size_t>(i)])
-          maxCourant = std::max(maxCourant, h * outflow / areas(i));
+          maxCourantHere = std::max(maxCourantHere, h * outflow / areas(i));
+      }
+#pragma omp critical(blot_threads_combine)
+      {
+        maxCourant = std::max(maxCourant, maxCourantHere);
       }
     });
     return maxCourant;
@@ -235,70 +245,73 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
   // One parallel region for all the loops below (their implicit barriers order
   // them), or none for a small set (numerics/threads.h).
   threads::runLoop(count >= kMinParallelVertices, [&] {
-      // Per-step shares: kept fraction 1 − f_i and giving ratio f_i / outflow_i.
-#pragma omp for schedule(static) reduction(+ : limited)
-      for (int k = 0; k < count; ++k) {
-        const int i = active[static_cast<size_t>(k)];
-        const double outflow = scratch.outflowRates(i);
-        const double courant = tau * outflow / areas(i);
-        if (courant > 1.0) ++limited;
-        const double fraction = std::min(courant, 1.0);
-        scratch.keptFractions(i) = 1.0 - fraction;
-        scratch.givingRatios(i) = outflow > 0.0 ? fraction / outflow : 0.0;
-        scratch.massSolvent(i) = areas(i) * state.solvent(i);
-        scratch.massSolute(i) = areas(i) * state.solute(i);
+    // Per-step shares: kept fraction 1 − f_i and giving ratio f_i / outflow_i.
+    int limitedHere = 0;  // this thread's count, added below (numerics/threads.h)
+#pragma omp for schedule(static)
+    for (int k = 0; k < count; ++k) {
+      const int i = active[static_cast<size_t>(k)];
+      const double outflow = scratch.outflowRates(i);
+      const double courant = tau * outflow / areas(i);
+      if (courant > 1.0) ++limitedHere;
+      const double fraction = std::min(courant, 1.0);
+      scratch.keptFractions(i) = 1.0 - fraction;
+      scratch.givingRatios(i) = outflow > 0.0 ? fraction / outflow : 0.0;
+      scratch.massSolvent(i) = areas(i) * state.solvent(i);
+      scratch.massSolute(i) = areas(i) * state.solute(i);
+    }
+#pragma omp critical(blot_threads_combine)
+    limited += limitedHere;
+    // Share of neighbour j's mass flowing into i: g_j · speed(j -> i), where
+    // speed(j -> i) = −ringSpeeds(m) bit for bit.
+    const double* giving = scratch.givingRatios.data();
+    double* shares = scratch.ringInflowShares.data();
+#pragma omp for schedule(static)
+    for (int k = 0; k < count; ++k) {
+      const int i = active[static_cast<size_t>(k)];
+      for (int m = ringOffsets[i]; m < ringOffsets[i + 1]; ++m) {
+        shares[m] = giving[ringNeighbors[m]] * positivePart(-speeds[m]);
       }
-      // Share of neighbour j's mass flowing into i: g_j · speed(j -> i), where
-      // speed(j -> i) = −ringSpeeds(m) bit for bit.
-      const double* giving = scratch.givingRatios.data();
-      double* shares = scratch.ringInflowShares.data();
+    }
+    // Sub-steps alternate between the two mass buffers; the implicit barrier
+    // after each loop orders them. Zero shares are multiplied, not skipped
+    // (half of them are zero, in no pattern a branch predictor could learn).
+    const double* kept = scratch.keptFractions.data();
+    for (int step = 0; step < substeps; ++step) {
+      const double* solvent = solventBuffers[step % 2]->data();
+      const double* solute = soluteBuffers[step % 2]->data();
+      double* nextSolvent = solventBuffers[(step + 1) % 2]->data();
+      double* nextSolute = soluteBuffers[(step + 1) % 2]->data();
 #pragma omp for schedule(static)
       for (int k = 0; k < count; ++k) {
         const int i = active[static_cast<size_t>(k)];
+        double newSolvent = kept[i] * solvent[i];
+        double newSolute = kept[i] * solute[i];
         for (int m = ringOffsets[i]; m < ringOffsets[i + 1]; ++m) {
-          shares[m] = giving[ringNeighbors[m]] * positivePart(-speeds[m]);
+          const int j = ringNeighbors[m];
+          newSolvent += shares[m] * solvent[j];
+          newSolute += shares[m] * solute[j];
         }
+        nextSolvent[i] = newSolvent;
+        nextSolute[i] = newSolute;
       }
-      // Sub-steps alternate between the two mass buffers; the implicit barrier
-      // after each loop orders them. Zero shares are multiplied, not skipped
-      // (half of them are zero, in no pattern a branch predictor could learn).
-      const double* kept = scratch.keptFractions.data();
-      for (int step = 0; step < substeps; ++step) {
-        const double* solvent = solventBuffers[step % 2]->data();
-        const double* solute = soluteBuffers[step % 2]->data();
-        double* nextSolvent = solventBuffers[(step + 1) % 2]->data();
-        double* nextSolute = soluteBuffers[(step + 1) % 2]->data();
+    }
+    const Vector& solvent = *solventBuffers[substeps % 2];
+    const Vector& solute = *soluteBuffers[substeps % 2];
 #pragma omp for schedule(static)
-        for (int k = 0; k < count; ++k) {
-          const int i = active[static_cast<size_t>(k)];
-          double newSolvent = kept[i] * solvent[i];
-          double newSolute = kept[i] * solute[i];
-          for (int m = ringOffsets[i]; m < ringOffsets[i + 1]; ++m) {
-            const int j = ringNeighbors[m];
-            newSolvent += shares[m] * solvent[j];
-            newSolute += shares[m] * solute[j];
-          }
-          nextSolvent[i] = newSolvent;
-          nextSolute[i] = newSolute;
-        }
-      }
-      const Vector& solvent = *solventBuffers[substeps % 2];
-      const Vector& solute = *soluteBuffers[substeps % 2];
+    for (int k = 0; k < count; ++k) {
+      const int i = active[static_cast<size_t>(k)];
+      state.solvent(i) = solvent(i) / areas(i);
+      state.solute(i) = solute(i) / areas(i);
+      marks[static_cast<size_t>(i)] = 0;
+    }
+    // Leave every entry a later call may read as an inactive neighbour at 0.
 #pragma omp for schedule(static)
-      for (int k = 0; k < count; ++k) {
-        const int i = active[static_cast<size_t>(k)];
-        state.solvent(i) = solvent(i) / areas(i);
-        state.solute(i) = solute(i) / areas(i);
-        marks[static_cast<size_t>(i)] = 0;
-      }
-      // Leave every entry a later call may read as an inactive neighbour at 0.
-#pragma omp for schedule(static)
-      for (int k = 0; k < count; ++k) {
-        const int i = active[static_cast<size_t>(k)];
-        scratch.givingRatios(i) = 0.0;
-        scratch.massSolvent(i) = scratch.massSolute(i) = 0.0;
-        scratch.nextMassSolvent(i) = scratch.nextMassSolute(i) = 0.0;
-      }
+    for (int k = 0; k < count; ++k) {
+      const int i = active[static_cast<size_t>(k)];
+      scratch.givingRatios(i) = 0.0;
+      scratch.massSolvent(i) = scratch.massSolute(i) = 0.0;
+      scratch.nextMassSolvent(i) = scratch.nextMassSolute(i) = 0.0;
+    }
   });
   report.limitedVertices = limited;
   return report;

@@ -174,8 +174,13 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
       for (int c = 0; c < 2; ++c) {
         double largest = 0.0;  // a max: the same in any order
         threads::runLoop(threaded, [&] {
-#pragma omp for schedule(static) reduction(max : largest)
-          for (int k = 0; k < count; ++k) largest = std::max(largest, std::abs(dx[2 * list[k] + c]));
+          decltype(largest) largestHere = threads::lowest<decltype(largest)>();
+#pragma omp for schedule(static) nowait
+          for (int k = 0; k < count; ++k) largestHere = std::max(largestHere, std::abs(dx[2 * list[k] + c]));
+#pragma omp critical(blot_threads_combine)
+          {
+            largest = std::max(largest, largestHere);
+          }
         });
         const double floor = kIterativeTolerance * largest;
         threads::runLoop(threaded, [&] {
