@@ -692,73 +692,58 @@ void SurfaceGeometry::addCounts(const FitCounts& counts) {
   rotationFitStats_.svdFallbacks += counts.fallbacks;
 }
 
+namespace {
+
+// Runs prepare(vertexAt(k), counts) for k in [0, count), on the calling
+// thread's OpenMP threads from kMinParallelVertices on (threads::runLoop),
+// adding the fit counts into `total`; prepare returns false for a vertex it
+// skipped (already prepared). Returns how many it prepared. The sums are
+// integers, the same in any order.
+template <typename Counts, typename VertexAt, typename Prepare>
+int prepareEach(int count, const VertexAt& vertexAt, const Prepare& prepare, Counts& total) {
+  int prepared = 0;
+  threads::runLoop(count >= kMinParallelVertices, [&] {
+    Counts here;
+    int preparedHere = 0;
+#pragma omp for schedule(static) nowait
+    for (int k = 0; k < count; ++k) {
+      Counts counts;
+      if (!prepare(vertexAt(k), counts)) continue;
+      here.fitted += counts.fitted;
+      here.fallbacks += counts.fallbacks;
+      here.iterations += counts.iterations;
+      ++preparedHere;
+    }
+#pragma omp critical(blot_threads_combine)
+    {
+      total.fitted += here.fitted;
+      total.fallbacks += here.fallbacks;
+      total.iterations += here.iterations;
+      prepared += preparedHere;
+    }
+  });
+  return prepared;
+}
+
+}  // namespace
+
 void SurfaceGeometry::prepareVertices(const int* vertices, int count) {
   const int n = topology_->vertexCount();
   for (int k = 0; k < count; ++k)
     if (vertices[k] < 0 || vertices[k] >= n)
       throw std::invalid_argument("SurfaceGeometry::prepareVertices: vertex " + std::to_string(vertices[k]) +
                                   " out of range [0, " + std::to_string(n) + ")");
-  int fitted = 0, fallbacks = 0, prepared = 0;
-  long iterations = 0;
   // Repeated ids would race: the parallel loop is for lists without repeats
   // (the band), which is what large lists are.
-  threads::runLoop(count >= kMinParallelVertices, [&] {
-    decltype(fitted) fittedHere = 0;
-    decltype(fallbacks) fallbacksHere = 0;
-    decltype(iterations) iterationsHere = 0;
-    decltype(prepared) preparedHere = 0;
-#pragma omp for schedule(static) nowait
-    for (int k = 0; k < count; ++k) {
-      const int i = vertices[k];
-      if (preparedAt_[static_cast<size_t>(i)] == refreshIndex_) continue;
-      FitCounts counts;
-      prepareOne(i, counts);
-      fittedHere += counts.fitted;
-      fallbacksHere += counts.fallbacks;
-      iterationsHere += counts.iterations;
-      ++preparedHere;
-    }
-#pragma omp critical(blot_threads_combine)
-    {
-      fitted += fittedHere;
-      fallbacks += fallbacksHere;
-      iterations += iterationsHere;
-      prepared += preparedHere;
-    }
-  });
-  preparedCount_ += prepared;
-  addCounts(FitCounts{fitted, iterations, fallbacks});
+  FitCounts total;
+  preparedCount_ += prepareEach(count, [&](int k) { return vertices[k]; }, staleVertexPreparer(), total);
+  addCounts(total);
 }
 
 void SurfaceGeometry::prepareAllVertices() {
-  const int n = topology_->vertexCount();
-  int fitted = 0, fallbacks = 0, prepared = 0;
-  long iterations = 0;
-  threads::runLoop(n >= kMinParallelVertices, [&] {
-    decltype(fitted) fittedHere = 0;
-    decltype(fallbacks) fallbacksHere = 0;
-    decltype(iterations) iterationsHere = 0;
-    decltype(prepared) preparedHere = 0;
-#pragma omp for schedule(static) nowait
-    for (int i = 0; i < n; ++i) {
-      if (preparedAt_[static_cast<size_t>(i)] == refreshIndex_) continue;
-      FitCounts counts;
-      prepareOne(i, counts);
-      fittedHere += counts.fitted;
-      fallbacksHere += counts.fallbacks;
-      iterationsHere += counts.iterations;
-      ++preparedHere;
-    }
-#pragma omp critical(blot_threads_combine)
-    {
-      fitted += fittedHere;
-      fallbacks += fallbacksHere;
-      iterations += iterationsHere;
-      prepared += preparedHere;
-    }
-  });
-  preparedCount_ += prepared;
-  addCounts(FitCounts{fitted, iterations, fallbacks});
+  FitCounts total;
+  preparedCount_ += prepareEach(topology_->vertexCount(), [](int i) { return i; }, staleVertexPreparer(), total);
+  addCounts(total);
 }
 
 SurfaceGeometry::DynamicState SurfaceGeometry::dynamicState() const {

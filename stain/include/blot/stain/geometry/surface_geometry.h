@@ -359,6 +359,15 @@ class SurfaceGeometry {
   // This refresh's values of vertex i into d; currentValid: d's t slot of i is up to date.
   void prepareInto(DynamicState& d, int i, bool currentValid, FitCounts& counts) const;
   void prepareOne(int i, FitCounts& counts);
+  // prepareOne for a vertex not yet prepared since the refresh (returns
+  // false for one that is), as a callable for the parallel loops.
+  auto staleVertexPreparer() {
+    return [this](int i, FitCounts& counts) {
+      if (vertexPrepared(i)) return false;
+      prepareOne(i, counts);
+      return true;
+    };
+  }
   void addCounts(const FitCounts& counts);
 
   const SurfaceTopology* topology_;
