@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <stdexcept>
 #include <string>
@@ -594,6 +595,32 @@ void BulletCloth::restoreState(const BulletClothState& state) {
   if (!state.pinTargets.allFinite()) throw std::invalid_argument("BulletClothState: pinTargets must be finite");
   if (!std::isfinite(state.time) || !state.positions.allFinite() || !state.velocities.allFinite())
     throw std::invalid_argument("BulletCloth::restoreState: time, positions and velocities must be finite");
+  // Every value below goes into a btScalar (float in Debian's Bullet): one
+  // beyond its range would become infinite there and be saved as such, so a
+  // state that loads could not be loaded again (fuzz_state found it).
+  const double limit = static_cast<double>(std::numeric_limits<btScalar>::max());
+  auto representable = [limit](const char* field, const auto& values) {
+    const auto* v = values.data();
+    for (Eigen::Index k = 0; k < values.size(); ++k)
+      if (!(std::abs(v[k]) <= limit))
+        throw std::invalid_argument(std::string("BulletCloth::restoreState: ") + field + " entry " +
+                                    std::to_string(k) + " is " + std::to_string(v[k]) +
+                                    "; Bullet's values must lie in [-" + std::to_string(limit) + ", " +
+                                    std::to_string(limit) + "]");
+  };
+  representable("positions", state.positions);
+  representable("previousPositions", state.previousPositions);
+  representable("velocities", state.velocities);
+  representable("previousVelocities", state.previousVelocities);
+  representable("forces", state.forces);
+  representable("nodeNormals", state.nodeNormals);
+  representable("nodeAreas", state.nodeAreas);
+  representable("faceNormals", state.faceNormals);
+  representable("inverseMasses", state.inverseMasses);
+  representable("nodeMasses", state.nodeMasses);
+  representable("pendingExtraMasses", state.pendingExtraMasses);
+  representable("pendingImpulses", state.pendingImpulses);
+  representable("pinTargets", state.pinTargets);
 
   Bullet& b = *bullet_;
   btSoftBody& body = *b.body;
