@@ -12,8 +12,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iomanip>
 #include <limits>
 #include <numeric>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -602,11 +604,12 @@ void BulletCloth::restoreState(const BulletClothState& state) {
   auto representable = [limit](const char* field, const auto& values) {
     const auto* v = values.data();
     for (Eigen::Index k = 0; k < values.size(); ++k)
-      if (!(std::abs(v[k]) <= limit))
-        throw std::invalid_argument(std::string("BulletCloth::restoreState: ") + field + " entry " +
-                                    std::to_string(k) + " is " + std::to_string(v[k]) +
-                                    "; Bullet's values must lie in [-" + std::to_string(limit) + ", " +
-                                    std::to_string(limit) + "]");
+      if (!(std::abs(v[k]) <= limit)) {
+        std::ostringstream message;
+        message << std::setprecision(17) << "BulletCloth::restoreState: " << field << " entry " << k << " is " << v[k]
+                << std::setprecision(3) << "; Bullet's values must lie in [-" << limit << ", " << limit << "]";
+        throw std::invalid_argument(message.str());
+      }
   };
   representable("positions", state.positions);
   representable("previousPositions", state.previousPositions);
