@@ -312,9 +312,13 @@ void BulletCloth::setLiquidLoads(const Eigen::VectorXd& extraNodeMasses, const E
   const int n = vertexCount();
   if (extraNodeMasses.size() != n || nodeImpulses.rows() != n)
     throw std::invalid_argument("BulletCloth::setLiquidLoads: expected " + std::to_string(n) + " rows");
-  if (!extraNodeMasses.allFinite() || extraNodeMasses.minCoeff() < 0)
-    throw std::invalid_argument("BulletCloth::setLiquidLoads: masses must be finite and >= 0");
-  if (!nodeImpulses.allFinite()) throw std::invalid_argument("BulletCloth::setLiquidLoads: impulses must be finite");
+  // The limit keeps every value inside the float range of Bullet's nodes (and
+  // of the rollback point, which restoreState checks against that range).
+  if (!extraNodeMasses.allFinite() ||
+      (n > 0 && !(extraNodeMasses.minCoeff() >= 0 && extraNodeMasses.maxCoeff() <= kMaxLiquidLoad)))
+    throw std::invalid_argument("BulletCloth::setLiquidLoads: masses must lie in [0, 1e30] kg");
+  if (!nodeImpulses.allFinite() || (n > 0 && !(nodeImpulses.cwiseAbs().maxCoeff() <= kMaxLiquidLoad)))
+    throw std::invalid_argument("BulletCloth::setLiquidLoads: impulses must be finite, each component within 1e30 N s");
   pendingExtraMasses_ = extraNodeMasses;  // same size: no allocation
   pendingImpulses_ = nodeImpulses;
   loadsPending_ = true;

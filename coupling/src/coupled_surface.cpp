@@ -131,7 +131,9 @@ void CoupledSurface::gatherLiquid(Eigen::VectorXd& masses, Eigen::MatrixX3d* rel
   const int n = s.vertexCount();
   for (int i = 0; i < n; ++i) {
     const double free = s.freeDensity(i);
-    masses[i] = areas[i] * s.liquidDensity(i);
+    // The stages leave rounding-sized negative densities (down to −1e-12 of
+    // the largest, StainSolver's check): the cloth carries no negative mass.
+    masses[i] = std::max(0.0, areas[i] * s.liquidDensity(i));
     if (relativeMomenta == nullptr) continue;
     if (free > 0 && relative_ == RelativeMomentum::Free) {
       relativeMomenta->row(i) = ((areas[i] * free) * relativeVelocity(i)).transpose();
@@ -144,7 +146,10 @@ void CoupledSurface::gatherLiquid(Eigen::VectorXd& masses, Eigen::MatrixX3d* rel
 stain::StepReport CoupledSurface::step(double h) {
   const Clock::time_point start = Clock::now();
   Clock::time_point mark = start;
-  if (mode_ == CouplingMode::TwoWay) takeLiquidAtStart();
+  if (mode_ == CouplingMode::TwoWay) {
+    const stain::StepReport taken = takeLiquidAtStart();
+    if (!taken.ok()) return taken;  // nothing has changed yet
+  }
   const double exchange = millisecondsSince(mark);
 
   mark = Clock::now();
@@ -168,12 +173,24 @@ stain::StepReport CoupledSurface::step(double h) {
   return report;
 }
 
-void CoupledSurface::takeLiquidAtStart() {
+stain::StepReport CoupledSurface::takeLiquidAtStart() {
+  stain::StepReport report;
+  report.stage = stain::Stage::Coupling;
   gatherLiquid(startMasses_, &startRelative_);
-  if (startMasses_ != liquidMasses_) {
-    liquidMasses_ = startMasses_;
-    motion_->setLiquidLoads(liquidMasses_, impulses_);
-  }
+  if (startMasses_ == liquidMasses_) return report;
+  // Only a state given from outside (a drop, a write to the stain's state, a
+  // load) can put more on a vertex than its node takes; the stages cannot.
+  for (Eigen::Index i = 0; i < startMasses_.size(); ++i)
+    if (!(startMasses_[i] <= cloth::kMaxLiquidLoad)) {
+      report.status = stain::StepStatus::NonFinite;
+      report.vertex = static_cast<int>(i);
+      report.message = "the liquid at vertex " + std::to_string(i) + " (" + std::to_string(startMasses_[i]) +
+                       " kg) is more than a cloth node takes (1e30 kg); nothing changed";
+      return report;
+    }
+  liquidMasses_ = startMasses_;
+  motion_->setLiquidLoads(liquidMasses_, impulses_);
+  return report;
 }
 
 stain::StepReport CoupledSurface::advanceCloth(double h) {

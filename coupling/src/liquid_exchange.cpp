@@ -1,5 +1,7 @@
 #include <blot/coupling/liquid_exchange.h>
 
+#include <blot/cloth/surface_motion.h>
+
 #include <cmath>
 
 namespace blot::coupling {
@@ -16,7 +18,9 @@ int exchangeMomentum(const Eigen::VectorXd& startMasses, const Eigen::VectorXd& 
         (endMasses[i] - startMasses[i]) * vi + (endRelative.row(i) - startRelative.row(i)).transpose();
     impulses.row(i) = (-change - vapour * vi).transpose();
     vapourMomentum += vapour * vi;
-    if (bad < 0 && !(impulses.row(i).allFinite() && std::isfinite(endMasses[i]))) bad = static_cast<int>(i);
+    const bool loadable = impulses.row(i).allFinite() && impulses.row(i).cwiseAbs().maxCoeff() <= cloth::kMaxLiquidLoad &&
+                          std::isfinite(endMasses[i]) && endMasses[i] <= cloth::kMaxLiquidLoad;
+    if (bad < 0 && !loadable) bad = static_cast<int>(i);
   }
   return bad;
 }

@@ -3,6 +3,7 @@
 // Design note: docs/design-notes.md, "engine/src/engine_state.cpp".
 #include <blot/engine/engine.h>
 
+#include <blot/cloth/surface_motion.h>
 #include <blot/stain/io/atomic_file.h>
 #include <blot/stain/io/bounded_read.h>
 
@@ -351,6 +352,29 @@ void checkSnapshot(const Reader& r, const stain::StainSolverSnapshot& s, std::in
         r.fail(std::string("state.") + name + "[" + std::to_string(i) + "] = " + std::to_string((*field)[i]) +
                " is negative");
   }
+  // The metric's lengths and areas divide and weigh everything downstream
+  // (a negative dual area makes a negative liquid mass for the cloth).
+  const stain::IntrinsicGeometry& in = s.geometry.intrinsic;
+  const std::pair<const char*, const Eigen::VectorXd*> positive[] = {
+      {"geometry.intrinsic.edgeLengths", &in.edgeLengths},
+      {"geometry.intrinsic.faceAreas", &in.faceAreas},
+      {"geometry.intrinsic.vertexDualAreas", &in.vertexDualAreas},
+      {"geometry.inverseBuiltSquaredLengths", &s.geometry.inverseBuiltSquaredLengths}};
+  for (const auto& [name, field] : positive)
+    for (Eigen::Index i = 0; i < field->size(); ++i)
+      if (!((*field)[i] > 0))
+        r.fail(std::string(name) + "[" + std::to_string(i) + "] = " + std::to_string((*field)[i]) +
+               ", expected > 0");
+  // The liquid a vertex holds (its pools times its dual area) is what the
+  // coupling hands the cloth: at most what a node takes, or the load is
+  // refused here rather than the next step.
+  bool sized = in.vertexDualAreas.size() == vertices;
+  for (const auto& [name, field] : fields) sized = sized && field->size() == vertices;
+  if (sized)  // (otherwise StainSolver::restore refuses the sizes)
+    for (int i = 0; i < s.state.vertexCount(); ++i)
+      if (!(in.vertexDualAreas[i] * s.state.liquidDensity(i) <= cloth::kMaxLiquidLoad))
+        r.fail("the liquid at vertex " + std::to_string(i) + " (dual area " + std::to_string(in.vertexDualAreas[i]) +
+               " m^2 times its pools) is more than 1e30 kg, the most a vertex may hold");
 }
 
 }  // namespace

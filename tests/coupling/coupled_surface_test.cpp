@@ -67,6 +67,50 @@ TEST(CoupledSurface, OneWayLeavesTheClothAloneTwoWayLoadsIt) {
   EXPECT_TRUE(b.isHealthy());
 }
 
+// The stages may leave a density a rounding error below zero (StainSolver
+// accepts down to −1e-12 of the largest): the cloth then carries no liquid
+// there, instead of refusing a negative node mass (fuzz_state found the
+// throw through a tampered dual area, docs/reliability.md finding 7).
+TEST(CoupledSurface, ARoundingNegativeDensityFeedsTheClothNoMassAndTheStepRuns) {
+  const test::CoupledFlag flag = test::makeCoupledFlag(8, true);
+  auto twoWay = test::makeCoupledSurface(flag, CouplingMode::TwoWay);
+  twoWay->stain().addDrop(heavyDrop({0.5, 0, 0.5}, 0.05));
+  ASSERT_EQ(twoWay->step(kFrame).status, stain::StepStatus::Ok);
+  const stain::StainState& s = twoWay->stain().state();
+  int dry = -1;
+  for (int i = 0; i < s.vertexCount() && dry < 0; ++i)
+    if (s.liquidDensity(i) == 0) dry = i;
+  ASSERT_GE(dry, 0) << "the drop wetted every vertex";
+  twoWay->stain().mutableState().solvent[dry] = -1e-20;
+  const stain::StepReport report = twoWay->step(kFrame);
+  EXPECT_EQ(report.status, stain::StepStatus::Ok) << report.message;
+  EXPECT_GE(twoWay->liquidNodeMasses().minCoeff(), 0.0);
+  EXPECT_TRUE(blot::testing::bulletClothOf(*twoWay).isHealthy());
+}
+
+// More liquid on a vertex than a cloth node takes (cloth::kMaxLiquidLoad; only
+// a write from outside can put it there) fails the step before anything
+// moves, naming the vertex, instead of reaching Bullet's float nodes (fuzz_state
+// found the throw from the rollback, docs/reliability.md finding 8).
+TEST(CoupledSurface, MoreLiquidThanANodeTakesFailsTheStepAndChangesNothing) {
+  const test::CoupledFlag flag = test::makeCoupledFlag(8, true);
+  auto twoWay = test::makeCoupledSurface(flag, CouplingMode::TwoWay);
+  twoWay->stain().addDrop(heavyDrop({0.5, 0, 0.5}, 0.05));
+  ASSERT_EQ(twoWay->step(kFrame).status, stain::StepStatus::Ok);
+  const int vertex = 5;
+  const double area = twoWay->stain().geometry().intrinsic().vertexDualAreas[vertex];
+  twoWay->stain().mutableState().solvent[vertex] = 2 * cloth::kMaxLiquidLoad / area;
+  const Eigen::MatrixX3d positions = twoWay->motion().positions();
+  const double time = twoWay->motion().time();
+  const stain::StepReport report = twoWay->step(kFrame);
+  EXPECT_EQ(report.status, stain::StepStatus::NonFinite);
+  EXPECT_EQ(report.vertex, vertex);
+  EXPECT_NE(report.message.find("more than a cloth node takes"), std::string::npos) << report.message;
+  EXPECT_EQ(twoWay->motion().positions(), positions);
+  EXPECT_EQ(twoWay->motion().time(), time);
+  EXPECT_TRUE(blot::testing::bulletClothOf(*twoWay).isHealthy());
+}
+
 // After the first step, a step allocates nothing: two-way Bullet flag (no
 // colliders; Bullet's own per-substep scratch is recycled, see bullet_cloth.cpp)
 // and a rigid motion. The stain's intrinsic rebuild (when the cloth's strain

@@ -26,6 +26,14 @@ class MotionStateVisitor {
 /// it: positions and velocities out; liquid loads in (a simulated cloth);
 /// health; the rollback point of a failed step; a known rigid rotation; the
 /// dynamic state for save/load. No caller needs the concrete type.
+/// The largest liquid load a cloth node takes: 1e30 kg of liquid, or an
+/// impulse component of 1e30 N·s. Far beyond any scene (a drop is at most
+/// 1e6 kg), and small enough that the node's mass, its inverse and its
+/// momentum at 1e6 m/s all stay inside the float range Bullet keeps them in.
+/// The coupling turns a load beyond it into a failed step, and a state file
+/// holding one is refused at load (docs/reliability.md, finding 8).
+inline constexpr double kMaxLiquidLoad = 1e30;
+
 class SurfaceMotion {
  public:
   virtual ~SurfaceMotion() = default;
@@ -51,8 +59,9 @@ class SurfaceMotion {
   /// True for a simulated cloth that takes the liquid's loads (two-way
   /// coupling); a prescribed motion cannot be pushed back.
   virtual bool acceptsLiquidLoads() const { return false; }
-  /// Liquid node masses (#V, kg, ≥ 0) and impulses (#V by 3, N·s) applied at
-  /// the next advance(). Throws std::logic_error unless acceptsLiquidLoads().
+  /// Liquid node masses (#V, kg, in [0, kMaxLiquidLoad]) and impulses (#V by
+  /// 3, N·s, each component within ±kMaxLiquidLoad) applied at the next
+  /// advance(). Throws std::logic_error unless acceptsLiquidLoads().
   virtual void setLiquidLoads(const Eigen::VectorXd& extraNodeMasses, const Eigen::MatrixX3d& nodeImpulses);
   /// The cloth's own node masses (#V, kg), or null when the motion has none
   /// (a prescribed motion).

@@ -119,12 +119,18 @@ class CoupledSurface {
   /// Restores what the coupling carries from one step to the next (engine
   /// save/load; the stain and cloth restore their own state): the liquid
   /// masses last fed to the cloth (#V, kg), the impulses owed to it (#V by 3,
-  /// N·s) and the vapour momentum so far. Throws std::invalid_argument on a size mismatch.
+  /// N·s) and the vapour momentum so far. Throws std::invalid_argument on a size
+  /// mismatch or a negative or non-finite mass.
   void restoreCarriedState(const Eigen::VectorXd& liquidMasses, const Eigen::MatrixX3d& impulses,
                            const Eigen::Vector3d& evaporatedMomentum) {
     if (liquidMasses.size() != liquidMasses_.size() || impulses.rows() != impulses_.rows())
       throw std::invalid_argument("CoupledSurface::restoreCarriedState: expected " +
                                   std::to_string(liquidMasses_.size()) + " vertices");
+    if (!liquidMasses.allFinite() || (liquidMasses.size() > 0 && !(liquidMasses.minCoeff() >= 0 &&
+                                                                   liquidMasses.maxCoeff() <= cloth::kMaxLiquidLoad)))
+      throw std::invalid_argument("CoupledSurface::restoreCarriedState: liquid masses must lie in [0, 1e30] kg");
+    if (!impulses.allFinite() || (impulses.size() > 0 && !(impulses.cwiseAbs().maxCoeff() <= cloth::kMaxLiquidLoad)))
+      throw std::invalid_argument("CoupledSurface::restoreCarriedState: impulses must lie within 1e30 N s");
     liquidMasses_ = liquidMasses;
     impulses_ = impulses;
     evaporatedMomentum_ = evaporatedMomentum;
@@ -134,7 +140,8 @@ class CoupledSurface {
   void gatherLiquid(Eigen::VectorXd& masses, Eigen::MatrixX3d* relativeMomenta) const;
   /// Two-way, before the cloth moves: the liquid as the stain holds it now (a
   /// drop added since the last step changes it; the cloth must carry that too).
-  void takeLiquidAtStart();
+  /// A failed report (a vertex holding more than a node takes) changes nothing.
+  stain::StepReport takeLiquidAtStart();
   /// Stage Cloth: keeps the rollback point, advances the motion, checks it.
   stain::StepReport advanceCloth(double h);
   /// Stage Coupling: the loads for the next cloth step (exchangeMomentum).

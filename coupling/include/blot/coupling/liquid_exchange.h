@@ -14,7 +14,8 @@ namespace blot::coupling {
 /// (#V, kg; StainSolver::evaporatedMass): vapour leaves with its node's
 /// velocity, and vapourMomentum (kg m/s) gains Σ eᵢ vᵢ, summed in vertex
 /// order. Writes impulses (#V by 3, N·s). Returns the first vertex whose
-/// impulse or end mass is not finite, or −1.
+/// impulse or end mass is not finite or beyond what a cloth node takes
+/// (cloth::kMaxLiquidLoad), or −1.
 int exchangeMomentum(const Eigen::VectorXd& startMasses, const Eigen::VectorXd& endMasses,
                      const Eigen::MatrixX3d& startRelative, const Eigen::MatrixX3d& endRelative,
                      const Eigen::MatrixX3d& nodeVelocities, const Eigen::VectorXd& evaporatedMass,
