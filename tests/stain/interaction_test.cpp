@@ -34,7 +34,7 @@ struct InteractionMesh : ::testing::Test {
   const int n = 6;
   LiquidMesh g{gridMesh(n, n, 1, 1), isotropicFabric(2 * n * n)};
   StainState state = zeroState(g.vertexCount());
-  const std::vector<char> allWet;  // empty: every vertex
+  const std::vector<char> allWet{};  // empty: every vertex
   double soluteTotal() const {
     return totalMass(g.areas(), state.solute) + totalMass(g.areas(), state.absorbedSolute) +
            totalMass(g.areas(), state.adsorbedSolute);
