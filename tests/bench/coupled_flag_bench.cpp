@@ -10,6 +10,8 @@
 // Counters (ms per step, wall clock, mean over the timed steps): bullet,
 // stain, coupling, bare (the bare Bullet step), ratio = (stain + coupling) /
 // bare, rebuilds = fraction of steps that rebuilt the stain's intrinsic tier,
+// substeps = density-advection sub-steps per step, band = the liquid band's
+// vertices per step (both set by the fastest velocity in the wet set),
 // healthy = both cloths healthy at the end.
 // Run: coupled_flag_bench --benchmark_counters_tabular=true
 #include <blot/coupling/coupled_surface.h>
@@ -47,6 +49,7 @@ void BM_CoupledFlag(benchmark::State& state) {
   }
   double bullet = 0, stainMs = 0, coupling = 0, bareMs = 0;
   long steps = 0, rebuilds = 0;
+  long substeps = 0, band = 0;
   for (auto _ : state) {
     coupled->step(kFrame);
     const auto start = std::chrono::steady_clock::now();
@@ -57,6 +60,8 @@ void BM_CoupledFlag(benchmark::State& state) {
     stainMs += t.stain;
     coupling += t.coupling;
     rebuilds += coupled->stain().profile().intrinsicRefreshes;
+    substeps += coupled->stain().profile().advectionSubsteps;
+    band += coupled->stain().profile().bandVertices;
     ++steps;
   }
   const double n = static_cast<double>(steps);
@@ -66,6 +71,8 @@ void BM_CoupledFlag(benchmark::State& state) {
   state.counters["bare"] = bareMs / n;
   state.counters["ratio"] = (stainMs + coupling) / bareMs;
   state.counters["rebuilds"] = static_cast<double>(rebuilds) / n;
+  state.counters["substeps"] = static_cast<double>(substeps) / n;
+  state.counters["band"] = static_cast<double>(band) / n;
   state.counters["wet"] = coupled->stain().profile().wetVertices;
   state.counters["healthy"] = coupled->motion().isHealthy() && bare.isHealthy() ? 1 : 0;
 }
