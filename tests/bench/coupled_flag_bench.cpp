@@ -7,6 +7,9 @@
 //    refactorizes every step; 20 = 2%, what the coupled tests use; 50 = 5%,
 //    the Bullet scenes' default since issue 15; 1000 =
 //    never rebuild, to show what the rebuilds cost).
+//  - Arg free_velocity: PhysicsSwitches::velocityOnFreeLiquid (1, the default:
+//    u = 0 at soaked vertices without free liquid; 0: as before issue 15's
+//    session 5, when their u kept accumulating the forces).
 // Counters (ms per step, wall clock, mean over the timed steps): bullet,
 // stain, coupling, bare (the bare Bullet step), ratio = (stain + coupling) /
 // bare, rebuilds = fraction of steps that rebuilt the stain's intrinsic tier,
@@ -30,6 +33,7 @@ constexpr double kFrame = 1.0 / 60;
 void BM_CoupledFlag(benchmark::State& state) {
   test::CoupledFlag flag = test::makeCoupledFlag(49, true);
   flag.stain.strainTolerance = 1e-3 * static_cast<double>(state.range(0));
+  flag.stain.switches.velocityOnFreeLiquid = state.range(1) != 0;
   auto coupled = test::makeCoupledSurface(flag, CouplingMode::TwoWay);
   cloth::BulletCloth bare(flag.cloth);
   // Settle 0.5 s, add a heavy stain (as heavy as the cloth), let it spread 0.5 s.
@@ -76,7 +80,11 @@ void BM_CoupledFlag(benchmark::State& state) {
   state.counters["wet"] = coupled->stain().profile().wetVertices;
   state.counters["healthy"] = coupled->motion().isHealthy() && bare.isHealthy() ? 1 : 0;
 }
-BENCHMARK(BM_CoupledFlag)->ArgName("strain")->Arg(1)->Arg(20)->Arg(50)->Arg(1000)->Iterations(300)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_CoupledFlag)
+    ->ArgNames({"strain", "free_velocity"})
+    ->ArgsProduct({{1, 20, 50, 1000}, {0, 1}})
+    ->Iterations(300)
+    ->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace blot::coupling
