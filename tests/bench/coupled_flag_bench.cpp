@@ -7,9 +7,14 @@
 //    refactorizes every step; 20 = 2%, what the coupled tests use; 50 = 5%,
 //    the Bullet scenes' default since issue 15; 1000 =
 //    never rebuild, to show what the rebuilds cost).
+//  - Arg free_velocity: PhysicsSwitches::velocityOnFreeLiquid (1, the default:
+//    u = 0 at soaked vertices without free liquid; 0: as before issue 15's
+//    session 5, when their u kept accumulating the forces).
 // Counters (ms per step, wall clock, mean over the timed steps): bullet,
 // stain, coupling, bare (the bare Bullet step), ratio = (stain + coupling) /
 // bare, rebuilds = fraction of steps that rebuilt the stain's intrinsic tier,
+// substeps = density-advection sub-steps per step, band = the liquid band's
+// vertices per step (both set by the fastest velocity in the wet set),
 // healthy = both cloths healthy at the end.
 // Run: coupled_flag_bench --benchmark_counters_tabular=true
 #include <blot/coupling/coupled_surface.h>
@@ -28,6 +33,7 @@ constexpr double kFrame = 1.0 / 60;
 void BM_CoupledFlag(benchmark::State& state) {
   test::CoupledFlag flag = test::makeCoupledFlag(49, true);
   flag.stain.strainTolerance = 1e-3 * static_cast<double>(state.range(0));
+  flag.stain.switches.velocityOnFreeLiquid = state.range(1) != 0;
   auto coupled = test::makeCoupledSurface(flag, CouplingMode::TwoWay);
   cloth::BulletCloth bare(flag.cloth);
   // Settle 0.5 s, add a heavy stain (as heavy as the cloth), let it spread 0.5 s.
@@ -47,6 +53,7 @@ void BM_CoupledFlag(benchmark::State& state) {
   }
   double bullet = 0, stainMs = 0, coupling = 0, bareMs = 0;
   long steps = 0, rebuilds = 0;
+  long substeps = 0, band = 0;
   for (auto _ : state) {
     coupled->step(kFrame);
     const auto start = std::chrono::steady_clock::now();
@@ -57,6 +64,8 @@ void BM_CoupledFlag(benchmark::State& state) {
     stainMs += t.stain;
     coupling += t.coupling;
     rebuilds += coupled->stain().profile().intrinsicRefreshes;
+    substeps += coupled->stain().profile().advectionSubsteps;
+    band += coupled->stain().profile().bandVertices;
     ++steps;
   }
   const double n = static_cast<double>(steps);
@@ -66,10 +75,16 @@ void BM_CoupledFlag(benchmark::State& state) {
   state.counters["bare"] = bareMs / n;
   state.counters["ratio"] = (stainMs + coupling) / bareMs;
   state.counters["rebuilds"] = static_cast<double>(rebuilds) / n;
+  state.counters["substeps"] = static_cast<double>(substeps) / n;
+  state.counters["band"] = static_cast<double>(band) / n;
   state.counters["wet"] = coupled->stain().profile().wetVertices;
   state.counters["healthy"] = coupled->motion().isHealthy() && bare.isHealthy() ? 1 : 0;
 }
-BENCHMARK(BM_CoupledFlag)->ArgName("strain")->Arg(1)->Arg(20)->Arg(50)->Arg(1000)->Iterations(300)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_CoupledFlag)
+    ->ArgNames({"strain", "free_velocity"})
+    ->ArgsProduct({{1, 20, 50, 1000}, {0, 1}})
+    ->Iterations(300)
+    ->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace blot::coupling

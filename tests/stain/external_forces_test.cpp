@@ -2,6 +2,7 @@
 // tangential gravity on a tilted plane, Coriolis exact rotation against the
 // explicit update's closed-form energy gain, the wet mask and the switches.
 #include <blot/stain/stages/external_forces.h>
+#include <blot/stain/stages/liquid_band.h>
 #include <blot/stain/geometry/operators.h>
 #include <blot/stain/geometry/surface_geometry.h>
 #include <gtest/gtest.h>
@@ -175,6 +176,34 @@ TEST(ExternalForces, DryVerticesAndSwitchedOffTermsAreUntouched) {
   off.velocities.setConstant(Complex(0.1, 0.2));
   applyExternalForces(contextOnly(0.01, false, false, false), g.extrinsic, {}, off);
   for (int i = 0; i < g.vertexCount(); ++i) EXPECT_EQ(off.velocities(i), Complex(0.1, 0.2));
+}
+
+// Fibre-held liquid carries no velocity: a wet-set vertex with no free liquid
+// (absorbed only) has u cleared before the forces, so it gains h·g per step
+// instead of accumulating it; one with free liquid, and every vertex outside
+// the wet set (the band's extension, kept), are untouched; the switch off
+// keeps the old accumulation.
+TEST(ExternalForces, WetVerticesWithoutFreeLiquidCarryNoVelocity) {
+  StageGeometry g = tiltedSheet(0.8);
+  const int n = g.vertexCount();
+  std::vector<char> band(static_cast<size_t>(n), 1);
+  StainState state = zeroState(n);
+  state.velocities.setConstant(Complex(3.0, -4.0));
+  for (int i = 0; i < n; i += 2) {
+    band[static_cast<size_t>(i)] = LiquidBand::kHoldsLiquid;
+    state.absorbedSolvent(i) = 0.5;
+    if (i % 4 == 0) state.solvent(i) = 0.2;  // free liquid too
+  }
+  StepContext ctx = contextOnly(0.01, false, false, false);
+  StainState off = state;
+  clearVelocityWithoutFreeLiquid(ctx, band, state);
+  for (int i = 0; i < n; ++i) {
+    const bool cleared = band[static_cast<size_t>(i)] == LiquidBand::kHoldsLiquid && i % 4 != 0;
+    EXPECT_EQ(state.velocities(i), cleared ? Complex(0.0, 0.0) : Complex(3.0, -4.0)) << "vertex " << i;
+  }
+  ctx.switches.velocityOnFreeLiquid = false;
+  clearVelocityWithoutFreeLiquid(ctx, band, off);
+  for (int i = 0; i < n; ++i) EXPECT_EQ(off.velocities(i), Complex(3.0, -4.0));
 }
 
 }  // namespace

@@ -5,6 +5,8 @@
 
 #include <cmath>
 
+#include <blot/stain/stages/liquid_band.h>
+
 #include "numerics/threads.h"
 
 namespace blot::stain {
@@ -54,6 +56,22 @@ void applyBodyForces(const StepContext& ctx, const ExtrinsicGeometry& geometry, 
       if (useInertia) a -= geometry.vertexAccelerations.row(i).transpose();
       const Matrix3& frame = geometry.frames[static_cast<size_t>(i)];
       state.velocities(i) += h * Complex(frame.col(0).dot(a), frame.col(1).dot(a));
+    }
+  });
+}
+
+void clearVelocityWithoutFreeLiquid(const StepContext& ctx, const std::vector<char>& wet, StainState& state,
+                                    const std::vector<int>* among) {
+  const int n = static_cast<int>(state.velocities.size());
+  if (!ctx.switches.velocityOnFreeLiquid || wet.size() != static_cast<size_t>(n)) return;
+  const double threshold = ctx.liquid.wetThreshold;
+  const int visits = visitCount(n, among);
+  threads::runLoop(visits >= kMinParallelVertices, [&] {
+#pragma omp for schedule(static)
+    for (int k = 0; k < visits; ++k) {
+      const int i = visited(k, among);
+      if (wet[static_cast<size_t>(i)] != LiquidBand::kHoldsLiquid) continue;
+      if (!(state.solvent(i) + state.solute(i) > threshold)) state.velocities(i) = Complex(0.0, 0.0);
     }
   });
 }

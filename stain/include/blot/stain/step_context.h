@@ -56,6 +56,10 @@ struct PhysicsSwitches {
   /// ignores it; off by default). Drives liquid from thick to thin film: the
   /// outward flow that forms the ring of Fig. 11 (see film_pressure.h).
   bool filmPressure = false;
+  /// u = 0 at wet vertices without free liquid (fibre-held only) before the
+  /// body forces (clearVelocityWithoutFreeLiquid). Off: their u keeps
+  /// accumulating the forces.
+  bool velocityOnFreeLiquid = true;
   bool positivityLimiter = true;  ///< mass-conserving fix of negative densities after diffusion
   CoriolisScheme coriolisScheme = CoriolisScheme::ExactRotation;
 };

@@ -21,6 +21,18 @@ namespace blot::stain {
 void applyBodyForces(const StepContext& ctx, const ExtrinsicGeometry& geometry, const std::vector<char>& wet,
                      StainState& state, const std::vector<int>* among = nullptr);
 
+/// Stage BodyForces, first (ctx.switches.velocityOnFreeLiquid): u_i = 0 at
+/// each vertex that `wet` marks LiquidBand::kHoldsLiquid (the wet set) but whose
+/// free densities σ_f + σ_s are at most ctx.liquid.wetThreshold: liquid held in
+/// the fibres only, which moves with the cloth. Nothing else resets such a
+/// vertex's u (the band's extension overwrites dry vertices only), so the
+/// forces kept accelerating it step after step (tens of m/s on a soaked
+/// hanging flag), and that velocity set the step's Courant number, band reach
+/// and backtrack lengths and the fluxes of liquid arriving there. `among` as
+/// for applyBodyForces.
+void clearVelocityWithoutFreeLiquid(const StepContext& ctx, const std::vector<char>& wet, StainState& state,
+                                    const std::vector<int>* among = nullptr);
+
 /// Stage Coriolis for a liquid that is not advected (or SplitRotation,
 /// Explicit): with ω_n = ω_i·z (frame coordinates), ExactRotation and
 /// SplitRotation multiply u_i by exp(−2iω_n h) (|u| preserved), Explicit adds
