@@ -314,10 +314,9 @@ void BulletCloth::setLiquidLoads(const Eigen::VectorXd& extraNodeMasses, const E
     throw std::invalid_argument("BulletCloth::setLiquidLoads: expected " + std::to_string(n) + " rows");
   // The limit keeps every value inside the float range of Bullet's nodes (and
   // of the rollback point, which restoreState checks against that range).
-  if (!extraNodeMasses.allFinite() ||
-      (n > 0 && !(extraNodeMasses.minCoeff() >= 0 && extraNodeMasses.maxCoeff() <= kMaxLiquidLoad)))
+  if (!massesWithinLoadLimit(extraNodeMasses))
     throw std::invalid_argument("BulletCloth::setLiquidLoads: masses must lie in [0, 1e30] kg");
-  if (!nodeImpulses.allFinite() || (n > 0 && !(nodeImpulses.cwiseAbs().maxCoeff() <= kMaxLiquidLoad)))
+  if (!impulsesWithinLoadLimit(nodeImpulses))
     throw std::invalid_argument("BulletCloth::setLiquidLoads: impulses must be finite, each component within 1e30 N s");
   pendingExtraMasses_ = extraNodeMasses;  // same size: no allocation
   pendingImpulses_ = nodeImpulses;

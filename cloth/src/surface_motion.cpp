@@ -12,6 +12,14 @@
 
 namespace blot::cloth {
 
+bool massesWithinLoadLimit(const Eigen::VectorXd& masses) {
+  return masses.allFinite() && (masses.size() == 0 || (masses.minCoeff() >= 0 && masses.maxCoeff() <= kMaxLiquidLoad));
+}
+
+bool impulsesWithinLoadLimit(const Eigen::MatrixX3d& impulses) {
+  return impulses.allFinite() && (impulses.size() == 0 || impulses.cwiseAbs().maxCoeff() <= kMaxLiquidLoad);
+}
+
 void SurfaceMotion::setLiquidLoads(const Eigen::VectorXd&, const Eigen::MatrixX3d&) {
   throw std::logic_error("this surface motion is prescribed and takes no liquid loads (two-way coupling needs a simulated cloth)");
 }

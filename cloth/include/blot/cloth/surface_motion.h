@@ -33,6 +33,10 @@ class MotionStateVisitor {
 /// The coupling turns a load beyond it into a failed step, and a state file
 /// holding one is refused at load (docs/reliability.md, finding 8).
 inline constexpr double kMaxLiquidLoad = 1e30;
+/// True when every mass lies in [0, kMaxLiquidLoad] (NaN does not).
+bool massesWithinLoadLimit(const Eigen::VectorXd& masses);
+/// True when every impulse component lies within ±kMaxLiquidLoad (NaN does not).
+bool impulsesWithinLoadLimit(const Eigen::MatrixX3d& impulses);
 
 class SurfaceMotion {
  public:

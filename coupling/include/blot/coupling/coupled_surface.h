@@ -120,16 +120,15 @@ class CoupledSurface {
   /// save/load; the stain and cloth restore their own state): the liquid
   /// masses last fed to the cloth (#V, kg), the impulses owed to it (#V by 3,
   /// N·s) and the vapour momentum so far. Throws std::invalid_argument on a size
-  /// mismatch or a negative or non-finite mass.
+  /// mismatch or a load outside cloth::kMaxLiquidLoad's range.
   void restoreCarriedState(const Eigen::VectorXd& liquidMasses, const Eigen::MatrixX3d& impulses,
                            const Eigen::Vector3d& evaporatedMomentum) {
     if (liquidMasses.size() != liquidMasses_.size() || impulses.rows() != impulses_.rows())
       throw std::invalid_argument("CoupledSurface::restoreCarriedState: expected " +
                                   std::to_string(liquidMasses_.size()) + " vertices");
-    if (!liquidMasses.allFinite() || (liquidMasses.size() > 0 && !(liquidMasses.minCoeff() >= 0 &&
-                                                                   liquidMasses.maxCoeff() <= cloth::kMaxLiquidLoad)))
+    if (!cloth::massesWithinLoadLimit(liquidMasses))
       throw std::invalid_argument("CoupledSurface::restoreCarriedState: liquid masses must lie in [0, 1e30] kg");
-    if (!impulses.allFinite() || (impulses.size() > 0 && !(impulses.cwiseAbs().maxCoeff() <= cloth::kMaxLiquidLoad)))
+    if (!cloth::impulsesWithinLoadLimit(impulses))
       throw std::invalid_argument("CoupledSurface::restoreCarriedState: impulses must lie within 1e30 N s");
     liquidMasses_ = liquidMasses;
     impulses_ = impulses;
