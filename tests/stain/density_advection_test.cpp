@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <functional>
 
+#include "sanitized_build.h"
 #include "stain_stage_test_support.h"
 
 namespace blot::stain {
@@ -70,7 +71,10 @@ TEST(DensityAdvection, RotatingFlowConservesMassExactlyAndStaysNonNegative) {
     scratch.resize(g.vertexCount(), g.topology().edgeCount());
     double worstSolvent = 0.0, worstSolute = 0.0, lowest = 0.0;
     int maxSubsteps = 0;
-    for (int step = 0; step < 1000; ++step) {
+    // 1000 steps; 200 under the sanitizers, which run this test 40 times
+    // slower (tests/support/sanitized_build.h).
+    const int steps = blot::test::stepsForThisBuild(1000, 200);
+    for (int step = 0; step < steps; ++step) {
       const DensityAdvectionReport report =
           advectDensities(ctx, g.topology(), g.intrinsic, g.extrinsic, {}, scratch, state);
       maxSubsteps = std::max(maxSubsteps, report.substeps);
@@ -86,7 +90,7 @@ TEST(DensityAdvection, RotatingFlowConservesMassExactlyAndStaysNonNegative) {
     EXPECT_GE(maxSubsteps, 2) << c.name;
     // The blob has moved (a quarter turn every π/2 s): a real transport, not a no-op.
     EXPECT_GT(state.solvent.maxCoeff(), 0.0);
-    for (int step = 0; step < 1000; ++step)
+    for (int step = 0; step < steps; ++step)
       advectDensities(ctx, g.topology(), g.intrinsic, g.extrinsic, {}, scratch, rerun);
     EXPECT_EQ(rerun.solvent, state.solvent) << c.name;
     EXPECT_EQ(rerun.solute, state.solute) << c.name;
