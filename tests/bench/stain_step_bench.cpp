@@ -196,8 +196,12 @@ void stainStepArgs(benchmark::internal::Benchmark* b) {
   for (int id : {kGrid2500, kGrid10000, kGrid35000, kBunny})
     for (int liquid : {kDrop, kWet})
       for (int threads : {1, 2}) b->Args({id, liquid, threads, kRigid});
-  // The generic (fitted) geometry path, for comparison.
+  // The generic (fitted) geometry path, for comparison; on two threads too
+  // from 10K vertices, where the per-vertex stages and the CG run in parallel.
   for (int id : {kGrid2500, kGrid10000, kGrid35000, kBunny}) b->Args({id, kDrop, 1, kFitted});
+  for (int id : {kGrid10000, kGrid35000})
+    for (int liquid : {kDrop, kWet}) b->Args({id, liquid, 2, kFitted});
+  for (int id : {kGrid10000, kGrid35000}) b->Args({id, kWet, 1, kFitted});
 }
 
 BENCHMARK(stainStep)
