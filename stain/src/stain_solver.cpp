@@ -34,12 +34,15 @@ double millisecondsSince(Clock::time_point start) {
 }
 
 /// The solver's thread count for the parallel regions started in this scope
-/// (OpenMP's nthreads-var of the calling thread; restored on exit).
+/// (OpenMP's nthreads-var of the calling thread; restored on exit). It sets
+/// the count even when it is already the one asked for: libgomp allocates a
+/// thread's own ICV block at that thread's first omp_set_num_threads, so
+/// setting it on every step puts that allocation in the first step on a thread
+/// and not in the first step that changes the count (adaptive threads change
+/// it in steady state).
 class ThreadScope {
  public:
-  explicit ThreadScope(int threads) : saved_(omp_get_max_threads()) {
-    if (threads != saved_) omp_set_num_threads(threads);
-  }
+  explicit ThreadScope(int threads) : saved_(omp_get_max_threads()) { omp_set_num_threads(threads); }
   ~ThreadScope() {
     if (omp_get_max_threads() != saved_) omp_set_num_threads(saved_);
   }
