@@ -15,6 +15,7 @@
 #include <random>
 #include <vector>
 
+#include "same_bits.h"
 #include "stain_fixture.h"
 
 namespace blot::stain {
@@ -314,11 +315,7 @@ TEST(KrylovDiffusion, StainStepIsBitIdenticalForOneAndTwoThreads) {
   omp_set_num_threads(previous);
   EXPECT_GT(iterations1, 40);
   EXPECT_EQ(iterations1, iterations2);
-  EXPECT_TRUE((one.solvent.array() == two.solvent.array()).all());
-  EXPECT_TRUE((one.solute.array() == two.solute.array()).all());
-  EXPECT_TRUE((one.velocities.array() == two.velocities.array()).all());
-  EXPECT_TRUE((one.absorbedSolvent.array() == two.absorbedSolvent.array()).all());
-  EXPECT_TRUE((one.adsorbedSolute.array() == two.adsorbedSolute.array()).all());
+  EXPECT_TRUE(testing::sameBits(one, two));
 }
 
 TEST(KrylovDiffusion, ThreadedCgIsBitIdenticalForOneAndTwoThreads) {
@@ -346,11 +343,7 @@ TEST(KrylovDiffusion, ThreadedCgIsBitIdenticalForOneAndTwoThreads) {
   EXPECT_EQ(iterations1, iterations2);
   EXPECT_LE(worst1.freeSolvent, 1e-12);
   EXPECT_LE(worst1.freeSolute, 1e-12);
-  EXPECT_TRUE((one.solvent.array() == two.solvent.array()).all());
-  EXPECT_TRUE((one.solute.array() == two.solute.array()).all());
-  EXPECT_TRUE((one.velocities.array() == two.velocities.array()).all());
-  EXPECT_TRUE((one.absorbedSolvent.array() == two.absorbedSolvent.array()).all());
-  EXPECT_TRUE((one.adsorbedSolute.array() == two.adsorbedSolute.array()).all());
+  EXPECT_TRUE(testing::sameBits(one, two));
 }
 
 }  // namespace
