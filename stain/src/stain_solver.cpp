@@ -197,6 +197,7 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   initialVelocities_ = RowVectors3::Zero(n, 3);
   evaporatedMass_ = Vector::Zero(n);
   threads_ = resolvedThreads(def_.threads);
+  threadChoice_.reset(threads_);
   geometry_.setVertexRefresh(def_.geometryVertices);
 }
 
@@ -212,6 +213,12 @@ void StainSolver::setThreadCount(int threads) {
     throw std::invalid_argument("StainSolver::setThreadCount: expected a count in [0, " + std::to_string(kMaxThreads) +
                                 "], got " + std::to_string(threads));
   threads_ = resolvedThreads(threads);
+  threadChoice_.reset(threads_);
+}
+
+void StainSolver::setAdaptiveThreads(bool adaptive) {
+  def_.adaptiveThreads = adaptive;
+  threadChoice_.reset(threads_);
 }
 
 void StainSolver::setInitialMotion(const RowVectors3& positions, const RowVectors3& velocities) {
@@ -543,9 +550,10 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
     report.message = "stepRigid: rotation must be a rotation matrix";
     return report;
   }
-  const ThreadScope threads(threads_);
+  const ThreadScope threads(stepThreads());
   profile_ = StepProfile{};
   profile_.vertexCount = state_.vertexCount();
+  profile_.threads = stepThreads();
   // The rollback point: the mirror takes the last step's changes (O(changed
   // vertices)); this step then lists the vertices it may change. A dry step
   // without sources lists none and copies nothing.
@@ -615,7 +623,15 @@ StepReport StainSolver::advanceStages() {
     report.message = "advanceStages: no refreshGeometry that returned Ok before it";
     return report;
   }
-  const ThreadScope threads(threads_);
+  report = runStages();
+  // The whole step's time (refreshGeometry's part and this), at the count it ran with.
+  if (report.ok() && def_.adaptiveThreads) threadChoice_.record(profile_.total);
+  return report;
+}
+
+StepReport StainSolver::runStages() {
+  StepReport report;
+  const ThreadScope threads(stepThreads());
   ScopedTimer total(profile_.total);
   if (evaporationWritten_) {  // the coupling reads it after every step
     // The last interaction wrote it on its band and absorbing vertices

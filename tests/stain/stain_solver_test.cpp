@@ -10,7 +10,9 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <memory>
 
+#include "same_bits.h"
 #include "waving_flag_motion.h"
 
 namespace blot::stain {
@@ -126,24 +128,36 @@ TEST(StainSolver, RotatingDiscCoriolisKeepsTheInertialPath) {
 // its count in the caller's OpenMP setting. 12,321 vertices, half wet, so the
 // geometry, force and advection regions run threaded (above their
 // thresholds; the CG's 16K-row chunks: KrylovDiffusion tests). ~1-2 s.
+// The thread tests' sheet: 12,321 vertices, with a moving drop over half of it.
+struct ThreadTestSheet {
+  TriangleMesh mesh = gridMesh(110, 110, 1.0, 1.0);
+  SurfaceTopology topology{mesh.faces, static_cast<int>(mesh.vertexPositions.rows())};
+  FabricField fabric = isotropicFabricField(static_cast<int>(mesh.faces.rows()), 2e-4, 2e-4);
+
+  std::unique_ptr<StainSolver> wetSolver(const StainSolverDef& def) const {
+    auto solver = std::make_unique<StainSolver>(topology, mesh.vertexPositions, fabric, def);
+    DropDef drop;
+    drop.centerPoint = Vector3(0.5, 0.5, 0);
+    drop.radius = 0.4;
+    drop.solventMass = 0.05;
+    drop.soluteMass = 0.005;
+    drop.velocity = Vector3(0.05, 0.02, 0);
+    solver->addDrop(drop);
+    return solver;
+  }
+};
+
 TEST(StainSolver, ThreadCountIsPerSolverAndResultsAreBitIdenticalForOneAndTwoThreads) {
-  const TriangleMesh mesh = gridMesh(110, 110, 1.0, 1.0);
-  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
-  const FabricField fabric = isotropicFabricField(static_cast<int>(mesh.faces.rows()), 2e-4, 2e-4);
+  const ThreadTestSheet sheet;
+  const TriangleMesh& mesh = sheet.mesh;
   StainSolverDef one, two;
   one.threads = 1;
   two.threads = 2;
-  StainSolver a(topology, mesh.vertexPositions, fabric, one), b(topology, mesh.vertexPositions, fabric, two);
+  two.adaptiveThreads = false;  // every step on two threads (the adaptive choice is tested below)
+  const auto solverA = sheet.wetSolver(one), solverB = sheet.wetSolver(two);
+  StainSolver &a = *solverA, &b = *solverB;
   EXPECT_EQ(a.threadCount(), 1);
   EXPECT_EQ(b.threadCount(), 2);
-  DropDef drop;
-  drop.centerPoint = Vector3(0.5, 0.5, 0);
-  drop.radius = 0.4;
-  drop.solventMass = 0.05;
-  drop.soluteMass = 0.005;
-  drop.velocity = Vector3(0.05, 0.02, 0);
-  a.addDrop(drop);
-  b.addDrop(drop);
   const int caller = omp_get_max_threads();
   for (int n = 1; n <= 8; ++n) {
     const RowVectors3 next = wavingPositions(mesh, n * 0.01);
@@ -155,15 +169,54 @@ TEST(StainSolver, ThreadCountIsPerSolverAndResultsAreBitIdenticalForOneAndTwoThr
   EXPECT_GT(b.profile().densityDiffusionVertices, 0);
   const StainState& s = a.state();
   const StainState& t = b.state();
-  EXPECT_TRUE((s.solvent.array() == t.solvent.array()).all());
-  EXPECT_TRUE((s.solute.array() == t.solute.array()).all());
-  EXPECT_TRUE((s.velocities.array() == t.velocities.array()).all());
-  EXPECT_TRUE((s.absorbedSolvent.array() == t.absorbedSolvent.array()).all());
-  EXPECT_TRUE((s.adsorbedSolute.array() == t.adsorbedSolute.array()).all());
+  EXPECT_TRUE(testing::sameBits(s, t));
   EXPECT_THROW(a.setThreadCount(-1), std::invalid_argument);
   StainSolverDef bad;
   bad.threads = -2;
-  EXPECT_THROW(StainSolver(topology, mesh.vertexPositions, fabric, bad), std::invalid_argument);
+  EXPECT_THROW(StainSolver(sheet.topology, mesh.vertexPositions, sheet.fabric, bad), std::invalid_argument);
+}
+
+// Adaptive threads (the default): the first steps probe two threads and one
+// alternately (the first pair always; the rest depends on this machine's
+// timings), each step's profile says which it used, and the bits are those of
+// a one-thread solver whatever the choice.
+TEST(StainSolver, AdaptiveThreadsProbeBothCountsAndChangeNoBit) {
+  const ThreadTestSheet sheet;
+  const TriangleMesh& mesh = sheet.mesh;
+  StainSolverDef one, adaptive;
+  one.threads = 1;
+  adaptive.threads = 2;
+  ASSERT_TRUE(adaptive.adaptiveThreads);
+  const auto solverA = sheet.wetSolver(one), solverB = sheet.wetSolver(adaptive);
+  StainSolver &a = *solverA, &b = *solverB;
+  const int caller = omp_get_max_threads();
+  int used[2] = {0, 0};
+  for (int n = 1; n <= ThreadChoice::kProbeSteps + 4; ++n) {
+    const RowVectors3 next = wavingPositions(mesh, n * 0.01);
+    ASSERT_TRUE(a.step(0.01, next).ok());
+    EXPECT_EQ(a.profile().threads, 1);
+    const int planned = b.stepThreads();
+    ASSERT_TRUE(b.step(0.01, next).ok());
+    EXPECT_EQ(b.profile().threads, planned);
+    EXPECT_EQ(omp_get_max_threads(), caller);
+    if (n <= 2) {
+      EXPECT_EQ(planned, n == 1 ? 2 : 1) << "step " << n;
+    }
+    ASSERT_TRUE(planned == 1 || planned == 2);
+    ++used[planned - 1];
+  }
+  EXPECT_GE(used[0], 1);
+  EXPECT_GE(used[1], 1);
+  EXPECT_EQ(b.threadCount(), 2);  // the most it may use, whatever it chose
+  const StainState& s = a.state();
+  const StainState& t = b.state();
+  EXPECT_TRUE(testing::sameBits(s, t));
+  // Switched off, every step uses the count.
+  b.setAdaptiveThreads(false);
+  for (int n = 1; n <= 3; ++n) {
+    ASSERT_TRUE(b.step(0.01, wavingPositions(mesh, (ThreadChoice::kProbeSteps + 4 + n) * 0.01)).ok());
+    EXPECT_EQ(b.profile().threads, 2);
+  }
 }
 
 TEST(StainSolver, TwoRunsAreBitIdentical) {

@@ -5,6 +5,7 @@
 /// The cloth leads and the stain follows one step behind: step(h, p(t+h))
 /// refreshes the geometry with the new positions (so accelerations and angular
 /// velocities at t are centred), then advances the stain from t to t + h.
+#include <blot/stain/numerics/thread_choice.h>
 #include <blot/stain/stages/density_advection.h>
 #include <blot/stain/stages/diffusion.h>
 #include <blot/stain/stages/liquid_band.h>
@@ -38,6 +39,12 @@ struct StainSolverDef {
   /// Stages below their size threshold run serial whatever the count, and
   /// the results are bit-identical for any count.
   int threads = 0;
+  /// With more than one thread: each step uses all of them or one, whichever
+  /// recent steps measured faster (ThreadChoice: a probe alternating the two
+  /// counts, then a hold), so threads that do not pay are dropped, e.g.
+  /// on a machine busy with other work. false: every step uses `threads`.
+  /// Only the time of a step depends on it.
+  bool adaptiveThreads = true;
   /// Where the per-vertex extrinsic geometry (normals, rotation fits, frames,
   /// p̈, ω) is computed each step. OnDemand: on the liquid band and the
   /// vertices with a trace of liquid (LiquidBand::dampVertices), nothing on
@@ -172,6 +179,12 @@ class StainSolver {
   /// count (≥ 1; 0 resolves as in StainSolverDef) from the next step on.
   int threadCount() const { return threads_; }
   void setThreadCount(int threads);
+  /// StainSolverDef::adaptiveThreads from the next step on (probing anew).
+  bool adaptiveThreads() const { return def_.adaptiveThreads; }
+  void setAdaptiveThreads(bool adaptive);
+  /// Threads the next step uses: threadCount(), or 1 while adaptive threads
+  /// measured one thread faster (StepProfile::threads: what a step used).
+  int stepThreads() const { return def_.adaptiveThreads ? threadChoice_.threads() : threads_; }
   double time() const { return time_; }
   int stepCount() const { return steps_; }
   MassBudget massBudget() const;
@@ -241,6 +254,8 @@ class StainSolver {
   /// Stage Validate: every value finite, no negative density; then the
   /// step counts (time, step number).
   StepReport finishStep();
+  /// advanceStages after its check: the stain stages and finishStep.
+  StepReport runStages();
 
   StainSolverDef def_;
   SurfaceGeometry geometry_;
@@ -270,6 +285,7 @@ class StainSolver {
   double time_ = 0;
   int steps_ = 0;
   int threads_ = 1;
+  ThreadChoice threadChoice_;  // all threads_ or one, per step (adaptiveThreads)
   bool started_ = false;
 };
 

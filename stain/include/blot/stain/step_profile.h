@@ -91,6 +91,7 @@ struct StepProfile {
   int limiterCorrectedVertices = 0;  ///< vertices whose negative density the limiter fixed
   double limiterMovedMass = 0;     ///< kg moved by the positivity limiter
   int vertexCount = 0;             ///< #V of the surface
+  int threads = 1;                 ///< OpenMP threads the step used (StainSolver::stepThreads)
   int haloVertices = 0;            ///< dry vertices next to wet ones (level 1 of the band)
   /// Vertices of the liquid band (wet + the rings the step can reach and read,
   /// StainSolver::bandVertices; the whole mesh with a direct velocity solve).

@@ -1,0 +1,158 @@
+// ThreadChoice: the per-step choice between a solver's threads and one,
+// driven here by step times we make up, so every branch is checked without
+// depending on the machine.
+#include <blot/stain/numerics/thread_choice.h>
+
+#include <gtest/gtest.h>
+
+#include <functional>
+
+namespace blot::stain {
+namespace {
+
+// Steps `choice` `steps` times; a step at t threads takes time(t, step).
+void run(ThreadChoice& choice, int steps, const std::function<double(int, int)>& time, int* used = nullptr) {
+  for (int k = 0; k < steps; ++k) {
+    const int t = choice.threads();
+    if (used != nullptr) used[k] = t;
+    choice.record(time(t, k));
+  }
+}
+
+// Steps `choice` until its probe is over (at most kProbeSteps steps); returns the steps taken.
+int probe(ThreadChoice& choice, const std::function<double(int, int)>& time) {
+  int steps = 0;
+  while (choice.probing()) choice.record(time(choice.threads(), steps++));
+  return steps;
+}
+
+TEST(ThreadChoice, OneThreadIsNeverProbed) {
+  ThreadChoice choice(1);
+  EXPECT_FALSE(choice.probing());
+  for (int k = 0; k < 100; ++k) {
+    EXPECT_EQ(choice.threads(), 1);
+    choice.record(k % 2 ? 1.0 : 100.0);
+  }
+  choice.reset(0);  // counts below one mean one
+  EXPECT_EQ(choice.most(), 1);
+  EXPECT_EQ(choice.threads(), 1);
+}
+
+TEST(ThreadChoice, TheProbeAlternatesBothCountsStartingWithAll) {
+  ThreadChoice choice(4);
+  int used[ThreadChoice::kProbeSteps];
+  run(choice, ThreadChoice::kProbeSteps, [](int t, int) { return t == 4 ? 1.0 : 2.0; }, used);
+  for (int k = 0; k < ThreadChoice::kProbeSteps; ++k) EXPECT_EQ(used[k], k % 2 == 0 ? 4 : 1) << k;
+  EXPECT_FALSE(choice.probing());
+  EXPECT_EQ(choice.threads(), 4);
+}
+
+TEST(ThreadChoice, FasterThreadsAreKeptForTheHold) {
+  ThreadChoice choice(2);
+  const auto time = [](int t, int) { return t == 2 ? 6.0 : 10.0; };
+  run(choice, ThreadChoice::kProbeSteps, time);
+  int used[ThreadChoice::kFirstHold];
+  run(choice, ThreadChoice::kFirstHold, time, used);
+  for (int k = 0; k < ThreadChoice::kFirstHold; ++k) EXPECT_EQ(used[k], 2) << k;
+  EXPECT_TRUE(choice.probing());  // the hold is over: probe again
+}
+
+TEST(ThreadChoice, SlowerThreadsAreDropped) {
+  // Two threads 1.5x slower: the whole probe runs, and one thread wins.
+  ThreadChoice choice(2);
+  const auto time = [](int t, int) { return t == 2 ? 1.5 : 1.0; };
+  EXPECT_EQ(probe(choice, time), ThreadChoice::kProbeSteps);
+  EXPECT_EQ(choice.threads(), 1);
+  int used[ThreadChoice::kFirstHold];
+  run(choice, ThreadChoice::kFirstHold, time, used);
+  for (int k = 0; k < ThreadChoice::kFirstHold; ++k) EXPECT_EQ(used[k], 1) << k;
+}
+
+TEST(ThreadChoice, FarSlowerThreadsEndTheProbeAfterTwoPairs) {
+  // A busy machine: the second thread waits for a core (15 ms against 0.2 ms
+  // with one thread), so the probe stops after its second pair (the first
+  // never ends it: a solver's first step is also its most expensive).
+  ThreadChoice choice(2);
+  const auto time = [](int t, int) { return t == 2 ? 15.0 : 0.2; };
+  EXPECT_EQ(probe(choice, time), 4);
+  EXPECT_EQ(choice.threads(), 1);
+  int used[ThreadChoice::kFirstHold];
+  run(choice, ThreadChoice::kFirstHold, time, used);
+  for (int k = 0; k < ThreadChoice::kFirstHold; ++k) EXPECT_EQ(used[k], 1) << k;
+}
+
+TEST(ThreadChoice, ASpeedUpWithinTheMarginIsNotWorthACore) {
+  ThreadChoice choice(2);
+  run(choice, ThreadChoice::kProbeSteps, [](int t, int) { return t == 2 ? 0.97 : 1.0; });
+  EXPECT_EQ(choice.threads(), 1);
+  choice.reset(2);
+  run(choice, ThreadChoice::kProbeSteps, [](int t, int) { return t == 2 ? 0.94 : 1.0; });
+  EXPECT_EQ(choice.threads(), 2);
+}
+
+TEST(ThreadChoice, OneSpikeDoesNotDecide) {
+  // The first step at two threads pays a factorization (20x); its other
+  // probe steps are faster than one thread's.
+  ThreadChoice choice(2);
+  run(choice, ThreadChoice::kProbeSteps, [](int t, int k) { return k == 0 ? 20.0 : (t == 2 ? 0.6 : 1.0); });
+  EXPECT_EQ(choice.threads(), 2);
+}
+
+TEST(ThreadChoice, OneLuckyStepDoesNotDecide) {
+  // A busy machine: two threads are 3x slower except on the one step where
+  // the other work left both cores free. The fastest step would pick them.
+  ThreadChoice choice(2);
+  run(choice, ThreadChoice::kProbeSteps, [](int t, int k) { return t == 2 ? (k == 2 ? 0.5 : 3.0) : 1.0; });
+  EXPECT_EQ(choice.threads(), 1);
+}
+
+TEST(ThreadChoice, TheMedianOfEachCountDecides) {
+  // Two threads: 0.7, 0.8, 2.0, 3.0 (median 1.4); one: 1.0, 1.1, 1.2, 1.3
+  // (median 1.15). The means (1.625 against 1.15) agree here; the fastest
+  // steps (0.7 against 1.0) do not.
+  ThreadChoice choice(2);
+  const double most[] = {0.7, 2.0, 0.8, 3.0}, one[] = {1.0, 1.3, 1.1, 1.2};
+  run(choice, ThreadChoice::kProbeSteps, [&](int t, int k) { return t == 2 ? most[k / 2] : one[k / 2]; });
+  EXPECT_EQ(choice.threads(), 1);
+  // And the other way: one thread's median 1.15, two threads' 0.75 (0.5, 0.7, 0.8, 5.0).
+  const double faster[] = {5.0, 0.5, 0.8, 0.7};  // the slow one first: the first pair never ends a probe
+  choice.reset(2);
+  run(choice, ThreadChoice::kProbeSteps, [&](int t, int k) { return t == 2 ? faster[k / 2] : one[k / 2]; });
+  EXPECT_EQ(choice.threads(), 2);
+}
+
+TEST(ThreadChoice, TheHoldDoublesWhileTheWinnerStaysAndFallsBackWhenItChanges) {
+  ThreadChoice choice(2);
+  bool busy = false;
+  const auto time = [&](int t, int) { return t == 2 ? (busy ? 3.0 : 0.5) : 1.0; };
+  int hold = ThreadChoice::kFirstHold;
+  probe(choice, time);
+  for (int round = 0; round < 8; ++round) {
+    // Count the steps until the next probe.
+    int held = 0;
+    while (!choice.probing()) {
+      choice.record(time(choice.threads(), 0));
+      ++held;
+    }
+    EXPECT_EQ(held, hold) << round;
+    EXPECT_EQ(choice.threads(), 2);
+    EXPECT_EQ(probe(choice, time), ThreadChoice::kProbeSteps);
+    hold = std::min(2 * hold, ThreadChoice::kLongestHold);
+  }
+  EXPECT_EQ(hold, ThreadChoice::kLongestHold);
+  // The machine gets busy: the next probe picks one thread, for a first hold.
+  busy = true;
+  while (!choice.probing()) choice.record(time(choice.threads(), 0));
+  EXPECT_EQ(probe(choice, time), 4);  // 3x slower: the second pair ends the probe
+  EXPECT_EQ(choice.threads(), 1);
+  int held = 0;
+  while (!choice.probing()) {
+    EXPECT_EQ(choice.threads(), 1);
+    choice.record(time(choice.threads(), 0));
+    ++held;
+  }
+  EXPECT_EQ(held, ThreadChoice::kFirstHold);
+}
+
+}  // namespace
+}  // namespace blot::stain
