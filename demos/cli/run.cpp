@@ -51,6 +51,7 @@ struct RunOptions {
   int frames = 0;          // 0: the scene's
   std::string outputDirectory;  // empty: the scene's
   int threads = 0;         // 0: OpenMP's default
+  bool fixedThreads = false;  // every step on `threads` (scene: adaptive_threads false)
   bool quiet = false;
   int checkpointEvery = 0;  // frames between checkpoints; 0: none
   bool resume = false;      // continue from <out>/checkpoint.json
@@ -385,6 +386,7 @@ int runScene(const RunOptions& options) {
   }
   stain::killInWriteForTesting(options.killInWrite);
   if (options.threads > 0) scene.engine.stain.threads = options.threads;  // this engine's, not process-wide
+  if (options.fixedThreads) scene.engine.stain.adaptiveThreads = false;
   const int frames = options.frames > 0 ? options.frames : scene.outputs.frames;
   const std::string directory = options.outputDirectory.empty() ? scene.outputs.directory : options.outputDirectory;
 
@@ -545,6 +547,7 @@ int runScene(const RunOptions& options) {
       {"cloth_source", engine::motionSourceName(d.source)},
       {"coupling", d.coupling == coupling::CouplingMode::TwoWay ? "two-way" : "one-way"},
       {"threads", engine->threadCount()},
+      {"adaptive_threads", engine->adaptiveThreads()},
       {"time_step_s", d.timeStep},
       {"frames", frames},
       {"steps", s.steps},
@@ -579,6 +582,8 @@ void registerRunCommand(CLI::App& app, int& exitCode) {
   command->add_option("--frames", options->frames, "Frames to run (default: the scene's outputs.frames)");
   command->add_option("--out", options->outputDirectory, "Output folder (default: the scene's outputs.directory)");
   command->add_option("--threads", options->threads, "threads of the engine's steps (default: the scene's \"threads\", else OpenMP's default)");
+  command->add_flag("--fixed-threads", options->fixedThreads,
+                    "every step on all the threads (default: all or one per step, whichever measured faster; scene: adaptive_threads)");
   command->add_flag("--quiet", options->quiet, "No progress output");
   command->add_flag("--images", options->images, "A PNG per frame, <out>/<name>_frame_<k>.png (scene: outputs.images)");
   command->add_option("--camera", options->camera, "Frame images: follow (world view following the cloth) or rest");

@@ -411,6 +411,17 @@ blotStatus blotEngine_SetThreadCount(blotEngine* engine, int threads) {
   });
 }
 
+blotStatus blotEngine_SetAdaptiveThreads(blotEngine* engine, int adaptive) {
+  if (engine == nullptr) return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_SetAdaptiveThreads: null engine");
+  if (adaptive != 0 && adaptive != 1)
+    return fail(BLOT_ERROR_INVALID_ARGUMENT,
+                "blotEngine_SetAdaptiveThreads: expected 0 or 1, got " + std::to_string(adaptive));
+  return guarded("blotEngine_SetAdaptiveThreads", [&] {
+    engine->engine->setAdaptiveThreads(adaptive == 1);
+    return BLOT_OK;
+  });
+}
+
 blotStatus blotEngine_AdvanceSteps(blotEngine* engine, int count) {
   if (engine == nullptr) return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_AdvanceSteps: null engine");
   if (count < 0)

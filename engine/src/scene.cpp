@@ -880,6 +880,7 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
                                                                           : def.stain.strainTolerance;
   def.stain.strainTolerance = r.number("strain_tolerance", defaultStrainTolerance, positive());
   def.stain.threads = r.integer("threads", def.stain.threads, closed(0, stain::kMaxThreads));
+  def.stain.adaptiveThreads = r.boolean("adaptive_threads", def.stain.adaptiveThreads);
   def.coupling = static_cast<coupling::CouplingMode>(r.choice("coupling", 0, {"one-way", "two-way"}));
   if (def.coupling == coupling::CouplingMode::TwoWay && def.source != MotionSource::Bullet)
     ctx.fail("coupling", std::string("\"two-way\" needs cloth.source \"bullet\", got \"") +

@@ -294,6 +294,7 @@ keep the engine alive; read them again after a step (docs: python/README.md).
       .def_property_readonly("step_count", &Engine::stepCount)
       .def_property_readonly("time_step", &Engine::timeStep)
       .def_property("threads", &Engine::threadCount, &Engine::setThreadCount)
+      .def_property("adaptive_threads", &Engine::adaptiveThreads, &Engine::setAdaptiveThreads)
       .def_property_readonly("state_hash", &Engine::stateHash,
                              "FNV-1a over every simulation array; equal to `blot run`'s summary state_hash")
       .def_property_readonly("faces", [](const Engine& e) { return copyOf(e.faces()); }, "#F x 3 int32 (a copy)")

@@ -46,8 +46,11 @@ class AgainstTheCommandLine(unittest.TestCase):
             summary = json.loads(out.stdout)
             e = blot.Engine.from_scene_file(path)
             e.threads = 2  # results do not depend on the thread count
+            self.assertTrue(e.adaptive_threads)
+            e.adaptive_threads = False  # nor on whether each step may fall back to one
             e.advance_steps(summary["steps"])
         self.assertEqual(summary["steps"], 12)
+        self.assertTrue(summary["adaptive_threads"])
         self.assertEqual(f"{e.state_hash:016x}", summary["state_hash"])
         budget = e.mass_budget()
         for key, value in summary["mass_budget_kg"].items():

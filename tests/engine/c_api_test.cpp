@@ -384,6 +384,24 @@ TEST(CApiTest, ThreadCountBeyondTheLimitIsAnInvalidArgumentNamingTheRange) {
   blotDestroyEngine(engine);
 }
 
+// Adaptive threads are a switch: 0 or 1, anything else names the values.
+TEST(CApiTest, AdaptiveThreadsTakeZeroOrOne) {
+  blotEngine* engine = nullptr;
+  ASSERT_EQ(blotCreateEngineFromSceneJson(kScene, nullptr, &engine), BLOT_OK) << blotGetLastError();
+  EXPECT_EQ(blotEngine_SetAdaptiveThreads(nullptr, 1), BLOT_ERROR_INVALID_ARGUMENT);
+  for (int adaptive : {2, -1}) {
+    EXPECT_EQ(blotEngine_SetAdaptiveThreads(engine, adaptive), BLOT_ERROR_INVALID_ARGUMENT);
+    EXPECT_EQ(std::string(blotGetLastError()),
+              "blotEngine_SetAdaptiveThreads: expected 0 or 1, got " + std::to_string(adaptive));
+  }
+  EXPECT_EQ(blotEngine_SetThreadCount(engine, 2), BLOT_OK);
+  EXPECT_EQ(blotEngine_SetAdaptiveThreads(engine, 0), BLOT_OK);
+  EXPECT_EQ(blotEngine_Step(engine, 0.02), BLOT_OK) << blotGetLastError();
+  EXPECT_EQ(blotEngine_SetAdaptiveThreads(engine, 1), BLOT_OK);
+  EXPECT_EQ(blotEngine_Step(engine, 0.02), BLOT_OK) << blotGetLastError();
+  blotDestroyEngine(engine);
+}
+
 // Found by fuzz_capi: C lets any int through an enum parameter, and loading
 // (blotDensity)-1 as the enum in C++ was undefined behaviour (UBSan: "load of
 // value 4294967295, which is not a valid value for type 'blotDensity'").

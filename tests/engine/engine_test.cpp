@@ -570,17 +570,21 @@ TEST(EngineTest, PinMovedAtRuntimeDragsTheClothDeterministically) {
 }
 
 // Per-engine threads: the two-way flag gives the same bits with 1 and 2
-// threads, and two engines with different counts stepped in turn in one
-// process give the single-engine results.
+// threads (adaptive, the default, and every step on both), and two engines
+// with different counts stepped in turn in one process give the
+// single-engine results.
 TEST(EngineTest, TwoWayFlagIsBitIdenticalForOneAndTwoThreadsAndTwoEngines) {
-  auto run = [](int threads) {
+  auto run = [](int threads, bool adaptive) {
     Engine engine(twoWayFlag());
+    EXPECT_TRUE(engine.adaptiveThreads());
     engine.setThreadCount(threads);
+    engine.setAdaptiveThreads(adaptive);
     EXPECT_EQ(engine.advanceSteps(30).status, stain::StepStatus::Ok);
     return engine.stateHash();
   };
-  const std::uint64_t one = run(1), two = run(2);
+  const std::uint64_t one = run(1, true), two = run(2, true);
   EXPECT_EQ(one, two);
+  EXPECT_EQ(run(2, false), one);
   Engine a(twoWayFlag()), b(twoWayFlag());
   a.setThreadCount(1);
   b.setThreadCount(2);

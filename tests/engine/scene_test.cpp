@@ -50,6 +50,8 @@ TEST(SceneTest, MinimalSceneGetsDocumentedDefaults) {
   EXPECT_DOUBLE_EQ(scene.engine.timeStep, 1.0 / 120.0);
   EXPECT_EQ(scene.engine.maxStepsPerCall, 8);
   EXPECT_DOUBLE_EQ(scene.engine.diffusivity, 0.01);
+  EXPECT_EQ(scene.engine.stain.threads, 0);
+  EXPECT_TRUE(scene.engine.stain.adaptiveThreads);
   EXPECT_EQ(scene.outputs.frames, 10);
   EXPECT_EQ(scene.outputs.directory, "out/scene");
   // The patch is centred on the origin in the xy plane.
@@ -70,7 +72,7 @@ TEST(SceneTest, EveryCommonKeyReachesItsField) {
     "liquid": {"absorption_rate": 0.3, "evaporation_boundary": "wet-front"},
     "physics": {"coriolis": false, "film_pressure": true, "coriolis_scheme": "explicit"},
     "gravity": [0, 0, -9.81],
-    "coupling": "two-way", "time_step": 0.005, "max_steps_per_call": 4,
+    "coupling": "two-way", "time_step": 0.005, "max_steps_per_call": 4, "threads": 3, "adaptive_threads": false,
     "drops": [{"vertex": 5, "radius": 0.1, "solvent_mass": 0.01, "solute_mass": 0.002, "time": 0.5},
               {"point": [0, 0, 1], "velocity": [0, 1, 0], "relative_velocity": [0.5, 0, 0]}],
     "held_regions": [{"vertices": [1, 2, 3], "solvent_density": 2}],
@@ -106,6 +108,8 @@ TEST(SceneTest, EveryCommonKeyReachesItsField) {
   EXPECT_EQ(d.stain.switches.coriolisScheme, stain::CoriolisScheme::Explicit);
   EXPECT_EQ(d.coupling, coupling::CouplingMode::TwoWay);
   EXPECT_DOUBLE_EQ(d.timeStep, 0.005);
+  EXPECT_EQ(d.stain.threads, 3);
+  EXPECT_FALSE(d.stain.adaptiveThreads);
   ASSERT_EQ(d.drops.size(), 2u);
   EXPECT_EQ(d.drops[0].drop.centerVertex, 5);
   EXPECT_DOUBLE_EQ(d.drops[0].time, 0.5);
@@ -242,6 +246,8 @@ INSTANTIATE_TEST_SUITE_P(
         BadScene{"held region empty ball", withExtra(R"("held_regions": [{"center": [9, 9, 9], "radius": 0.01}])"),
                  "held_regions[0].radius", "no rest-shape vertex"},
         BadScene{"physics switch type", withExtra(R"("physics": {"coriolis": 1})"), "physics.coriolis", "expected true or false"},
+        BadScene{"adaptive threads type", withExtra(R"("adaptive_threads": "yes")"), "adaptive_threads",
+                 "expected true or false, got a string \"yes\""},
         BadScene{"fabric face out of range", withExtra(R"("fabric": {"patches": [{"faces": [0, 999], "tensor": [[1, 0], [0, 1]]}]})"),
                  "fabric.patches[0].faces[1]", "[0, 200)"},
         BadScene{"tensor not SPD", withExtra(R"("fabric": {"patches": [{"tensor": [[1, 2], [2, 1]]}]})"),

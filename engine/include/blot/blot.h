@@ -218,6 +218,11 @@ blotStatus blotEngine_GetMassBudget(const blotEngine* engine, blotMassBudget* ou
  *  step on; per engine, not process-wide. Results are bit-identical for any count. */
 blotStatus blotEngine_SetThreadCount(blotEngine* engine, int threads);
 
+/** 1 (the default): with two or more threads, each step uses all of them or one, whichever recent steps
+ *  measured faster, so threads that do not pay (a busy machine) are dropped; 0: every step uses the
+ *  thread count. Any other value is an invalid argument. Only the time of a step depends on it. */
+blotStatus blotEngine_SetAdaptiveThreads(blotEngine* engine, int adaptive);
+
 /** Runs exactly `count` (>= 0) internal steps, bypassing the frame-time accumulator (one step per
  *  call when the caller feeds a BLOT_MOTION_CALLER surface or steps its own Bullet world). */
 blotStatus blotEngine_AdvanceSteps(blotEngine* engine, int count);

@@ -236,6 +236,12 @@ class Engine {
   /// the calling thread's OpenMP default). Results do not depend on it.
   int threadCount() const { return surface_->stain().threadCount(); }
   void setThreadCount(int threads) { surface_->stain().setThreadCount(threads); }
+  /// With two or more threads, each step uses all of them or one, whichever
+  /// recent steps measured faster (EngineDef::stain.adaptiveThreads, scene key
+  /// "adaptive_threads", on by default); false: every step uses
+  /// threadCount(). Only the time of a step depends on it.
+  bool adaptiveThreads() const { return surface_->stain().adaptiveThreads(); }
+  void setAdaptiveThreads(bool adaptive) { surface_->stain().setAdaptiveThreads(adaptive); }
   std::int64_t stepCount() const { return steps_; }
   double timeStep() const { return def_.timeStep; }
   double accumulator() const { return accumulator_ * def_.timeStep; }  ///< carried frame time (s)
