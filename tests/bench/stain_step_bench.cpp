@@ -36,6 +36,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "mesh_fixture.h"
 
@@ -139,14 +140,18 @@ struct Scene {
   }
 };
 
-// Args: mesh id, liquid, threads, geometry path.
+// Args: mesh id, liquid, threads, geometry path, adaptive threads (0: every
+// step on `threads`; 1: the default, all of them or one, whichever measured
+// faster, StainSolverDef::adaptiveThreads).
 void stainStep(benchmark::State& bench) {
   const int id = static_cast<int>(bench.range(0));
   const int liquid = static_cast<int>(bench.range(1));
   const int threads = static_cast<int>(bench.range(2));
   const int path = static_cast<int>(bench.range(3));
+  const bool adaptive = bench.range(4) != 0;
   Scene scene(id, liquid);
   scene.solver->setThreadCount(threads);  // the solver's own count, not OpenMP's process default
+  scene.solver->setAdaptiveThreads(adaptive);
   for (int k = 0; k < kWarmupSteps; ++k) {
     const StepReport r = scene.advance(path);
     if (r.status != StepStatus::Ok) {
@@ -155,7 +160,7 @@ void stainStep(benchmark::State& bench) {
     }
   }
   StepProfile sum;
-  double wet = 0, fixes = 0, cg = 0;
+  double wet = 0, fixes = 0, cg = 0, used = 0;
   gAllocations.store(0);
   for (auto _ : bench) {
     const StepReport r = scene.advance(path);
@@ -170,11 +175,13 @@ void stainStep(benchmark::State& bench) {
     wet += p.wetVertices;
     fixes += p.limiterCorrectedVertices;
     cg += p.diffusionIterations;
+    used += p.threads;
   }
   const auto mean = [](double value) { return benchmark::Counter(value, benchmark::Counter::kAvgIterations); };
   const int n = scene.solver->state().vertexCount();
   bench.counters["n"] = n;
   bench.counters["threads"] = threads;
+  bench.counters["used"] = mean(used);  // threads a step used, mean
   bench.counters["geometry"] = mean(sum.time(Stage::Geometry));
   bench.counters["forces"] = mean(sum.time(Stage::BodyForces) + sum.time(Stage::FilmPressure) + sum.time(Stage::Coriolis));
   bench.counters["advectVelocity"] = mean(sum.time(Stage::AdvectVelocity));
@@ -193,22 +200,45 @@ void stainStep(benchmark::State& bench) {
 }
 
 void stainStepArgs(benchmark::internal::Benchmark* b) {
+  // Two threads fixed (adapt 0) and adaptive (adapt 1, the default).
   for (int id : {kGrid2500, kGrid10000, kGrid35000, kBunny})
-    for (int liquid : {kDrop, kWet})
-      for (int threads : {1, 2}) b->Args({id, liquid, threads, kRigid});
+    for (int liquid : {kDrop, kWet}) {
+      b->Args({id, liquid, 1, kRigid, 0});
+      for (int adapt : {0, 1}) b->Args({id, liquid, 2, kRigid, adapt});
+    }
   // The generic (fitted) geometry path, for comparison; on two threads too
   // from 10K vertices, where the per-vertex stages and the CG run in parallel.
-  for (int id : {kGrid2500, kGrid10000, kGrid35000, kBunny}) b->Args({id, kDrop, 1, kFitted});
-  for (int id : {kGrid10000, kGrid35000})
-    for (int liquid : {kDrop, kWet}) b->Args({id, liquid, 2, kFitted});
-  for (int id : {kGrid10000, kGrid35000}) b->Args({id, kWet, 1, kFitted});
+  for (int id : {kGrid2500, kGrid10000, kGrid35000, kBunny}) b->Args({id, kDrop, 1, kFitted, 0});
+  for (int id : {kGrid10000, kGrid35000}) {
+    b->Args({id, kWet, 1, kFitted, 0});
+    for (int liquid : {kDrop, kWet})
+      for (int adapt : {0, 1}) b->Args({id, liquid, 2, kFitted, adapt});
+  }
 }
 
 BENCHMARK(stainStep)
-    ->ArgNames({"mesh", "liquid", "threads", "path"})
+    ->ArgNames({"mesh", "liquid", "threads", "path", "adapt"})
     ->Apply(stainStepArgs)
     ->UseManualTime()
     ->Iterations(40)
+    ->Unit(benchmark::kMillisecond);
+
+// The same step over 2,048 steps: long enough for adaptive threads to reach
+// their longest hold (probes after 32, 64, ..., 1,024 steps), so the mean
+// shows what the probes cost in a long run and not only in the first 40
+// steps. One thread, two fixed, two adaptive, on meshes where a step is short.
+void stainStepLong(benchmark::State& bench) { stainStep(bench); }
+void stainStepLongArgs(benchmark::internal::Benchmark* b) {
+  for (const auto& [id, liquid] : {std::pair{kGrid2500, kWet}, std::pair{kGrid10000, kDrop}}) {
+    b->Args({id, liquid, 1, kRigid, 0});
+    for (int adapt : {0, 1}) b->Args({id, liquid, 2, kRigid, adapt});
+  }
+}
+BENCHMARK(stainStepLong)
+    ->ArgNames({"mesh", "liquid", "threads", "path", "adapt"})
+    ->Apply(stainStepLongArgs)
+    ->UseManualTime()
+    ->Iterations(2048)
     ->Unit(benchmark::kMillisecond);
 
 }  // namespace
