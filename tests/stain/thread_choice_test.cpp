@@ -121,6 +121,44 @@ TEST(ThreadChoice, TheMedianOfEachCountDecides) {
   EXPECT_EQ(choice.threads(), 2);
 }
 
+TEST(ThreadChoice, BackToAllThreadsTakesTwoProbesInARow) {
+  ThreadChoice choice(2);
+  bool busy = true;
+  const auto time = [&](int t, int) { return t == 2 ? (busy ? 1.5 : 0.5) : 1.0; };
+  const auto hold = [&] {
+    int held = 0;
+    for (; !choice.probing(); ++held) choice.record(time(choice.threads(), 0));
+    return held;
+  };
+  probe(choice, time);
+  EXPECT_EQ(choice.threads(), 1);
+  EXPECT_EQ(hold(), ThreadChoice::kFirstHold);
+  // One probe where two threads look faster (a lucky probe, or the load
+  // went): still one thread, for a first hold only.
+  busy = false;
+  probe(choice, time);
+  EXPECT_EQ(choice.threads(), 1);
+  EXPECT_EQ(hold(), ThreadChoice::kFirstHold);
+  // The next probe agrees: two threads.
+  probe(choice, time);
+  EXPECT_EQ(choice.threads(), 2);
+  EXPECT_EQ(hold(), ThreadChoice::kFirstHold);
+  // A lucky probe between two that pick one thread changes nothing, and the
+  // hold at one thread starts over at kFirstHold.
+  busy = true;
+  probe(choice, time);
+  EXPECT_EQ(choice.threads(), 1);
+  EXPECT_EQ(hold(), ThreadChoice::kFirstHold);
+  busy = false;
+  probe(choice, time);
+  EXPECT_EQ(choice.threads(), 1);
+  busy = true;
+  EXPECT_EQ(hold(), ThreadChoice::kFirstHold);
+  probe(choice, time);
+  EXPECT_EQ(choice.threads(), 1);
+  EXPECT_EQ(hold(), 2 * ThreadChoice::kFirstHold);  // one thread won again: the hold doubles
+}
+
 TEST(ThreadChoice, TheHoldDoublesWhileTheWinnerStaysAndFallsBackWhenItChanges) {
   ThreadChoice choice(2);
   bool busy = false;

@@ -32,6 +32,12 @@
 // count for it: a solver's first step (at `most`, so that the threads start
 // while allocating is allowed) also assembles and factorizes.
 //
+// Going back from one thread to `most` takes two probes in a row that pick
+// `most` (the first one only shortens the hold at one thread to kFirstHold):
+// on a busy machine a probe's four steps at `most` can all be lucky, and a
+// hold at `most` that is slower costs far more than one at one thread.
+// Starting out (no winner yet) one probe decides.
+//
 // The winner then runs for a hold of kFirstHold steps,
 // doubled (to kLongestHold) each time the next probe picks it again, and back
 // to kFirstHold when it does not: the machine's load changes, and a longer
@@ -57,6 +63,7 @@ class ThreadChoice {
   void reset(int most) {
     most_ = std::max(1, most);
     chosen_ = 0;  // no winner yet: the first hold is kFirstHold
+    mostWonLast_ = false;
     hold_ = kFirstHold;
     startProbe();
   }
@@ -79,8 +86,15 @@ class ThreadChoice {
         return;
       }
       probed_ = kProbeSteps;
-      const int winner = !givenUp && median(timesMost_) < kMargin * median(timesOne_) ? most_ : 1;
-      hold_ = winner == chosen_ ? std::min(2 * hold_, kLongestHold) : kFirstHold;
+      int winner = !givenUp && median(timesMost_) < kMargin * median(timesOne_) ? most_ : 1;
+      const bool confirmed = winner != most_ || chosen_ != 1 || mostWonLast_;
+      mostWonLast_ = winner == most_;
+      if (!confirmed) {  // one thread held, `most` won once: one more probe soon
+        winner = 1;
+        hold_ = kFirstHold;
+      } else {
+        hold_ = winner == chosen_ ? std::min(2 * hold_, kLongestHold) : kFirstHold;
+      }
       chosen_ = current_ = winner;
       left_ = hold_;
       return;
@@ -108,7 +122,8 @@ class ThreadChoice {
 
   int most_ = 1;
   int current_ = 1;
-  int chosen_ = 0;     // the last probe's winner (0: none yet)
+  int chosen_ = 0;     // the count of the current hold (0: none yet)
+  bool mostWonLast_ = false;  // the last probe picked `most` (it may not have been confirmed)
   int hold_ = kFirstHold;
   int left_ = 0;       // steps left in the hold
   int probed_ = 0;     // steps of the current probe so far
