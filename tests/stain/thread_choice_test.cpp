@@ -26,6 +26,17 @@ int probe(ThreadChoice& choice, const std::function<double(int, int)>& time) {
   return steps;
 }
 
+// Steps `choice` through its hold, to the next probe, checking that every step
+// uses `threads`; returns the hold's length.
+int holdSteps(ThreadChoice& choice, const std::function<double(int, int)>& time, int threads) {
+  int held = 0;
+  for (; !choice.probing(); ++held) {
+    EXPECT_EQ(choice.threads(), threads) << "hold step " << held;
+    choice.record(time(choice.threads(), held));
+  }
+  return held;
+}
+
 TEST(ThreadChoice, OneThreadIsNeverProbed) {
   ThreadChoice choice(1);
   EXPECT_FALSE(choice.probing());
@@ -51,10 +62,7 @@ TEST(ThreadChoice, FasterThreadsAreKeptForTheHold) {
   ThreadChoice choice(2);
   const auto time = [](int t, int) { return t == 2 ? 6.0 : 10.0; };
   run(choice, ThreadChoice::kProbeSteps, time);
-  int used[ThreadChoice::kFirstHold];
-  run(choice, ThreadChoice::kFirstHold, time, used);
-  for (int k = 0; k < ThreadChoice::kFirstHold; ++k) EXPECT_EQ(used[k], 2) << k;
-  EXPECT_TRUE(choice.probing());  // the hold is over: probe again
+  EXPECT_EQ(holdSteps(choice, time, 2), ThreadChoice::kFirstHold);  // then a probe again
 }
 
 TEST(ThreadChoice, SlowerThreadsAreDropped) {
@@ -63,9 +71,7 @@ TEST(ThreadChoice, SlowerThreadsAreDropped) {
   const auto time = [](int t, int) { return t == 2 ? 1.5 : 1.0; };
   EXPECT_EQ(probe(choice, time), ThreadChoice::kProbeSteps);
   EXPECT_EQ(choice.threads(), 1);
-  int used[ThreadChoice::kFirstHold];
-  run(choice, ThreadChoice::kFirstHold, time, used);
-  for (int k = 0; k < ThreadChoice::kFirstHold; ++k) EXPECT_EQ(used[k], 1) << k;
+  EXPECT_EQ(holdSteps(choice, time, 1), ThreadChoice::kFirstHold);
 }
 
 TEST(ThreadChoice, FarSlowerThreadsEndTheProbeAfterTwoPairs) {
@@ -76,9 +82,7 @@ TEST(ThreadChoice, FarSlowerThreadsEndTheProbeAfterTwoPairs) {
   const auto time = [](int t, int) { return t == 2 ? 15.0 : 0.2; };
   EXPECT_EQ(probe(choice, time), 4);
   EXPECT_EQ(choice.threads(), 1);
-  int used[ThreadChoice::kFirstHold];
-  run(choice, ThreadChoice::kFirstHold, time, used);
-  for (int k = 0; k < ThreadChoice::kFirstHold; ++k) EXPECT_EQ(used[k], 1) << k;
+  EXPECT_EQ(holdSteps(choice, time, 1), ThreadChoice::kFirstHold);
 }
 
 TEST(ThreadChoice, ASpeedUpWithinTheMarginIsNotWorthACore) {
@@ -125,11 +129,7 @@ TEST(ThreadChoice, BackToAllThreadsTakesTwoProbesInARow) {
   ThreadChoice choice(2);
   bool busy = true;
   const auto time = [&](int t, int) { return t == 2 ? (busy ? 1.5 : 0.5) : 1.0; };
-  const auto hold = [&] {
-    int held = 0;
-    for (; !choice.probing(); ++held) choice.record(time(choice.threads(), 0));
-    return held;
-  };
+  const auto hold = [&] { return holdSteps(choice, time, choice.threads()); };
   probe(choice, time);
   EXPECT_EQ(choice.threads(), 1);
   EXPECT_EQ(hold(), ThreadChoice::kFirstHold);
@@ -166,30 +166,17 @@ TEST(ThreadChoice, TheHoldDoublesWhileTheWinnerStaysAndFallsBackWhenItChanges) {
   int hold = ThreadChoice::kFirstHold;
   probe(choice, time);
   for (int round = 0; round < 8; ++round) {
-    // Count the steps until the next probe.
-    int held = 0;
-    while (!choice.probing()) {
-      choice.record(time(choice.threads(), 0));
-      ++held;
-    }
-    EXPECT_EQ(held, hold) << round;
-    EXPECT_EQ(choice.threads(), 2);
+    EXPECT_EQ(holdSteps(choice, time, 2), hold) << round;
     EXPECT_EQ(probe(choice, time), ThreadChoice::kProbeSteps);
     hold = std::min(2 * hold, ThreadChoice::kLongestHold);
   }
   EXPECT_EQ(hold, ThreadChoice::kLongestHold);
   // The machine gets busy: the next probe picks one thread, for a first hold.
   busy = true;
-  while (!choice.probing()) choice.record(time(choice.threads(), 0));
+  EXPECT_EQ(holdSteps(choice, time, 2), ThreadChoice::kLongestHold);
   EXPECT_EQ(probe(choice, time), 4);  // 3x slower: the second pair ends the probe
   EXPECT_EQ(choice.threads(), 1);
-  int held = 0;
-  while (!choice.probing()) {
-    EXPECT_EQ(choice.threads(), 1);
-    choice.record(time(choice.threads(), 0));
-    ++held;
-  }
-  EXPECT_EQ(held, ThreadChoice::kFirstHold);
+  EXPECT_EQ(holdSteps(choice, time, 1), ThreadChoice::kFirstHold);
 }
 
 }  // namespace
