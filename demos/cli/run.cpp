@@ -269,6 +269,7 @@ nlohmann::json termsJson(const engine::EngineDef& d) {
           {"evaporation", s.evaporation},
           {"sources", s.sources && !d.heldRegions.empty()},
           {"film_pressure", s.filmPressure},
+          {"velocity_on_free_liquid", s.velocityOnFreeLiquid},
           {"positivity_limiter", s.positivityLimiter},
           {"two_way_coupling", d.coupling == coupling::CouplingMode::TwoWay}};
 }

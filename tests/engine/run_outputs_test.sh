@@ -21,7 +21,14 @@ done
 python3 - "$out" <<'PY'
 import json, os, struct, sys
 out = sys.argv[1]
-s = json.load(open(os.path.join(out, "summary.json")))["outputs"]
+summary = json.load(open(os.path.join(out, "summary.json")))
+# Every physics switch of the scene file's "physics" object is in "terms".
+switches = {"gravity", "linear_inertia", "coriolis", "velocity_advection", "density_advection",
+            "density_diffusion", "velocity_diffusion", "absorption", "adsorption", "evaporation",
+            "sources", "film_pressure", "velocity_on_free_liquid", "positivity_limiter"}
+missing = switches - set(summary["terms"])
+assert not missing, f"summary terms lack {missing}"
+s = summary["outputs"]
 files = s["images"] + s["videos"] + s["textures"] + s["density_maps"] + s["gltf"]
 assert len(s["images"]) == 6 and len(s["videos"]) == 2 and len(s["textures"]) == 1 and len(s["gltf"]) == 1, s
 listed = {os.path.basename(f) for f in files} | {"summary.json"}
