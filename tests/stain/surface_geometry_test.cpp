@@ -12,6 +12,7 @@
 #include <atomic>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <random>
 
 #include "allocation_counter.h"  // counts every allocation while gCountAllocations is set
@@ -529,6 +530,53 @@ Matrix3 covarianceOf(const Eigen::MatrixX3d& rest, const Eigen::MatrixX3d& curre
 
 double fitObjective(const Matrix3& R, const Eigen::MatrixX3d& rest, const Eigen::MatrixX3d& current) {
   return (current - rest * R.transpose()).squaredNorm();
+}
+
+// ---- Whole rebuilds refill the operators in place ---------------------------
+
+template <typename Scalar>
+bool sameValueBits(const Eigen::SparseMatrix<Scalar>& a, const Eigen::SparseMatrix<Scalar>& b) {
+  return a.nonZeros() == b.nonZeros() &&
+         std::equal(a.innerIndexPtr(), a.innerIndexPtr() + a.nonZeros(), b.innerIndexPtr()) &&
+         std::memcmp(a.valuePtr(), b.valuePtr(), sizeof(Scalar) * static_cast<size_t>(a.nonZeros())) == 0;
+}
+
+// refillAnisotropicStiffness / refillConnectionLaplacian write bitwise what a
+// new assembly from the same inputs returns (anisotropic tensors, wefts and
+// transport angles of another shape, so every term is non-trivial), allocate
+// nothing, and refuse a matrix of another topology.
+TEST(SurfaceGeometry, RefilledOperatorsAreBitwiseANewAssembly) {
+  const TriangleMesh mesh = wavySheet();
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  const FabricField fabric = anisotropicFabric(topology.faceCount(), 7);
+  const RowVectors3 first = bumpedSheet(mesh.vertexPositions, 0.4, 0.5, 0.02, 1);
+  const RowVectors3 second = bumpedSheet(mesh.vertexPositions, 0.6, 0.3, 0.05, 2);
+  const Eigen::MatrixX3d angles(Eigen::MatrixX3d::Random(topology.faceCount(), 3) * 3.0);
+  SparseMatrix stiffness = anisotropicStiffness(topology, first, fabric.densityTensors, fabric.weftDirections);
+  ComplexSparseMatrix connection =
+      connectionLaplacian(topology, first, angles * 0.5, fabric.velocityTensors, fabric.weftDirections);
+  const OneRingEntries entries = oneRingFaceEntries(topology);
+  gAllocations = 0;
+  gCountAllocations = true;
+  refillAnisotropicStiffness(topology, second, fabric.densityTensors, fabric.weftDirections, entries, stiffness);
+  refillConnectionLaplacian(topology, second, angles, fabric.velocityTensors, fabric.weftDirections, entries,
+                            connection);
+  gCountAllocations = false;
+  if (kCountsAllocations) {
+    EXPECT_EQ(gAllocations.load(), 0);
+  }
+  EXPECT_TRUE(sameValueBits(stiffness,
+                            anisotropicStiffness(topology, second, fabric.densityTensors, fabric.weftDirections)));
+  EXPECT_TRUE(sameValueBits(
+      connection, connectionLaplacian(topology, second, angles, fabric.velocityTensors, fabric.weftDirections)));
+
+  const TriangleMesh other = jitteredIcosphere(1, 0.1, 3);
+  SparseMatrix wrong = anisotropicStiffness(SurfaceTopology(other.faces, static_cast<int>(other.vertexPositions.rows())),
+                                            other.vertexPositions, identityFaceTensors(static_cast<int>(other.faces.rows())),
+                                            RowVectors3::Zero(other.faces.rows(), 3));
+  EXPECT_THROW(refillAnisotropicStiffness(topology, second, fabric.densityTensors, fabric.weftDirections, entries,
+                                          wrong),
+               std::invalid_argument);
 }
 
 TEST(KabschRotation, RecoversExactRotationAndIsOptimalUnderNoise) {

@@ -11,6 +11,7 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 namespace blot::stain {
@@ -200,21 +201,98 @@ Eigen::MatrixX3d identityFaceTensors(int faceCount) {
   return tensors;
 }
 
+namespace {
+
+// The position-based operators face by face, in face order: add(f, k, l,
+// value) receives face f's block entry (k, l). Both the assembly into a new
+// pattern and the refill into an existing one go through these, so they sum
+// the same terms in the same order.
+template <typename Add>
+void forEachStiffnessEntry(const SurfaceTopology& topology, const RowVectors3& vertexPositions,
+                           const Eigen::MatrixX3d& faceTensors, const RowVectors3& faceWeftDirections,
+                           const Add& add) {
+  for (int f = 0; f < topology.faceCount(); ++f) {
+    const FaceLayout layout = layoutFace(topology, vertexPositions, faceTensors, faceWeftDirections, f);
+    const Matrix3 K = triangleStiffness(layout.corners[0], layout.corners[1], layout.corners[2],
+                                        layout.tensor);
+    for (int k = 0; k < 3; ++k) {
+      for (int l = 0; l < 3; ++l) add(f, k, l, K(k, l));
+    }
+  }
+}
+
+template <typename Add>
+void forEachConnectionEntry(const SurfaceTopology& topology, const RowVectors3& vertexPositions,
+                            const Eigen::MatrixX3d& faceTransportAngles, const Eigen::MatrixX3d& faceTensors,
+                            const RowVectors3& faceWeftDirections, const Add& add) {
+  for (int f = 0; f < topology.faceCount(); ++f) {
+    const FaceLayout layout = layoutFace(topology, vertexPositions, faceTensors, faceWeftDirections, f);
+    const Matrix3 K = triangleStiffness(layout.corners[0], layout.corners[1], layout.corners[2],
+                                        layout.tensor);
+    Complex r[3];
+    for (int k = 0; k < 3; ++k) r[k] = std::polar(1.0, faceTransportAngles(f, k));
+    for (int k = 0; k < 3; ++k) {
+      for (int l = 0; l < 3; ++l) add(f, k, l, connectionEntry(K, r, k, l));
+    }
+  }
+}
+
+// Refill preconditions (operators.h): L has the one-ring pattern the entries index.
+template <typename Scalar>
+void checkRefillTarget(const SurfaceTopology& topology, const OneRingEntries& entries,
+                       const Eigen::SparseMatrix<Scalar>& L, const char* what) {
+  const int n = topology.vertexCount();
+  if (entries.index.size() != 9 * static_cast<size_t>(topology.faceCount()) || L.rows() != n || L.cols() != n ||
+      !L.isCompressed() || L.nonZeros() != entries.nonZeros) {
+    throw std::invalid_argument(std::string(what) + ": the matrix or the entry table is not of this topology");
+  }
+}
+
+}  // namespace
+
+OneRingEntries oneRingFaceEntries(const SurfaceTopology& topology) {
+  const SparseMatrix pattern = oneRingPattern<double>(topology);
+  const Triangles& faces = topology.faces();
+  const int* outer = pattern.outerIndexPtr();
+  const int* rows = pattern.innerIndexPtr();
+  OneRingEntries entries;
+  entries.nonZeros = pattern.nonZeros();
+  entries.index.resize(9 * static_cast<size_t>(topology.faceCount()));
+  for (int f = 0; f < topology.faceCount(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      for (int l = 0; l < 3; ++l) {
+        const int row = faces(f, k), col = faces(f, l);
+        const int* at = std::lower_bound(rows + outer[col], rows + outer[col + 1], row);
+        entries.index[9 * static_cast<size_t>(f) + 3 * static_cast<size_t>(k) + static_cast<size_t>(l)] =
+            static_cast<int>(at - rows);
+      }
+    }
+  }
+  return entries;
+}
+
 SparseMatrix anisotropicStiffness(const SurfaceTopology& topology,
                                   const RowVectors3& vertexPositions,
                                   const Eigen::MatrixX3d& faceTensors,
                                   const RowVectors3& faceWeftDirections) {
   const Triangles& faces = topology.faces();
   SparseMatrix L = oneRingPattern<double>(topology);
-  for (int f = 0; f < topology.faceCount(); ++f) {
-    const FaceLayout layout = layoutFace(topology, vertexPositions, faceTensors, faceWeftDirections, f);
-    const Matrix3 K = triangleStiffness(layout.corners[0], layout.corners[1], layout.corners[2],
-                                        layout.tensor);
-    for (int k = 0; k < 3; ++k) {
-      for (int l = 0; l < 3; ++l) addEntry(L, faces(f, k), faces(f, l), K(k, l));
-    }
-  }
+  forEachStiffnessEntry(topology, vertexPositions, faceTensors, faceWeftDirections,
+                        [&](int f, int k, int l, double value) { addEntry(L, faces(f, k), faces(f, l), value); });
   return L;
+}
+
+void refillAnisotropicStiffness(const SurfaceTopology& topology, const RowVectors3& vertexPositions,
+                                const Eigen::MatrixX3d& faceTensors, const RowVectors3& faceWeftDirections,
+                                const OneRingEntries& entries, SparseMatrix& L) {
+  checkRefillTarget(topology, entries, L, "refillAnisotropicStiffness");
+  double* values = L.valuePtr();
+  std::fill(values, values + L.nonZeros(), 0.0);
+  const int* entry = entries.index.data();
+  forEachStiffnessEntry(topology, vertexPositions, faceTensors, faceWeftDirections,
+                        [&](int f, int k, int l, double value) {
+                          values[entry[9 * static_cast<size_t>(f) + static_cast<size_t>(3 * k + l)]] += value;
+                        });
 }
 
 SparseMatrix cotanLaplacian(const SurfaceTopology& topology, const Vector& edgeCotanWeights) {
@@ -250,21 +328,25 @@ ComplexSparseMatrix connectionLaplacian(const SurfaceTopology& topology,
                                         const RowVectors3& faceWeftDirections) {
   const Triangles& faces = topology.faces();
   ComplexSparseMatrix L = oneRingPattern<Complex>(topology);
-  for (int f = 0; f < topology.faceCount(); ++f) {
-    const FaceLayout layout = layoutFace(topology, vertexPositions, faceTensors, faceWeftDirections, f);
-    const Matrix3 K = triangleStiffness(layout.corners[0], layout.corners[1], layout.corners[2],
-                                        layout.tensor);
-    Complex r[3];
-    for (int k = 0; k < 3; ++k) r[k] = std::polar(1.0, faceTransportAngles(f, k));
-    for (int k = 0; k < 3; ++k) {
-      for (int l = 0; l < 3; ++l) {
-        // Diagonal: conj(r_k) r_k = 1 exactly, keep it real.
-        const Complex value = k == l ? Complex(K(k, k), 0.0) : K(k, l) * std::conj(r[k]) * r[l];
-        addEntry(L, faces(f, k), faces(f, l), value);
-      }
-    }
-  }
+  forEachConnectionEntry(topology, vertexPositions, faceTransportAngles, faceTensors, faceWeftDirections,
+                         [&](int f, int k, int l, const Complex& value) {
+                           addEntry(L, faces(f, k), faces(f, l), value);
+                         });
   return L;
+}
+
+void refillConnectionLaplacian(const SurfaceTopology& topology, const RowVectors3& vertexPositions,
+                               const Eigen::MatrixX3d& faceTransportAngles, const Eigen::MatrixX3d& faceTensors,
+                               const RowVectors3& faceWeftDirections, const OneRingEntries& entries,
+                               ComplexSparseMatrix& L) {
+  checkRefillTarget(topology, entries, L, "refillConnectionLaplacian");
+  Complex* values = L.valuePtr();
+  std::fill(values, values + L.nonZeros(), Complex(0.0, 0.0));
+  const int* entry = entries.index.data();
+  forEachConnectionEntry(topology, vertexPositions, faceTransportAngles, faceTensors, faceWeftDirections,
+                         [&](int f, int k, int l, const Complex& value) {
+                           values[entry[9 * static_cast<size_t>(f) + static_cast<size_t>(3 * k + l)]] += value;
+                         });
 }
 
 SparseMatrix anisotropicStiffnessFromLengths(const SurfaceTopology& topology, const Vector& edgeLengths,

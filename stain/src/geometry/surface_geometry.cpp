@@ -339,9 +339,22 @@ void SurfaceGeometry::refreshIntrinsicFromPositions(const RowVectors3& positions
       in.rebuildCount == 0
           ? fabric_.weftDirections
           : currentWeftDirections(topology, positions, faceWeftCoefficients_, fabric_.weftDirections);
-  in.densityStiffness = anisotropicStiffness(topology, positions, fabric_.densityTensors, wefts);
-  in.velocityStiffness = connectionLaplacian(topology, positions, in.faceTransportAngles,
-                                             fabric_.velocityTensors, wefts);
+  const auto refillable = [&](const auto& L) {
+    return L.rows() == topology.vertexCount() && L.isCompressed() && L.nonZeros() == faceEntries_.nonZeros;
+  };
+  if (in.rebuildCount > 0 && faceEntries_.index.empty()) faceEntries_ = oneRingFaceEntries(topology);
+  if (in.rebuildCount == 0 || !refillable(in.densityStiffness) || !refillable(in.velocityStiffness)) {
+    in.densityStiffness = anisotropicStiffness(topology, positions, fabric_.densityTensors, wefts);
+    in.velocityStiffness = connectionLaplacian(topology, positions, in.faceTransportAngles,
+                                               fabric_.velocityTensors, wefts);
+  } else {
+    // The same values, into the existing patterns: no pattern build, no
+    // search for each entry, no new matrices.
+    refillAnisotropicStiffness(topology, positions, fabric_.densityTensors, wefts, faceEntries_,
+                               in.densityStiffness);
+    refillConnectionLaplacian(topology, positions, in.faceTransportAngles, fabric_.velocityTensors, wefts,
+                              faceEntries_, in.velocityStiffness);
+  }
   dynamic_.inverseBuiltSquaredLengths = in.edgeLengths.array().square().inverse().matrix();
   dynamic_.maxEdgeStrain = 0;
   refreshedEdges_ = topology.edgeCount();

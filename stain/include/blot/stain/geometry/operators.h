@@ -12,6 +12,8 @@
 #include <blot/stain/geometry/surface_topology.h>
 #include <blot/stain/types.h>
 
+#include <vector>
+
 namespace blot::stain {
 
 /// The element kernel: 3x3 P1 stiffness K_kl = A ∇φ_k · S ∇φ_l of one triangle
@@ -55,6 +57,30 @@ ComplexSparseMatrix connectionLaplacian(const SurfaceTopology& topology,
                                         const Eigen::MatrixX3d& faceTransportAngles,
                                         const Eigen::MatrixX3d& faceTensors,
                                         const RowVectors3& faceWeftDirections);
+
+/// Where each face's 3x3 block lies in the value array of the operators above
+/// on one topology (they all have the same compressed pattern: each vertex of
+/// a face and its edge neighbours): entry (faces(f, k), faces(f, l)) is value
+/// index[9 f + 3 k + l]. Lets a rebuild refill an operator in place.
+struct OneRingEntries {
+  std::vector<int> index;     ///< 9 #F value positions
+  Eigen::Index nonZeros = 0;  ///< entries of the pattern
+};
+OneRingEntries oneRingFaceEntries(const SurfaceTopology& topology);
+/// anisotropicStiffness and connectionLaplacian written into L's values
+/// instead of a new matrix: L must hold an operator built by them (or the
+/// FromLengths ones below) on the same topology, and entries =
+/// oneRingFaceEntries(topology). The values are bitwise those of a new
+/// assembly from the same inputs (the same terms summed in the same order);
+/// nothing is allocated. A matrix or table of another size throws
+/// std::invalid_argument.
+void refillAnisotropicStiffness(const SurfaceTopology& topology, const RowVectors3& vertexPositions,
+                                const Eigen::MatrixX3d& faceTensors, const RowVectors3& faceWeftDirections,
+                                const OneRingEntries& entries, SparseMatrix& L);
+void refillConnectionLaplacian(const SurfaceTopology& topology, const RowVectors3& vertexPositions,
+                               const Eigen::MatrixX3d& faceTransportAngles, const Eigen::MatrixX3d& faceTensors,
+                               const RowVectors3& faceWeftDirections, const OneRingEntries& entries,
+                               ComplexSparseMatrix& L);
 
 /// The same operators from edge lengths alone (the intrinsic tier of
 /// SurfaceGeometry): face f is laid out in 2D from its lengths ℓ(faceEdges(f,

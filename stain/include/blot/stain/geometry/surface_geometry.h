@@ -12,6 +12,7 @@
 ///
 /// Values change only in SurfaceGeometry::refresh*(), called once per step by
 /// the step's "refresh geometry" stage; every other stage reads them const.
+#include <blot/stain/geometry/operators.h>
 #include <blot/stain/geometry/surface_topology.h>
 #include <blot/stain/geometry/transport.h>
 #include <blot/stain/types.h>
@@ -409,6 +410,10 @@ class SurfaceGeometry {
   std::vector<char> edgeMarks_, faceMarks_, vertexMarks_, vertexMarks2_;
   std::vector<int> chosenEdges_, faces1_, vertices1_, edges1_, faces2_, edges2_, vertices2_, faces3_;
   int refreshedEdges_ = 0, refreshedFaces_ = 0;
+  // Where each face's block lies in the operators' values (oneRingFaceEntries):
+  // a whole rebuild after the first refills the two operators in place. Made
+  // at the second build, so a mesh that never deforms does not hold it.
+  OneRingEntries faceEntries_;
 };
 
 /// Best rotation (Kabsch, via SVD of the 3x3 covariance) taking the rest
