@@ -21,7 +21,9 @@
 //    angle sums rescale every transport angle of the ring).
 //  - BM_IntrinsicRebuildPart: each part of SurfaceGeometry::refreshIntrinsic
 //    and of DiffusionSystems::assemble on the positions of the last rebuild,
-//    so each part's share of a rebuild is a ratio in one run.
+//    so each part's share of a rebuild is a ratio in one run; the two
+//    operators both assembled anew (the first build) and refilled (every
+//    later whole rebuild).
 //  - BM_IntrinsicRefreshReplay: the run's positions replayed into a
 //    SurfaceGeometry, whole (IntrinsicRefresh::Full) or partial rebuilds timed.
 #include <blot/engine/engine.h>
@@ -312,11 +314,12 @@ BENCHMARK(BM_IntrinsicRebuildTrips)->ArgName("scene")->DenseRange(0, 1)->Iterati
 
 enum RebuildPart {
   kLengths, kAngles, kAreas, kCotan, kDualAreas, kPolarMap, kEdgeTransport, kFaceTransport,
-  kDensityStiffness, kConnectionLaplacian, kWholeRefresh, kAssemble, kPartCount
+  kDensityStiffness, kConnectionLaplacian, kWholeRefresh, kAssemble, kDensityRefill, kConnectionRefill, kPartCount
 };
 constexpr const char* kPartNames[] = {"edge lengths", "corner angles", "face areas", "cotan weights", "dual areas",
                                       "polar map", "edge transport", "face transport", "density stiffness",
-                                      "connection Laplacian", "refreshIntrinsic", "assemble M+hL"};
+                                      "connection Laplacian", "refreshIntrinsic", "assemble M+hL",
+                                      "density stiffness refilled", "connection Laplacian refilled"};
 
 // Args: scene, part (RebuildPart). Label: the part's name.
 void BM_IntrinsicRebuildPart(benchmark::State& state) {
@@ -335,6 +338,11 @@ void BM_IntrinsicRebuildPart(benchmark::State& state) {
   SurfaceGeometry geometry(topology, p, fabric, c.tolerance);
   DiffusionSystems systems;
   systems.assemble(geometry.intrinsic(), c.h);
+  // What a whole rebuild after the first does with the two operators: the
+  // same values written into the existing matrices (refill*).
+  const OneRingEntries entries = oneRingFaceEntries(topology);
+  SparseMatrix stiffness = geometry.intrinsic().densityStiffness;
+  ComplexSparseMatrix connection = geometry.intrinsic().velocityStiffness;
   for (auto _ : state) {
     switch (part) {
       case kLengths: benchmark::DoNotOptimize(edgeLengths(topology, p)); break;
@@ -354,6 +362,15 @@ void BM_IntrinsicRebuildPart(benchmark::State& state) {
         break;
       case kWholeRefresh: geometry.refreshIntrinsic(); break;
       case kAssemble: benchmark::DoNotOptimize(systems.assemble(geometry.intrinsic(), c.h)); break;
+      case kDensityRefill:
+        refillAnisotropicStiffness(topology, p, fabric.densityTensors, fabric.weftDirections, entries, stiffness);
+        benchmark::DoNotOptimize(stiffness.valuePtr());
+        break;
+      case kConnectionRefill:
+        refillConnectionLaplacian(topology, p, faceTransport, fabric.velocityTensors, fabric.weftDirections, entries,
+                                  connection);
+        benchmark::DoNotOptimize(connection.valuePtr());
+        break;
       case kPartCount: break;
     }
   }
