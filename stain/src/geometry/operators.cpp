@@ -170,11 +170,14 @@ Eigen::SparseMatrix<Scalar> oneRingPattern(const SurfaceTopology& topology) {
 // L(row, col) += value; (row, col) must be in L's pattern. Adding face by face
 // in face order sums each entry in the order setFromTriplets did (its first
 // term assigned, 0 + a = a), so the values are the same to the bit.
+// Position of (row, col) in the value array of a compressed pattern holding it.
+inline int entryPosition(const int* outer, const int* rows, int row, int col) {
+  return static_cast<int>(std::lower_bound(rows + outer[col], rows + outer[col + 1], row) - rows);
+}
+
 template <typename Scalar>
 inline void addEntry(Eigen::SparseMatrix<Scalar>& L, int row, int col, const Scalar& value) {
-  const int* rows = L.innerIndexPtr();
-  const int* at = std::lower_bound(rows + L.outerIndexPtr()[col], rows + L.outerIndexPtr()[col + 1], row);
-  L.valuePtr()[at - rows] += value;
+  L.valuePtr()[entryPosition(L.outerIndexPtr(), L.innerIndexPtr(), row, col)] += value;
 }
 
 }  // namespace
@@ -237,15 +240,23 @@ void forEachConnectionEntry(const SurfaceTopology& topology, const RowVectors3& 
   }
 }
 
-// Refill preconditions (operators.h): L has the one-ring pattern the entries index.
-template <typename Scalar>
-void checkRefillTarget(const SurfaceTopology& topology, const OneRingEntries& entries,
-                       const Eigen::SparseMatrix<Scalar>& L, const char* what) {
+// The refill of L (operators.h): checks that L has the one-ring pattern the
+// entries index, zeroes its values and adds every term forEach passes, in
+// its order, at the face entry's position.
+template <typename Scalar, typename ForEach>
+void refill(const SurfaceTopology& topology, const OneRingEntries& entries, Eigen::SparseMatrix<Scalar>& L,
+            const char* what, const ForEach& forEach) {
   const int n = topology.vertexCount();
   if (entries.index.size() != 9 * static_cast<size_t>(topology.faceCount()) || L.rows() != n || L.cols() != n ||
       !L.isCompressed() || L.nonZeros() != entries.nonZeros) {
     throw std::invalid_argument(std::string(what) + ": the matrix or the entry table is not of this topology");
   }
+  Scalar* values = L.valuePtr();
+  std::fill(values, values + L.nonZeros(), Scalar(0));
+  const int* entry = entries.index.data();
+  forEach([&](int f, int k, int l, const Scalar& value) {
+    values[entry[9 * static_cast<size_t>(f) + static_cast<size_t>(3 * k + l)]] += value;
+  });
 }
 
 }  // namespace
@@ -261,10 +272,8 @@ OneRingEntries oneRingFaceEntries(const SurfaceTopology& topology) {
   for (int f = 0; f < topology.faceCount(); ++f) {
     for (int k = 0; k < 3; ++k) {
       for (int l = 0; l < 3; ++l) {
-        const int row = faces(f, k), col = faces(f, l);
-        const int* at = std::lower_bound(rows + outer[col], rows + outer[col + 1], row);
         entries.index[9 * static_cast<size_t>(f) + 3 * static_cast<size_t>(k) + static_cast<size_t>(l)] =
-            static_cast<int>(at - rows);
+            entryPosition(outer, rows, faces(f, k), faces(f, l));
       }
     }
   }
@@ -285,14 +294,9 @@ SparseMatrix anisotropicStiffness(const SurfaceTopology& topology,
 void refillAnisotropicStiffness(const SurfaceTopology& topology, const RowVectors3& vertexPositions,
                                 const Eigen::MatrixX3d& faceTensors, const RowVectors3& faceWeftDirections,
                                 const OneRingEntries& entries, SparseMatrix& L) {
-  checkRefillTarget(topology, entries, L, "refillAnisotropicStiffness");
-  double* values = L.valuePtr();
-  std::fill(values, values + L.nonZeros(), 0.0);
-  const int* entry = entries.index.data();
-  forEachStiffnessEntry(topology, vertexPositions, faceTensors, faceWeftDirections,
-                        [&](int f, int k, int l, double value) {
-                          values[entry[9 * static_cast<size_t>(f) + static_cast<size_t>(3 * k + l)]] += value;
-                        });
+  refill(topology, entries, L, "refillAnisotropicStiffness", [&](const auto& add) {
+    forEachStiffnessEntry(topology, vertexPositions, faceTensors, faceWeftDirections, add);
+  });
 }
 
 SparseMatrix cotanLaplacian(const SurfaceTopology& topology, const Vector& edgeCotanWeights) {
@@ -339,14 +343,9 @@ void refillConnectionLaplacian(const SurfaceTopology& topology, const RowVectors
                                const Eigen::MatrixX3d& faceTransportAngles, const Eigen::MatrixX3d& faceTensors,
                                const RowVectors3& faceWeftDirections, const OneRingEntries& entries,
                                ComplexSparseMatrix& L) {
-  checkRefillTarget(topology, entries, L, "refillConnectionLaplacian");
-  Complex* values = L.valuePtr();
-  std::fill(values, values + L.nonZeros(), Complex(0.0, 0.0));
-  const int* entry = entries.index.data();
-  forEachConnectionEntry(topology, vertexPositions, faceTransportAngles, faceTensors, faceWeftDirections,
-                         [&](int f, int k, int l, const Complex& value) {
-                           values[entry[9 * static_cast<size_t>(f) + static_cast<size_t>(3 * k + l)]] += value;
-                         });
+  refill(topology, entries, L, "refillConnectionLaplacian", [&](const auto& add) {
+    forEachConnectionEntry(topology, vertexPositions, faceTransportAngles, faceTensors, faceWeftDirections, add);
+  });
 }
 
 SparseMatrix anisotropicStiffnessFromLengths(const SurfaceTopology& topology, const Vector& edgeLengths,
