@@ -71,9 +71,9 @@ TEST(DensityAdvection, RotatingFlowConservesMassExactlyAndStaysNonNegative) {
     scratch.resize(g.vertexCount(), g.topology().edgeCount());
     double worstSolvent = 0.0, worstSolute = 0.0, lowest = 0.0;
     int maxSubsteps = 0;
-    // 1000 steps; 200 under the sanitizers, which run this test 40 times
+    // 1000 steps; 80 under the sanitizers, which run this test 30 to 40 times
     // slower (tests/support/sanitized_build.h).
-    const int steps = blot::test::stepsForThisBuild(1000, 200);
+    const int steps = blot::test::stepsForThisBuild(1000, 80);
     for (int step = 0; step < steps; ++step) {
       const DensityAdvectionReport report =
           advectDensities(ctx, g.topology(), g.intrinsic, g.extrinsic, {}, scratch, state);
