@@ -74,10 +74,11 @@ TEST(ThreadChoice, SlowerThreadsAreDropped) {
   EXPECT_EQ(holdSteps(choice, time, 1), ThreadChoice::kFirstHold);
 }
 
-TEST(ThreadChoice, FarSlowerThreadsEndTheProbeAfterTwoPairs) {
+TEST(ThreadChoice, FarSlowerThreadsEndTheFirstProbeAfterTwoPairs) {
   // A busy machine: the second thread waits for a core (15 ms against 0.2 ms
   // with one thread), so the probe stops after its second pair (the first
-  // never ends it: a solver's first step is also its most expensive).
+  // pair of the first probe never ends it: a solver's first step is also its
+  // most expensive).
   ThreadChoice choice(2);
   const auto time = [](int t, int) { return t == 2 ? 15.0 : 0.2; };
   EXPECT_EQ(probe(choice, time), 4);
@@ -119,7 +120,7 @@ TEST(ThreadChoice, TheMedianOfEachCountDecides) {
   run(choice, ThreadChoice::kProbeSteps, [&](int t, int k) { return t == 2 ? most[k / 2] : one[k / 2]; });
   EXPECT_EQ(choice.threads(), 1);
   // And the other way: one thread's median 1.15, two threads' 0.75 (0.5, 0.7, 0.8, 5.0).
-  const double faster[] = {5.0, 0.5, 0.8, 0.7};  // the slow one first: the first pair never ends a probe
+  const double faster[] = {5.0, 0.5, 0.8, 0.7};  // the slow one first: a first probe's first pair never ends it
   choice.reset(2);
   run(choice, ThreadChoice::kProbeSteps, [&](int t, int k) { return t == 2 ? faster[k / 2] : one[k / 2]; });
   EXPECT_EQ(choice.threads(), 2);
@@ -174,9 +175,33 @@ TEST(ThreadChoice, TheHoldDoublesWhileTheWinnerStaysAndFallsBackWhenItChanges) {
   // The machine gets busy: the next probe picks one thread, for a first hold.
   busy = true;
   EXPECT_EQ(holdSteps(choice, time, 2), ThreadChoice::kLongestHold);
-  EXPECT_EQ(probe(choice, time), 4);  // 3x slower: the second pair ends the probe
+  EXPECT_EQ(probe(choice, time), 2);  // 3x slower: the first pair of a later probe ends it
   EXPECT_EQ(choice.threads(), 1);
   EXPECT_EQ(holdSteps(choice, time, 1), ThreadChoice::kFirstHold);
+}
+
+TEST(ThreadChoice, ALaterProbeOnABusyMachineCostsOneStepAtAllThreads) {
+  // After the first probe every probe may end after its first pair: on a
+  // busy machine each one then runs a single step at all threads, while the
+  // holds at one thread double.
+  ThreadChoice choice(2);
+  const auto time = [](int t, int) { return t == 2 ? 15.0 : 0.2; };
+  EXPECT_EQ(probe(choice, time), 4);  // the first probe: its first pair never ends it
+  int hold = ThreadChoice::kFirstHold;
+  for (int round = 0; round < 7; ++round) {
+    EXPECT_EQ(holdSteps(choice, time, 1), hold) << round;
+    int used[2];
+    run(choice, 2, time, used);  // the probe: one step at two threads, one at one
+    EXPECT_EQ(used[0], 2) << round;
+    EXPECT_EQ(used[1], 1) << round;
+    EXPECT_FALSE(choice.probing()) << round;
+    EXPECT_EQ(choice.threads(), 1) << round;
+    hold = std::min(2 * hold, ThreadChoice::kLongestHold);
+  }
+  EXPECT_EQ(hold, ThreadChoice::kLongestHold);
+  // A reset starts over: its first pair does not end the probe.
+  choice.reset(2);
+  EXPECT_EQ(probe(choice, time), 4);
 }
 
 }  // namespace

@@ -25,12 +25,15 @@
 // could use.
 //
 // A probe ends early, for one thread, when a pair of its steps (`most` then
-// one) after the first shows `most` more than kGiveUp times slower: on a busy
-// machine each probe step at `most` can cost several one-thread steps, and
-// such a pair is evidence enough (a wrong early end costs a hold at one
-// thread, which is never slower than one thread). The first pair does not
-// count for it: a solver's first step (at `most`, so that the threads start
-// while allocating is allowed) also assembles and factorizes.
+// one) shows `most` more than kGiveUp times slower: on a busy machine each
+// probe step at `most` can cost several one-thread steps, and such a pair is
+// evidence enough (a wrong early end costs a hold at one thread, which is
+// never slower than one thread). In the first probe after a reset the first
+// pair does not count for it: a solver's first step (at `most`, so that the
+// threads start while allocating is allowed) also assembles and factorizes.
+// Every later probe can end after its first pair, so on a busy machine a
+// probe costs one step at `most` (it cost two before: over 2,048 steps that
+// was most of what adaptive threads cost above one thread).
 //
 // Going back from one thread to `most` takes two probes in a row that pick
 // `most` (the first one only shortens the hold at one thread to kFirstHold):
@@ -65,6 +68,7 @@ class ThreadChoice {
     chosen_ = 0;  // no winner yet: the first hold is kFirstHold
     mostWonLast_ = false;
     hold_ = kFirstHold;
+    firstProbe_ = true;
     startProbe();
   }
 
@@ -80,12 +84,14 @@ class ThreadChoice {
     if (probing()) {
       const int pair = probed_ / 2;
       (current_ == most_ ? timesMost_ : timesOne_)[pair] = milliseconds;
-      const bool givenUp = current_ == 1 && pair > 0 && timesMost_[pair] > kGiveUp * timesOne_[pair];
+      const bool givenUp =
+          current_ == 1 && (pair > 0 || !firstProbe_) && timesMost_[pair] > kGiveUp * timesOne_[pair];
       if (++probed_ < kProbeSteps && !givenUp) {
         current_ = current_ == most_ ? 1 : most_;
         return;
       }
       probed_ = kProbeSteps;
+      firstProbe_ = false;
       int winner = !givenUp && median(timesMost_) < kMargin * median(timesOne_) ? most_ : 1;
       const bool confirmed = winner != most_ || chosen_ != 1 || mostWonLast_;
       mostWonLast_ = winner == most_;
@@ -124,6 +130,7 @@ class ThreadChoice {
   int current_ = 1;
   int chosen_ = 0;     // the count of the current hold (0: none yet)
   bool mostWonLast_ = false;  // the last probe picked `most` (it may not have been confirmed)
+  bool firstProbe_ = true;    // the probe under way is the first since reset (its first pair never ends it)
   int hold_ = kFirstHold;
   int left_ = 0;       // steps left in the hold
   int probed_ = 0;     // steps of the current probe so far
