@@ -246,9 +246,7 @@ void forEachConnectionEntry(const SurfaceTopology& topology, const RowVectors3& 
 template <typename Scalar, typename ForEach>
 void refill(const SurfaceTopology& topology, const OneRingEntries& entries, Eigen::SparseMatrix<Scalar>& L,
             const char* what, const ForEach& forEach) {
-  const int n = topology.vertexCount();
-  if (entries.index.size() != 9 * static_cast<size_t>(topology.faceCount()) || L.rows() != n || L.cols() != n ||
-      !L.isCompressed() || L.nonZeros() != entries.nonZeros) {
+  if (!entries.fits(topology, L)) {
     throw std::invalid_argument(std::string(what) + ": the matrix or the entry table is not of this topology");
   }
   Scalar* values = L.valuePtr();

@@ -339,11 +339,9 @@ void SurfaceGeometry::refreshIntrinsicFromPositions(const RowVectors3& positions
       in.rebuildCount == 0
           ? fabric_.weftDirections
           : currentWeftDirections(topology, positions, faceWeftCoefficients_, fabric_.weftDirections);
-  const auto refillable = [&](const auto& L) {
-    return L.rows() == topology.vertexCount() && L.isCompressed() && L.nonZeros() == faceEntries_.nonZeros;
-  };
   if (in.rebuildCount > 0 && faceEntries_.index.empty()) faceEntries_ = oneRingFaceEntries(topology);
-  if (in.rebuildCount == 0 || !refillable(in.densityStiffness) || !refillable(in.velocityStiffness)) {
+  if (in.rebuildCount == 0 || !faceEntries_.fits(topology, in.densityStiffness) ||
+      !faceEntries_.fits(topology, in.velocityStiffness)) {
     in.densityStiffness = anisotropicStiffness(topology, positions, fabric_.densityTensors, wefts);
     in.velocityStiffness = connectionLaplacian(topology, positions, in.faceTransportAngles,
                                                fabric_.velocityTensors, wefts);

@@ -12,6 +12,7 @@
 #include <blot/stain/geometry/surface_topology.h>
 #include <blot/stain/types.h>
 
+#include <cstddef>
 #include <vector>
 
 namespace blot::stain {
@@ -65,6 +66,16 @@ ComplexSparseMatrix connectionLaplacian(const SurfaceTopology& topology,
 struct OneRingEntries {
   std::vector<int> index;     ///< 9 #F value positions
   Eigen::Index nonZeros = 0;  ///< entries of the pattern
+
+  /// Whether the refills below can write L with this table on `topology`
+  /// (they throw otherwise): L is #V x #V, compressed, with the pattern's
+  /// entry count, and the table is of this topology's faces.
+  template <typename Scalar>
+  bool fits(const SurfaceTopology& topology, const Eigen::SparseMatrix<Scalar>& L) const {
+    const Eigen::Index n = topology.vertexCount();
+    return index.size() == 9 * static_cast<size_t>(topology.faceCount()) && L.rows() == n && L.cols() == n &&
+           L.isCompressed() && L.nonZeros() == nonZeros;
+  }
 };
 OneRingEntries oneRingFaceEntries(const SurfaceTopology& topology);
 /// anisotropicStiffness and connectionLaplacian written into L's values
