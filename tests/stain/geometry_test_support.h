@@ -1,7 +1,7 @@
 #pragma once
 // Shared by the geometry, transport and operator tests: the whole geometry
-// pipeline on one mesh, perturbed test meshes, angle helpers and the smallest
-// eigenvalues of a generalized problem L x = λ M x (M diagonal).
+// pipeline on one mesh, perturbed test meshes and angle helpers (the spectral
+// checks of operators_test are in spectral_checks.h).
 #include <blot/stain/geometry/extrinsic_geometry.h>
 #include <blot/stain/geometry/intrinsic_geometry.h>
 #include <blot/stain/geometry/mesh_primitives.h>
@@ -13,7 +13,6 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
-#include <Eigen/SparseCholesky>
 
 #include <algorithm>
 #include <cmath>
@@ -141,55 +140,6 @@ inline std::pair<Eigen::MatrixX3d, RowVectors3> randomFabric(int faceCount, doub
     wefts.row(f) << 2 * unit() - 1, 2 * unit() - 1, 2 * unit() - 1;
   }
   return {tensors, wefts};
-}
-
-/// The `count` smallest eigenvalues of L x = λ M x (L Hermitian PSD, M
-/// diagonal positive), ascending. Dense (M^{-1/2} L M^{-1/2}) for small
-/// problems, shift-invert subspace iteration with Rayleigh–Ritz otherwise
-/// (converged to 1e-13; throws if it does not converge).
-template <typename Scalar>
-Vector smallestEigenvalues(const Eigen::SparseMatrix<Scalar>& L, const SparseMatrix& M, int count) {
-  using Dense = Eigen::Matrix<Scalar, Eigen::Dynamic, Eigen::Dynamic>;
-  const Eigen::Index n = L.rows();
-  using ScalarVector = Eigen::Matrix<Scalar, Eigen::Dynamic, 1>;
-  const Vector diagonal = M.diagonal();
-  const ScalarVector d = diagonal.cast<Scalar>();
-  const ScalarVector invSqrt = diagonal.cwiseSqrt().cwiseInverse().cast<Scalar>();
-  if (n <= 200) {
-    Dense A = invSqrt.asDiagonal() * Dense(L) * invSqrt.asDiagonal();
-    A = (0.5 * (A + A.adjoint())).eval();
-    Eigen::SelfAdjointEigenSolver<Dense> solver(A, Eigen::EigenvaluesOnly);
-    return solver.eigenvalues().head(count);
-  }
-  const int block = count + 10;
-  const double shift = 1.0;  // any positive shift makes L + shift M SPD
-  Eigen::SparseMatrix<Scalar> shifted = L + shift * M.cast<Scalar>();
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<Scalar>> factor(shifted);
-  if (factor.info() != Eigen::Success) throw std::runtime_error("smallestEigenvalues: factor failed");
-  std::mt19937 rng(7);
-  Dense X(n, block);
-  for (Eigen::Index j = 0; j < block; ++j)
-    for (Eigen::Index i = 0; i < n; ++i) X(i, j) = Scalar(uniform(rng, -1.0, 1.0));
-  Vector previous = Vector::Constant(count, -1.0);
-  Vector values(count);
-  for (int iteration = 0; iteration < 200; ++iteration) {
-    Dense Y = factor.solve(d.asDiagonal() * X);
-    // M-orthonormalise, then Rayleigh–Ritz on the subspace.
-    Dense gram = Y.adjoint() * d.asDiagonal() * Y;
-    Eigen::LLT<Dense> llt(0.5 * (gram + gram.adjoint()));
-    Dense Q = llt.matrixU().template solve<Eigen::OnTheRight>(Y);
-    Dense small = Q.adjoint() * (L * Q);
-    Eigen::SelfAdjointEigenSolver<Dense> solver(0.5 * (small + small.adjoint()));
-    X = Q * solver.eigenvectors();
-    values = solver.eigenvalues().head(count);
-    // Ritz values converge monotonically from above; 1e-13 is far below any
-    // discretization error measured with this helper and above rounding noise.
-    if ((values - previous).cwiseAbs().maxCoeff() <= 1e-13 * std::max(1.0, values.cwiseAbs().maxCoeff()))
-      break;
-    previous = values;
-    if (iteration == 199) throw std::runtime_error("smallestEigenvalues: no convergence");
-  }
-  return values;
 }
 
 }  // namespace blot::stain::testing

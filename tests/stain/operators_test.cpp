@@ -10,6 +10,7 @@
 #include <string>
 
 #include "geometry_test_support.h"
+#include "spectral_checks.h"
 #include "mesh_fixture.h"
 
 namespace blot::stain {
@@ -211,7 +212,7 @@ TEST(ScalarOperators, IcosphereSpectrumConvergesToTwoAtLeastAtSecondOrder) {
   std::vector<double> errors;
   for (int level = 1; level <= 5; ++level) {
     const Geometry g(icosphereMesh(level));
-    const Vector lambda = testing::smallestEigenvalues<double>(g.cotan(), g.mass(), 4);
+    const Vector lambda = testing::smallestEigenvalues(g.cotan(), g.mass(), 4);
     EXPECT_LE(std::abs(lambda(0)), 1e-10);
     const double error = (lambda.segment(1, 3).array() - 2.0).abs().maxCoeff();
     errors.push_back(error);
@@ -301,8 +302,8 @@ TEST(ConnectionLaplacian, KeepingBoundaryAnglesUnscaledKeepsAFlatSheetFlat) {
   const Eigen::MatrixX3d halfDiscAngles = faceTransportAngles(g.topology, g.angles, halfDisc);
   const auto identity = identityFaceTensors(g.faceCount());
   const RowVectors3 noWeft = RowVectors3::Zero(g.faceCount(), 3);
-  const double ours = testing::smallestEigenvalues<Complex>(g.connection(), g.mass(), 1)(0);
-  const double rescaled = testing::smallestEigenvalues<Complex>(
+  const double ours = testing::smallestEigenvalues(g.connection(), g.mass(), 1)(0);
+  const double rescaled = testing::smallestEigenvalues(
       connectionLaplacian(g.topology, g.mesh.vertexPositions, halfDiscAngles, identity, noWeft), g.mass(), 1)(0);
   std::printf("flat 41 x 41 grid: λ_min(M⁻¹L) = %.2e with true boundary angles, %.4f with boundary fans "
               "rescaled to π\n", ours, rescaled);
@@ -318,7 +319,7 @@ TEST(ConnectionLaplacian, IcosphereSpectrumConvergesToOneAndFive) {
   std::vector<double> errorsOne, errorsFive;
   for (int level = 1; level <= 4; ++level) {
     const Geometry g(icosphereMesh(level));
-    const Vector lambda = testing::smallestEigenvalues<Complex>(g.connection(), g.mass(), 8);
+    const Vector lambda = testing::smallestEigenvalues(g.connection(), g.mass(), 8);
     errorsOne.push_back((lambda.head(3).array() - 1.0).abs().maxCoeff());
     errorsFive.push_back((lambda.tail(5).array() - 5.0).abs().maxCoeff());
     std::printf("icosphere level %d: λ1..3 in [%.8f, %.8f] error %.3e; λ4..8 in [%.8f, %.8f] error %.3e",
@@ -337,14 +338,6 @@ TEST(ConnectionLaplacian, IcosphereSpectrumConvergesToOneAndFive) {
 }
 
 // ---------------------------------------------------------------- PSD on every mesh
-
-// λ_min(M⁻¹L) ≥ −δ: Cholesky of L + δ M succeeds iff L + δ M is positive definite.
-template <typename Scalar>
-bool choleskySucceeds(const Eigen::SparseMatrix<Scalar>& L, const SparseMatrix& M, double delta) {
-  const Eigen::SparseMatrix<Scalar> shifted = L + delta * M.cast<Scalar>();
-  Eigen::SimplicialLLT<Eigen::SparseMatrix<Scalar>> llt(shifted);
-  return llt.info() == Eigen::Success;
-}
 
 // Spectral scale of M⁻¹L: its largest diagonal entry.
 template <typename Scalar>
@@ -401,9 +394,9 @@ TEST_F(EveryMesh, ConnectionAndScalarLaplaciansArePositiveSemidefinite) {
     const int negative = static_cast<int>((g.cotanWeights.array() < -tiny).count());
     std::printf("%-28s %6d vertices, %5d negative cotan weights: L + δM (δ = %.1e) Cholesky ok\n",
                 named.name.c_str(), g.vertexCount(), negative, delta);
-    EXPECT_TRUE(choleskySucceeds(connection, M, delta));
-    EXPECT_TRUE(choleskySucceeds(anisotropic, M, 1e-10 * spectralScale(anisotropic, M)));
-    EXPECT_TRUE(choleskySucceeds(cotan, M, 1e-10 * spectralScale(cotan, M)));
+    EXPECT_TRUE(testing::choleskySucceeds(connection, M, delta));
+    EXPECT_TRUE(testing::choleskySucceeds(anisotropic, M, 1e-10 * spectralScale(anisotropic, M)));
+    EXPECT_TRUE(testing::choleskySucceeds(cotan, M, 1e-10 * spectralScale(cotan, M)));
   }
 }
 
@@ -419,15 +412,10 @@ TEST_F(EveryMesh, EdgewiseFormIsIndefiniteOnTheCamel) {
   EXPECT_EQ(negative, 3485);  // Debian's CGAL camel.off, as measured when the per-triangle assembly was chosen
   const ComplexSparseMatrix E = edgewiseConnectionLaplacian(g);
   const SparseMatrix M = g.mass();
-  const ComplexSparseMatrix complexM = M.cast<Complex>();
-  EXPECT_FALSE(choleskySucceeds(E, M, 1e-10 * spectralScale(E, M)));
+  EXPECT_FALSE(testing::choleskySucceeds(E, M, 1e-10 * spectralScale(E, M)));
 
-  Eigen::SimplicialLDLT<ComplexSparseMatrix> ldlt;
-  ldlt.analyzePattern(E);
-  const auto eigenvaluesBelow = [&](double sigma) {
-    ldlt.factorize(ComplexSparseMatrix(E - sigma * complexM));
-    return static_cast<int>((ldlt.vectorD().real().array() < 0.0).count());
-  };
+  testing::ShiftedInertia inertia(E, M);
+  const auto eigenvaluesBelow = [&](double sigma) { return inertia.eigenvaluesBelow(sigma); };
   const int negativeEigenvalues = eigenvaluesBelow(0.0);
   EXPECT_GE(negativeEigenvalues, 1);
   double below = -1e7, above = 0.0;  // λ_min ∈ [below, above]
@@ -436,12 +424,7 @@ TEST_F(EveryMesh, EdgewiseFormIsIndefiniteOnTheCamel) {
     const double mid = 0.5 * (below + above);
     (eigenvaluesBelow(mid) >= 1 ? above : below) = mid;
   }
-  ldlt.factorize(ComplexSparseMatrix(E - (below - 1.0) * complexM));
-  ComplexVector x = ComplexVector::Ones(g.vertexCount());
-  for (int iteration = 0; iteration < 4; ++iteration) {
-    x = ldlt.solve(ComplexVector(complexM * x));
-    x /= x.norm();
-  }
+  const ComplexVector x = inertia.inverseIteration(below - 1.0, 4);
   double energy = 0.0;
   for (int e = 0; e < g.topology.edgeCount(); ++e) {
     const int i = g.topology.edgeVertices()(e, 0), j = g.topology.edgeVertices()(e, 1);
