@@ -25,7 +25,8 @@ bool choleskySucceeds(const ComplexSparseMatrix& L, const SparseMatrix& M, doubl
 
 /// E − σM = L D Lᴴ for one Hermitian E and diagonal M, the pattern analysed
 /// once: the number of negative pivots is the number of eigenvalues of M⁻¹E
-/// below σ (Sylvester's law of inertia).
+/// below σ (Sylvester's law of inertia). E is referenced, not copied: it must
+/// outlive this object.
 class ShiftedInertia {
  public:
   ShiftedInertia(const ComplexSparseMatrix& E, const SparseMatrix& M);
