@@ -91,13 +91,15 @@ ShiftedInertia::ShiftedInertia(const ComplexSparseMatrix& E, const SparseMatrix&
 
 ShiftedInertia::~ShiftedInertia() = default;
 
+void ShiftedInertia::factorAt(double sigma) { factor_->ldlt.factorize(ComplexSparseMatrix(E_ - sigma * M_)); }
+
 int ShiftedInertia::eigenvaluesBelow(double sigma) {
-  factor_->ldlt.factorize(ComplexSparseMatrix(E_ - sigma * M_));
+  factorAt(sigma);
   return static_cast<int>((factor_->ldlt.vectorD().real().array() < 0.0).count());
 }
 
 ComplexVector ShiftedInertia::inverseIteration(double sigma, int iterations) {
-  factor_->ldlt.factorize(ComplexSparseMatrix(E_ - sigma * M_));
+  factorAt(sigma);
   ComplexVector x = ComplexVector::Ones(E_.rows());
   for (int iteration = 0; iteration < iterations; ++iteration) {
     x = factor_->ldlt.solve(ComplexVector(M_ * x));

@@ -39,6 +39,7 @@ class ShiftedInertia {
 
  private:
   struct Factor;
+  void factorAt(double sigma);  ///< factorizes E − σM
   const ComplexSparseMatrix& E_;
   ComplexSparseMatrix M_;
   std::unique_ptr<Factor> factor_;
