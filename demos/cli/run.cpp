@@ -270,6 +270,7 @@ nlohmann::json termsJson(const engine::EngineDef& d) {
           {"sources", s.sources && !d.heldRegions.empty()},
           {"film_pressure", s.filmPressure},
           {"velocity_on_free_liquid", s.velocityOnFreeLiquid},
+          {"boundary_wall", s.boundaryWall},
           {"positivity_limiter", s.positivityLimiter},
           {"two_way_coupling", d.coupling == coupling::CouplingMode::TwoWay}};
 }

@@ -674,8 +674,15 @@ StepReport StainSolver::runStages() {
       !runStage(Stage::AdvectVelocity, on.velocityAdvection, report, [&] { advectVelocity(ctx, topology, intrinsic, reach, velocityScratch_, state_, among); profile_.markRan(StepTerm::VelocityAdvection); }) ||
       !runStage(Stage::Coriolis, on.coriolis, report, [&] { profile_.markRan(StepTerm::Coriolis);
                                                             frameChange ? applyFrameVelocityChange(ctx, extrinsic, velocityScratch_.footVertices, velocityScratch_.footWeights, reach, state_, among)
-                                                                        : applyCoriolis(ctx, extrinsic, band, state_, among); }) ||
-      !runStage(Stage::AdvectDensity, on.densityAdvection, report, [&] { recordAdvection(advectDensities(ctx, topology, intrinsic, extrinsic, band_.wetMask, densityScratch_, state_, &geometry_.restEdgeFrameNormals(), &reach, among)); }) ||
+                                                                        : applyCoriolis(ctx, extrinsic, band, state_, among); }))
+    return report;
+  // The wall acts on the liquid's u once this step's terms are all in it:
+  // between them u is a split step's intermediate (on a rotating disc the
+  // inertia's outward push is undone by the frame change). Extended values
+  // are left alone: a wall far from the liquid must not reach it through a
+  // whole-mesh velocity solve.
+  applyBoundaryWall(ctx, topology, intrinsic, band_.wetMask, state_, among);
+  if (!runStage(Stage::AdvectDensity, on.densityAdvection, report, [&] { recordAdvection(advectDensities(ctx, topology, intrinsic, extrinsic, band_.wetMask, densityScratch_, state_, &geometry_.restEdgeFrameNormals(), &reach, among)); }) ||
       !runStage(Stage::Diffuse, on.densityDiffusion || on.velocityDiffusion, report, [&] { return recordDiffusion(diffuse(ctx, intrinsic, systems_, diffusionScratch_, state_, &band_.diffusionMask)); }) ||
       !runStage(Stage::Interact, on.absorption || on.adsorption || on.evaporation, report, [&] { noteChanged(band_.absorbingVertices.data(), static_cast<int>(band_.absorbingVertices.size()));
                                                                                                    interact(ctx, topology, intrinsic, reach, state_, &evaporatedMass_, interactionVertices());

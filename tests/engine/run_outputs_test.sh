@@ -25,7 +25,8 @@ summary = json.load(open(os.path.join(out, "summary.json")))
 # Every physics switch of the scene file's "physics" object is in "terms".
 switches = {"gravity", "linear_inertia", "coriolis", "velocity_advection", "density_advection",
             "density_diffusion", "velocity_diffusion", "absorption", "adsorption", "evaporation",
-            "sources", "film_pressure", "velocity_on_free_liquid", "positivity_limiter"}
+            "sources", "film_pressure", "velocity_on_free_liquid", "boundary_wall",
+            "positivity_limiter"}
 missing = switches - set(summary["terms"])
 assert not missing, f"summary terms lack {missing}"
 s = summary["outputs"]

@@ -31,7 +31,10 @@ struct DiscRun {
 
 /// A film covering the whole disc (radius 1 m, every vertex wet, so no vertex
 /// keeps a stale velocity), moving at v0 in the inertial frame while the disc
-/// turns at ω about z; diffusion and interaction off. `scheme` as given.
+/// turns at ω about z; diffusion and interaction off. `scheme` as given. The
+/// disc is a window on an unbounded film (a moving film crosses its rim), so
+/// the rim is no wall (PhysicsSwitches::boundaryWall off; with the wall, the
+/// film at rest still passes: its flow is along the rim).
 DiscRun runDisc(double omega, double h, int steps, const Vector3& v0,
                 CoriolisScheme scheme = CoriolisScheme::ExactRotation, int rings = 12) {
   const double radius = 1.0;
@@ -42,6 +45,7 @@ DiscRun runDisc(double omega, double h, int steps, const Vector3& v0,
   def.switches.velocityDiffusion = false;
   def.switches.absorption = def.switches.adsorption = def.switches.evaporation = false;
   def.switches.coriolisScheme = scheme;
+  def.switches.boundaryWall = v0.squaredNorm() == 0.0;
   def.gravity = Vector3(0, 0, -9.8);  // normal to the disc: no tangential part
   StainSolver solver(topology, mesh.vertexPositions,
                      isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 1e-4), def);

@@ -1,6 +1,7 @@
 // applyExternalForces: linear inertia on a uniformly accelerated sheet,
 // tangential gravity on a tilted plane, Coriolis exact rotation against the
-// explicit update's closed-form energy gain, the wet mask and the switches.
+// explicit update's closed-form energy gain, the wet mask and the switches;
+// the boundary wall against the mesh's world geometry.
 #include <blot/stain/stages/external_forces.h>
 #include <blot/stain/stages/liquid_band.h>
 #include <blot/stain/geometry/operators.h>
@@ -204,6 +205,138 @@ TEST(ExternalForces, WetVerticesWithoutFreeLiquidCarryNoVelocity) {
   ctx.switches.velocityOnFreeLiquid = false;
   clearVelocityWithoutFreeLiquid(ctx, band, off);
   for (int i = 0; i < n; ++i) EXPECT_EQ(off.velocities(i), Complex(3.0, -4.0));
+}
+
+// The boundary wall against the world geometry of the mesh, not the polar map
+// it is computed from: at every boundary vertex of a tilted 6x4 sheet (generic
+// frames; straight edges with fans of π, corners of π/2) and for 24 world
+// directions d in the sheet's plane, u = d in the vertex's frame becomes the
+// nearest point of the fan spanned by the two boundary edges e1, e2 (d
+// itself when d = a e1 + b e2 with a, b ≥ 0, else the larger of the clamped
+// projections onto e1 and e2). Interior and unmarked vertices keep u; the
+// switch off keeps every u. Tolerance 1e-12: a few roundings of unit vectors.
+TEST(ExternalForces, BoundaryWallKeepsTheNearestDirectionThatStaysOnTheMesh) {
+  StageGeometry g = tiltedSheet(0.7);
+  const int n = g.vertexCount();
+  const SurfaceTopology& topology = g.topology();
+  const Vector3 normal = g.extrinsic.vertexNormals.row(0).transpose();
+  const Vector3 a = (g.position(1) - g.position(0)).normalized();
+  const Vector3 b = normal.cross(a);
+  std::vector<char> band(static_cast<size_t>(n), 1);
+  band[0] = 0;  // a corner outside the band keeps its u
+  const StepContext ctx = contextOnly(0.01, true, false, false);
+  int boundaryVertices = 0, changedTotal = 0;
+  for (int k = 0; k < 24; ++k) {
+    const double angle = 2.0 * std::acos(-1.0) * (k + 0.5) / 24.0;
+    const Vector3 d = 0.7 * (std::cos(angle) * a + std::sin(angle) * b);
+    StainState state = zeroState(n);
+    for (int i = 0; i < n; ++i) state.velocities(i) = g.toFrame(i, d);
+    StainState off = state;
+    changedTotal += applyBoundaryWall(ctx, topology, g.intrinsic, band, state);
+    boundaryVertices = 0;
+    for (int i = 0; i < n; ++i) {
+      const Vector3 got = g.toWorld(i, state.velocities(i));
+      if (!topology.vertexIsBoundary()[static_cast<size_t>(i)] || !band[static_cast<size_t>(i)]) {
+        EXPECT_EQ(state.velocities(i), off.velocities(i)) << "vertex " << i;
+        continue;
+      }
+      ++boundaryVertices;
+      const std::vector<int>& ring = topology.ringNeighbors();
+      const int first = ring[static_cast<size_t>(topology.ringOffsets()[static_cast<size_t>(i)])];
+      const int last = ring[static_cast<size_t>(topology.ringOffsets()[static_cast<size_t>(i) + 1] - 1)];
+      const Vector3 e1 = (g.position(first) - g.position(i)).normalized();
+      const Vector3 e2 = (g.position(last) - g.position(i)).normalized();
+      // d = α e1 + β e2 in the plane (e1, e2 independent: fans below π here
+      // or exactly π, where e2 = −e1 and the test is the side of the edge).
+      Vector3 expected;
+      if ((e1 + e2).norm() < 1e-9) {
+        const Vector3 inward = normal.cross(e1);  // the fan is on e1's left
+        expected = d.dot(inward) >= 0.0 ? d : Vector3(d - d.dot(inward) * inward);
+      } else {
+        Eigen::Matrix2d m;
+        m << e1.dot(e1), e1.dot(e2), e1.dot(e2), e2.dot(e2);
+        const Eigen::Vector2d c = m.inverse() * Eigen::Vector2d(e1.dot(d), e2.dot(d));
+        if (c[0] >= 0.0 && c[1] >= 0.0) {
+          expected = d;
+        } else {
+          const double p1 = std::max(0.0, d.dot(e1)), p2 = std::max(0.0, d.dot(e2));
+          expected = p1 >= p2 ? Vector3(p1 * e1) : Vector3(p2 * e2);
+        }
+      }
+      EXPECT_LT((got - expected).norm(), 1e-12) << "vertex " << i << " direction " << k;
+    }
+    StepContext openCtx = ctx;
+    openCtx.switches.boundaryWall = false;
+    EXPECT_EQ(applyBoundaryWall(openCtx, topology, g.intrinsic, band, off), 0);
+    for (int i = 0; i < n; ++i) EXPECT_EQ(off.velocities(i), g.toFrame(i, d));
+  }
+  EXPECT_EQ(boundaryVertices, 2 * (6 + 4) - 1);  // the 7x5 grid's rim less vertex 0
+  EXPECT_GT(changedTotal, 24 * 4);  // every direction points off the mesh somewhere
+}
+
+// A vertical sheet (the hanging flag's hem): gravity pushes the liquid
+// against the bottom edge. With the wall, u there stays tangent to the edge
+// (zero after many steps, since gravity is normal to it) while interior u
+// grows as g t; open, the hem's u grows like the interior's (the unbounded
+// velocity that set the Courant number of a soaked flag's hem).
+TEST(ExternalForces, BoundaryWallStopsGravityAtTheHem) {
+  TriangleMesh mesh = gridMesh(6, 4, 1.2, 0.8);
+  mesh.vertexPositions = (mesh.vertexPositions * Eigen::AngleAxisd(std::acos(-1.0) / 2, Vector3::UnitX())
+                                                     .toRotationMatrix()
+                                                     .transpose())
+                             .eval();  // y -> z: the sheet hangs in the x-z plane, its y = 0 edge at the bottom
+  StageGeometry g(mesh);
+  const int n = g.vertexCount();
+  std::vector<char> band(static_cast<size_t>(n), 1);
+  StepContext ctx = contextOnly(0.01, true, false, false);
+  StainState wall = zeroState(n), open = zeroState(n);
+  const int steps = 200;
+  for (int s = 0; s < steps; ++s) {
+    applyBodyForces(ctx, g.extrinsic, band, wall);
+    applyBoundaryWall(ctx, g.topology(), g.intrinsic, band, wall);
+    applyBodyForces(ctx, g.extrinsic, band, open);
+  }
+  const double t = steps * ctx.h;
+  for (int i = 0; i < n; ++i) {
+    const double height = g.position(i).z();
+    const bool hem = std::abs(height) < 1e-12;
+    EXPECT_NEAR(std::abs(open.velocities(i)), 9.8 * t, 1e-9) << "vertex " << i;
+    if (hem) {
+      EXPECT_LT(std::abs(wall.velocities(i)), 1e-12) << "vertex " << i;
+    } else if (!g.topology().vertexIsBoundary()[static_cast<size_t>(i)]) {
+      EXPECT_EQ(wall.velocities(i), open.velocities(i)) << "vertex " << i;
+    }
+  }
+}
+
+// Along a curved rim the wall keeps tangential flow: on a disc (20 rings,
+// rim vertices turn by 2π/#rim, well below the corner angle), u along the
+// discrete tangent (the chord between a rim vertex's two rim neighbours,
+// which is the circle's tangent on this symmetric rim) is unchanged to
+// rounding, an outward radial u is removed, an inward one kept, and a u
+// half outward loses exactly its radial part. The fan projection would cut
+// the tangential flow by 1 − cos(π/#rim) each step (a drag).
+TEST(ExternalForces, BoundaryWallKeepsFlowAlongACurvedRim) {
+  StageGeometry g(discMesh(20, 1.0));
+  const int n = g.vertexCount();
+  const std::vector<char> all;
+  const StepContext ctx = contextOnly(0.01, true, false, false);
+  int rim = 0;
+  for (int i = 0; i < n; ++i) {
+    if (!g.topology().vertexIsBoundary()[static_cast<size_t>(i)]) continue;
+    ++rim;
+    const Vector3 radial = Vector3(g.position(i).x(), g.position(i).y(), 0.0).normalized();
+    const Vector3 tangent = Vector3::UnitZ().cross(radial);
+    StainState state = zeroState(n);
+    for (const Vector3& d : {Vector3(0.3 * tangent), Vector3(-0.3 * tangent), Vector3(-0.2 * radial),
+                             Vector3(0.2 * radial), Vector3(0.3 * tangent + 0.2 * radial)}) {
+      state.velocities(i) = g.toFrame(i, d);
+      applyBoundaryWall(ctx, g.topology(), g.intrinsic, all, state);
+      const Vector3 expected = d.dot(radial) > 0.0 ? Vector3(d - d.dot(radial) * radial) : d;
+      EXPECT_LT((g.toWorld(i, state.velocities(i)) - expected).norm(), 1e-12) << "vertex " << i;
+    }
+  }
+  EXPECT_GE(rim, 60);
 }
 
 }  // namespace

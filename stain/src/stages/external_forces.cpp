@@ -76,6 +76,57 @@ void clearVelocityWithoutFreeLiquid(const StepContext& ctx, const std::vector<ch
   });
 }
 
+int applyBoundaryWall(const StepContext& ctx, const SurfaceTopology& topology, const IntrinsicGeometry& intrinsic,
+                      const std::vector<char>& wet, StainState& state, const std::vector<int>* among) {
+  const int n = static_cast<int>(state.velocities.size());
+  const std::vector<char>& boundary = topology.vertexIsBoundary();
+  const Vector& angles = intrinsic.polarMap.ringAngles;
+  const std::vector<int>& offsets = topology.ringOffsets();
+  if (!ctx.switches.boundaryWall || boundary.size() != static_cast<size_t>(n) ||
+      angles.size() != static_cast<Eigen::Index>(topology.ringNeighbors().size()))
+    return 0;
+  const bool allWet = wet.empty();
+  const double pi = std::acos(-1.0);
+  // Serial: boundary vertices are a thin set, a few flops each.
+  int changed = 0;
+  const int visits = visitCount(n, among);
+  for (int k = 0; k < visits; ++k) {
+    const int i = visited(k, among);
+    if (!boundary[static_cast<size_t>(i)] || (!allWet && !wet[static_cast<size_t>(i)])) continue;
+    Complex& u = state.velocities(i);
+    if (u == Complex(0.0, 0.0)) continue;
+    // The fan [0, γ]: γ is the last ring entry's angle (the second boundary edge).
+    const double fan = angles[offsets[static_cast<size_t>(i) + 1] - 1];
+    const Complex before = u;
+    if (fan < pi && fan > pi - kWallCornerTurning) {
+      // A bend of a smooth boundary: free slip along the chord between the
+      // two boundary neighbours, u · n ≤ 0 with n the outward bisector.
+      const Complex outward = -unitRotation(0.5 * fan);
+      const double normal = u.real() * outward.real() + u.imag() * outward.imag();
+      if (normal > 0.0) u -= normal * outward;
+    } else if (fan < 2.0 * pi) {  // a fan of 2π or more holds every direction
+      double direction = std::arg(u);  // (−π, π]
+      if (direction < 0.0) direction += 2.0 * pi;
+      if (direction > fan) {
+        // Outside: the nearest point of the two boundary rays (t ≥ 0) is on
+        // the ray with the larger projection, or 0 when neither is positive.
+        const Complex last = unitRotation(fan);
+        const double alongFirst = u.real();
+        const double alongLast = u.real() * last.real() + u.imag() * last.imag();
+        if (alongFirst <= 0.0 && alongLast <= 0.0) {
+          u = Complex(0.0, 0.0);
+        } else if (alongFirst >= alongLast) {
+          u = Complex(alongFirst, 0.0);
+        } else {
+          u = alongLast * last;
+        }
+      }
+    }
+    changed += u != before ? 1 : 0;
+  }
+  return changed;
+}
+
 void applyCoriolis(const StepContext& ctx, const ExtrinsicGeometry& geometry, const std::vector<char>& wet,
                    StainState& state, const std::vector<int>* among) {
   const PhysicsSwitches& on = ctx.switches;

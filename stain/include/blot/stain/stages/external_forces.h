@@ -33,6 +33,31 @@ void applyBodyForces(const StepContext& ctx, const ExtrinsicGeometry& geometry, 
 void clearVelocityWithoutFreeLiquid(const StepContext& ctx, const std::vector<char>& wet, StainState& state,
                                     const std::vector<int>* among = nullptr);
 
+/// Turning angle π − γ of a boundary vertex's fan above which applyBoundaryWall
+/// treats it as a corner (γ the fan's angle): 45°, a feature angle. Below it the
+/// vertex is a bend of a smooth boundary sampled by the mesh.
+inline constexpr double kWallCornerTurning = 0.25 * 3.14159265358979323846;
+
+/// After the velocity's stages (ctx.switches.boundaryWall): the mesh boundary
+/// is a wall, free slip and no penetration. The liquid has no flux across it
+/// (the density advection's dual cells end there), so an outward u moves
+/// nothing but keeps growing under the forces that press the liquid against
+/// it (a hanging flag's hem), and then sets the step's Courant number, band
+/// reach and backtrack lengths. At each boundary vertex that `wet` marks, with
+/// its fan [0, γ] in the vertex's polar map (PolarMap::ringAngles: from the
+/// first boundary edge, the frame's x axis, counter-clockwise to the last):
+/// - a bend (π − kWallCornerTurning < γ < π): the outward part of u along the
+///   fan's bisector is removed (u · n ≤ 0), so flow along the chord of the two
+///   boundary neighbours, the discrete tangent of a curved rim, is kept;
+/// - otherwise (a straight edge, a corner, a concave vertex): u becomes its
+///   nearest point in the fan: unchanged inside; outside, its projection on
+///   the nearer boundary edge's direction, or 0 where both projections point
+///   off the mesh (a convex corner holds the liquid from both sides).
+/// On a straight edge both rules remove the normal part. `among` as for
+/// applyBodyForces. Returns how many vertices changed.
+int applyBoundaryWall(const StepContext& ctx, const SurfaceTopology& topology, const IntrinsicGeometry& intrinsic,
+                      const std::vector<char>& wet, StainState& state, const std::vector<int>* among = nullptr);
+
 /// Stage Coriolis for a liquid that is not advected (or SplitRotation,
 /// Explicit): with ω_n = ω_i·z (frame coordinates), ExactRotation and
 /// SplitRotation multiply u_i by exp(−2iω_n h) (|u| preserved), Explicit adds
