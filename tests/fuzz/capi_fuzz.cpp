@@ -69,6 +69,7 @@ const double kMass[] = {0.001, 0.0, 0.01, -0.001, 1e-300, 1.0, 1e6, 1e7, 1e300, 
 const double kRadius[] = {0.05, 0.02, 0.1, 0.0, -0.05, 1e-300, 1.0, 1e6, 1e300, kNaN, kInf};
 const int kSteps[] = {1, 2, 4, 0, -1, INT_MIN};
 const int kThreads[] = {1, 0, 2, -1, 1025, INT_MAX, INT_MIN};
+const int kAdaptive[] = {0, 1, 2, -1, INT_MAX, INT_MIN};
 const char* const kPresets[] = {nullptr, "", "plain", "twill-2-1", "no-such-weave", "plain\n"};
 
 /// Checks one status against blot.h's contract.
@@ -273,11 +274,17 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         if (status == BLOT_OK && !finite(budget)) std::abort();
         break;
       }
-      case 6:
+      case 6: {
         status = blotEngine_SetThreadCount(engine, in.pick(kThreads));
         check(status);
         status = blotEngine_SetThreadCount(engine, 1);  // never run the steps on many threads
+        check(status);
+        // 0 and 1 are the only values; anything else is refused, with a message.
+        const int adaptive = in.pick(kAdaptive);
+        status = blotEngine_SetAdaptiveThreads(engine, adaptive);
+        if ((status == BLOT_OK) != (adaptive == 0 || adaptive == 1)) std::abort();
         break;
+      }
       case 7:
         status = blotEngine_Save(engine, in.byte() % 8 == 0 ? "/nonexistent-folder/x.state" : saved.c_str());
         haveSaved = haveSaved || (status == BLOT_OK);
