@@ -70,7 +70,7 @@ TEST(SceneTest, EveryCommonKeyReachesItsField) {
               "colliders": [{"shape": "plane", "center": [0, 0, 0]}, {"shape": "sphere", "center": [0, 0.5, 0.5], "radius": 0.2}]},
     "fabric": {"diffusivity": 0.02, "viscosity": 0.001},
     "liquid": {"absorption_rate": 0.3, "evaporation_boundary": "wet-front"},
-    "physics": {"coriolis": false, "film_pressure": true, "coriolis_scheme": "explicit"},
+    "physics": {"coriolis": false, "film_pressure": true, "coriolis_scheme": "explicit", "boundary_wall": false},
     "gravity": [0, 0, -9.81],
     "coupling": "two-way", "time_step": 0.005, "max_steps_per_call": 4, "threads": 3, "adaptive_threads": false,
     "drops": [{"vertex": 5, "radius": 0.1, "solvent_mass": 0.01, "solute_mass": 0.002, "time": 0.5},
@@ -105,6 +105,7 @@ TEST(SceneTest, EveryCommonKeyReachesItsField) {
   EXPECT_EQ(d.stain.liquid.evaporationBoundary, stain::EvaporationBoundary::WetFront);
   EXPECT_FALSE(d.stain.switches.coriolis);
   EXPECT_TRUE(d.stain.switches.filmPressure);
+  EXPECT_FALSE(d.stain.switches.boundaryWall);
   EXPECT_EQ(d.stain.switches.coriolisScheme, stain::CoriolisScheme::Explicit);
   EXPECT_EQ(d.coupling, coupling::CouplingMode::TwoWay);
   EXPECT_DOUBLE_EQ(d.timeStep, 0.005);
@@ -246,6 +247,8 @@ INSTANTIATE_TEST_SUITE_P(
         BadScene{"held region empty ball", withExtra(R"("held_regions": [{"center": [9, 9, 9], "radius": 0.01}])"),
                  "held_regions[0].radius", "no rest-shape vertex"},
         BadScene{"physics switch type", withExtra(R"("physics": {"coriolis": 1})"), "physics.coriolis", "expected true or false"},
+        BadScene{"boundary wall type", withExtra(R"("physics": {"boundary_wall": "on"})"), "physics.boundary_wall",
+                 "expected true or false, got a string \"on\""},
         BadScene{"adaptive threads type", withExtra(R"("adaptive_threads": "yes")"), "adaptive_threads",
                  "expected true or false, got a string \"yes\""},
         BadScene{"fabric face out of range", withExtra(R"("fabric": {"patches": [{"faces": [0, 999], "tensor": [[1, 0], [0, 1]]}]})"),
