@@ -61,9 +61,10 @@ struct PhysicsSwitches {
   /// accumulating the forces.
   bool velocityOnFreeLiquid = true;
   /// The mesh boundary is a wall (free slip, no penetration): once the
-  /// velocity's stages have run, u at boundary vertices holding liquid loses the
-  /// part that points off the mesh (applyBoundaryWall). Off: the boundary is open to u (the liquid
-  /// still cannot cross it; analytic tests of an unbounded film).
+  /// velocity's stages have run, u at boundary vertices holding liquid loses
+  /// the part that points off the mesh (applyBoundaryWall). Off: the boundary
+  /// is open to u (the liquid still cannot cross it; analytic tests of an
+  /// unbounded film).
   bool boundaryWall = true;
   bool positivityLimiter = true;  ///< mass-conserving fix of negative densities after diffusion
   CoriolisScheme coriolisScheme = CoriolisScheme::ExactRotation;
