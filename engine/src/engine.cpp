@@ -378,8 +378,12 @@ void Engine::publishViews() {
   for (int i = 0; i < s.vertexCount(); ++i) {
     const stain::Matrix3& frame = ex.nextFrames[static_cast<std::size_t>(i)];
     normals_.row(i) = frame.col(2).transpose();
-    liquidVelocities_.row(i) = surface_->stain().relativeVelocity(i).transpose();
-    liquidWorldVelocities_.row(i) = surface_->stain().worldVelocity(i).transpose();
+    // Where no free liquid is left the stored u is the last one it had (or
+    // none at all): the view shows liquid moving with the cloth there.
+    const bool free = s.solvent[i] + s.solute[i] > 0.0;
+    const stain::Vector3 relative = free ? surface_->stain().relativeVelocity(i) : stain::Vector3::Zero();
+    liquidVelocities_.row(i) = relative.transpose();
+    liquidWorldVelocities_.row(i) = (surface_->stain().surfaceVelocity(i) + relative).transpose();
   }
   stainColors(def_.colors, s.solvent, s.solute, s.absorbedSolute, s.adsorbedSolute, colors_);
 }

@@ -206,7 +206,8 @@ blotStatus blotEngine_CopyDensities(const blotEngine* engine, blotDensity which,
 blotStatus blotEngine_CopyFaces(const blotEngine* engine, int32_t* out, int capacity);
 /** Copies #V x 3 liquid velocities in the world (inertial) frame (m/s): the cloth's velocity plus the relative one. */
 blotStatus blotEngine_CopyLiquidWorldVelocities(const blotEngine* engine, float* out, int capacity);
-/** Copies #V x 3 liquid velocities relative to the cloth, tangential, in world axes (m/s). */
+/** Copies #V x 3 liquid velocities relative to the cloth, tangential, in world axes (m/s); 0 at vertices
+ *  without free liquid. */
 blotStatus blotEngine_CopyLiquidRelativeVelocities(const blotEngine* engine, float* out, int capacity);
 
 /** Counters, timings and the mass budget. */

@@ -223,7 +223,9 @@ class Engine {
   const Eigen::VectorXd& absorbedSolvent() const;  ///< σ_p (kg/m²)
   const Eigen::VectorXd& absorbedSolute() const;   ///< σ_s,p (kg/m²)
   const Eigen::VectorXd& adsorbedSolute() const;   ///< σ_s,a (kg/m²)
-  /// Liquid velocity relative to the cloth, tangential, in world axes (m/s).
+  /// Liquid velocity relative to the cloth, tangential, in world axes (m/s);
+  /// 0 at vertices without free liquid (dry, or liquid held in the fibres,
+  /// which moves with the cloth).
   const Eigen::MatrixX3d& liquidVelocities() const;
   /// Liquid velocity in the world (inertial) frame: the cloth's velocity plus
   /// liquidVelocities() (m/s).
