@@ -380,8 +380,8 @@ void Engine::publishViews() {
     normals_.row(i) = frame.col(2).transpose();
     // Where no free liquid is left the stored u is the last one it had (or
     // none at all): the view shows liquid moving with the cloth there.
-    const bool free = s.solvent[i] + s.solute[i] > 0.0;
-    const stain::Vector3 relative = free ? surface_->stain().relativeVelocity(i) : stain::Vector3::Zero();
+    const bool hasFreeLiquid = s.solvent[i] + s.solute[i] > 0.0;
+    const stain::Vector3 relative = hasFreeLiquid ? surface_->stain().relativeVelocity(i) : stain::Vector3::Zero();
     liquidVelocities_.row(i) = relative.transpose();
     liquidWorldVelocities_.row(i) = (surface_->stain().surfaceVelocity(i) + relative).transpose();
   }

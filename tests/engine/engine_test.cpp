@@ -78,10 +78,10 @@ TEST(EngineTest, InitialDropShowsInTheFirstViewsAndMassIsConserved) {
 TEST(EngineTest, VerticesWithoutFreeLiquidShowLiquidMovingWithTheCloth) {
   Engine engine(rotatingPatch());  // absorption 0.4/s: the drop's thin edge is soaked within a few steps
   ASSERT_EQ(engine.advanceSteps(20).status, stain::StepStatus::Ok);
-  int soaked = 0, free = 0;
+  int soaked = 0, withFreeLiquid = 0;
   for (int i = 0; i < engine.vertexCount(); ++i) {
     if (engine.solvent()[i] + engine.solute()[i] > 0.0) {
-      ++free;
+      ++withFreeLiquid;
       continue;
     }
     if (engine.absorbedSolvent()[i] > 0.0) ++soaked;
@@ -91,9 +91,9 @@ TEST(EngineTest, VerticesWithoutFreeLiquidShowLiquidMovingWithTheCloth) {
     EXPECT_LE((engine.liquidWorldVelocities().row(i).transpose() - cloth).norm(), 0.01 * cloth.norm() + 1e-12)
         << "vertex " << i;
   }
-  std::printf("after 20 steps: %d vertices with free liquid, %d soaked without\n", free, soaked);
+  std::printf("after 20 steps: %d vertices with free liquid, %d soaked without\n", withFreeLiquid, soaked);
   EXPECT_GT(soaked, 10);
-  EXPECT_GT(free, 10);
+  EXPECT_GT(withFreeLiquid, 10);
 }
 
 TEST(EngineTest, AccumulatorRunsWholeStepsAndCarriesTheRemainder) {
