@@ -10,6 +10,7 @@
 // Deterministic: the same --seed gives the same drops and the same state (the
 // final state hash is printed). Timings are wall-clock and vary with the machine.
 #include <blot/engine/engine.h>
+#include <blot/stain/io/atomic_file.h>
 
 #include <algorithm>
 #include <chrono>
@@ -17,6 +18,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -28,6 +30,7 @@ struct Options {
   double frameRate = 60.0;
   double dropInterval = 0.7;  // mean seconds between drops
   unsigned seed = 1;
+  std::string framesCsv;  // per-frame timings, empty: none
 };
 
 bool parse(int argc, char** argv, Options& o) {
@@ -39,9 +42,11 @@ bool parse(int argc, char** argv, Options& o) {
     else if (a == "--rate" && hasValue) o.frameRate = std::atof(argv[++i]);
     else if (a == "--drop-interval" && hasValue) o.dropInterval = std::atof(argv[++i]);
     else if (a == "--seed" && hasValue) o.seed = static_cast<unsigned>(std::atoi(argv[++i]));
+    else if (a == "--frames-csv" && hasValue) o.framesCsv = argv[++i];
     else {
       std::fprintf(stderr,
-                   "usage: %s [--scene SCENE.json] [--seconds S] [--rate HZ] [--drop-interval S] [--seed N]\n", argv[0]);
+                   "usage: %s [--scene SCENE.json] [--seconds S] [--rate HZ] [--drop-interval S] [--seed N]\n"
+                   "          [--frames-csv FILE]  (one row per frame: times, stain stages, rebuilds, drops)\n", argv[0]);
       return false;
     }
   }
@@ -79,11 +84,22 @@ int main(int argc, char** argv) {
   stepMs.reserve(static_cast<size_t>(frames));
   clothMs.reserve(static_cast<size_t>(frames));
   stainMs.reserve(static_cast<size_t>(frames));
+  // One row per frame for --frames-csv: what the frame's internal steps spent
+  // and did, from the engine's running totals.
+  std::ostringstream csv;
+  csv << "frame,step_ms,cloth_ms,stain_ms,coupling_ms";
+  for (int k = static_cast<int>(blot::stain::kFirstStainStage); k <= static_cast<int>(blot::stain::kLastStainStage); ++k)
+    csv << "," << blot::stain::stageName(static_cast<blot::stain::Stage>(k)) << "_ms";
+  csv << ",internal_steps,metric_rebuilds,drops\n";
+  csv.precision(6);
   blot::engine::PhaseTotals before = engine->statistics().totals;
+  std::int64_t stepsBefore = engine->statistics().steps;
+  int rebuildsBefore = engine->statistics().intrinsicRefreshes;
   double nextDrop = gap(rng);
   int drops = 0;
   for (int frame = 0; frame < frames; ++frame) {
     const double now = frame * frameDt;
+    int frameDrops = 0;
     while (nextDrop <= now) {
       // A point inside the cloth's box, pushed 0.3 m off its thinnest side: the
       // drop lands on the nearest point of the surface.
@@ -101,6 +117,7 @@ int main(int argc, char** argv) {
       drop.radius = std::sqrt(volume / (M_PI * 1e-3));
       engine->addDropAtPoint(p, drop);
       ++drops;
+      ++frameDrops;
       nextDrop += gap(rng);
     }
     const auto start = std::chrono::steady_clock::now();
@@ -109,10 +126,31 @@ int main(int argc, char** argv) {
     const blot::engine::PhaseTotals after = engine->statistics().totals;
     clothMs.push_back(after.cloth - before.cloth);
     stainMs.push_back((after.stain + after.coupling) - (before.stain + before.coupling));
+    if (!options.framesCsv.empty()) {
+      const blot::engine::EngineStatistics stats = engine->statistics();
+      csv << frame << "," << stepMs.back() << "," << clothMs.back() << "," << after.stain - before.stain << ","
+          << after.coupling - before.coupling;
+      for (int k = static_cast<int>(blot::stain::kFirstStainStage); k <= static_cast<int>(blot::stain::kLastStainStage);
+           ++k)
+        csv << "," << after.stageMilliseconds[static_cast<size_t>(k)] - before.stageMilliseconds[static_cast<size_t>(k)];
+      csv << "," << stats.steps - stepsBefore << "," << stats.intrinsicRefreshes - rebuildsBefore << "," << frameDrops
+          << "\n";
+      stepsBefore = stats.steps;
+      rebuildsBefore = stats.intrinsicRefreshes;
+    }
     before = after;
     if (report.status != blot::stain::StepStatus::Ok) {
       std::fprintf(stderr, "game_loop: frame %d: stage '%s': %s\n", frame, report.stageName(), report.message.c_str());
       return 3;
+    }
+  }
+  if (!options.framesCsv.empty()) {
+    const std::string text = csv.str();
+    try {
+      blot::stain::writeFileAtomically(options.framesCsv, text.data(), text.size());
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "game_loop: %s\n", e.what());
+      return 1;
     }
   }
   const blot::engine::EngineStatistics s = engine->statistics();
