@@ -167,7 +167,7 @@ Engine::Engine(const EngineDef& def) : def_(def) {
   liquidWorldVelocities_.resize(n, 3);
   colors_.resize(n, 3);
   applyDueDrops();  // drops scheduled at t = 0 show in the first views
-  publishViews();
+  invalidateViews();
 }
 
 std::unique_ptr<coupling::CoupledSurface> Engine::buildSurface() const {
@@ -254,7 +254,7 @@ stain::StepReport Engine::advanceSteps(int count) {
       break;
     }
   }
-  if (count > 0) publishViews();
+  if (count > 0) invalidateViews();
   return report;
 }
 
@@ -371,35 +371,71 @@ void Engine::setSurfaceFrame(const double* positions, const double* velocities) 
 
 // ------------------------------------------------------------------ views
 
-void Engine::publishViews() {
-  surface_->stain().completeGeometry();  // the views read every vertex's frame
-  const stain::ExtrinsicGeometry& ex = surface_->stain().geometry().extrinsic();
-  const stain::StainState& s = surface_->stain().state();
+void Engine::invalidateViews() {
+  const std::lock_guard<std::mutex> lock(viewsMutex_);
+  frameViewsCurrent_ = false;
+  colorsCurrent_ = false;
+}
+
+// Design note: the views used to be written after every call that stepped,
+// which fitted a frame at every vertex (completeGeometry) although the step
+// had fitted them only on the liquid band: 0.5 ms of each 9.7 ms frame of the
+// game loop's two-way flag, paid by loops that never read a normal. Computing
+// a view at its first read gives the same values (a vertex's fitted frame is a
+// function of the positions alone, whichever vertices were fitted before) and
+// leaves the state, and so every later step, bit-identical.
+void Engine::refreshFrameViews() const {
+  const std::lock_guard<std::mutex> lock(viewsMutex_);
+  if (frameViewsCurrent_) return;
+  stain::StainSolver& stain = surface_->stain();
+  stain.completeGeometry();  // the views read every vertex's frame
+  const stain::ExtrinsicGeometry& ex = stain.geometry().extrinsic();
+  const stain::StainState& s = stain.state();
   for (int i = 0; i < s.vertexCount(); ++i) {
     const stain::Matrix3& frame = ex.nextFrames[static_cast<std::size_t>(i)];
     normals_.row(i) = frame.col(2).transpose();
     // Where no free liquid is left the stored u is the last one it had (or
     // none at all): the view shows liquid moving with the cloth there.
     const bool hasFreeLiquid = s.solvent[i] + s.solute[i] > 0.0;
-    const stain::Vector3 relative = hasFreeLiquid ? surface_->stain().relativeVelocity(i) : stain::Vector3::Zero();
+    const stain::Vector3 relative = hasFreeLiquid ? stain.relativeVelocity(i) : stain::Vector3::Zero();
     liquidVelocities_.row(i) = relative.transpose();
-    liquidWorldVelocities_.row(i) = (surface_->stain().surfaceVelocity(i) + relative).transpose();
+    liquidWorldVelocities_.row(i) = (stain.surfaceVelocity(i) + relative).transpose();
   }
+  frameViewsCurrent_ = true;
+}
+
+void Engine::refreshColors() const {
+  const std::lock_guard<std::mutex> lock(viewsMutex_);
+  if (colorsCurrent_) return;
+  const stain::StainState& s = surface_->stain().state();
   stainColors(def_.colors, s.solvent, s.solute, s.absorbedSolute, s.adsorbedSolute, colors_);
+  colorsCurrent_ = true;
 }
 
 int Engine::vertexCount() const { return static_cast<int>(def_.mesh.vertexPositions.rows()); }
 const stain::Triangles& Engine::faces() const { return def_.mesh.faces; }
 const Eigen::MatrixX3d& Engine::positions() const { return surface_->motion().positions(); }
-const Eigen::MatrixX3d& Engine::normals() const { return normals_; }
+const Eigen::MatrixX3d& Engine::normals() const {
+  refreshFrameViews();
+  return normals_;
+}
 const Eigen::VectorXd& Engine::solvent() const { return surface_->stain().state().solvent; }
 const Eigen::VectorXd& Engine::solute() const { return surface_->stain().state().solute; }
 const Eigen::VectorXd& Engine::absorbedSolvent() const { return surface_->stain().state().absorbedSolvent; }
 const Eigen::VectorXd& Engine::absorbedSolute() const { return surface_->stain().state().absorbedSolute; }
 const Eigen::VectorXd& Engine::adsorbedSolute() const { return surface_->stain().state().adsorbedSolute; }
-const Eigen::MatrixX3d& Engine::liquidVelocities() const { return liquidVelocities_; }
-const Eigen::MatrixX3d& Engine::liquidWorldVelocities() const { return liquidWorldVelocities_; }
-const Eigen::MatrixX3d& Engine::colors() const { return colors_; }
+const Eigen::MatrixX3d& Engine::liquidVelocities() const {
+  refreshFrameViews();
+  return liquidVelocities_;
+}
+const Eigen::MatrixX3d& Engine::liquidWorldVelocities() const {
+  refreshFrameViews();
+  return liquidWorldVelocities_;
+}
+const Eigen::MatrixX3d& Engine::colors() const {
+  refreshColors();
+  return colors_;
+}
 double Engine::time() const { return static_cast<double>(steps_) * def_.timeStep; }
 
 EngineStatistics Engine::statistics() const {

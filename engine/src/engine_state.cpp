@@ -530,7 +530,7 @@ void Engine::load(const std::string& path) {
   nextScheduled_ = nextScheduled;
   pending_.clear();
   for (const stain::DropDef& d : pending) pending_.push_back(d);
-  publishViews();
+  invalidateViews();
 }
 
 }  // namespace blot::engine

@@ -13,6 +13,8 @@
 #include <limits>
 #include <filesystem>
 #include <fstream>
+#include <thread>
+#include <vector>
 
 #include "bullet_flag_def.h"
 
@@ -622,6 +624,49 @@ TEST(EngineTest, TwoWayFlagIsBitIdenticalForOneAndTwoThreadsAndTwoEngines) {
   EXPECT_EQ(b.stateHash(), two);
   EXPECT_EQ(a.threadCount(), 1);
   EXPECT_EQ(b.threadCount(), 2);
+}
+
+// The derived views (normals, liquid velocities, colours) are computed when
+// first read after a step. Reading them after every step or never must leave
+// the simulation bit-identical, the views read late must equal those read on
+// time, and readers on several threads must all see the same complete values.
+TEST(EngineTest, ViewsReadEveryStepOrNeverLeaveTheStateBitIdentical) {
+  Engine reader(twoWayFlag()), skipper(twoWayFlag());
+  Eigen::MatrixX3d normals, velocities, worldVelocities, colors;
+  for (int k = 0; k < 30; ++k) {
+    ASSERT_EQ(reader.step(1.0 / 60).status, stain::StepStatus::Ok);
+    ASSERT_EQ(skipper.step(1.0 / 60).status, stain::StepStatus::Ok);
+    normals = reader.normals();
+    velocities = reader.liquidVelocities();
+    worldVelocities = reader.liquidWorldVelocities();
+    colors = reader.colors();
+  }
+  EXPECT_EQ(skipper.stateHash(), reader.stateHash());
+  EXPECT_GT(reader.liquidVelocities().rowwise().norm().maxCoeff(), 0.0);  // liquid is moving
+  // The band the step fitted is a part of the flag: the views fit the rest.
+  const int band = skipper.statistics().lastProfile.geometryVertices;
+  std::printf("last step: %d of %d vertices fitted by the step\n", band, skipper.vertexCount());
+  EXPECT_LT(band, skipper.vertexCount());
+
+  std::vector<std::thread> threads;
+  std::vector<Eigen::MatrixX3d> seen(4);
+  for (int t = 0; t < 4; ++t) {
+    threads.emplace_back([&skipper, &seen, t] {
+      seen[static_cast<size_t>(t)] = t % 2 == 0 ? skipper.normals() : skipper.liquidWorldVelocities();
+    });
+  }
+  for (std::thread& thread : threads) thread.join();
+  for (int t = 0; t < 4; ++t) EXPECT_EQ(seen[static_cast<size_t>(t)], t % 2 == 0 ? normals : worldVelocities) << t;
+  EXPECT_EQ(skipper.normals(), normals);
+  EXPECT_EQ(skipper.liquidVelocities(), velocities);
+  EXPECT_EQ(skipper.liquidWorldVelocities(), worldVelocities);
+  EXPECT_EQ(skipper.colors(), colors);
+  // Reading them changed nothing that a later step sees.
+  for (int k = 0; k < 10; ++k) {
+    ASSERT_EQ(reader.step(1.0 / 60).status, stain::StepStatus::Ok);
+    ASSERT_EQ(skipper.step(1.0 / 60).status, stain::StepStatus::Ok);
+  }
+  EXPECT_EQ(skipper.stateHash(), reader.stateHash());
 }
 
 }  // namespace

@@ -23,6 +23,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -214,6 +215,12 @@ class Engine {
   void setSurfaceFrame(const double* positions, const double* velocities);
 
   // Read-only views, #V rows, valid until the next step(), advanceSteps() or load().
+  // normals(), liquidVelocities(), liquidWorldVelocities() and colors() are
+  // derived from the state: each is computed at its first call after the
+  // state changed (normals and velocities need every vertex's fitted frame,
+  // which the step itself computes only where the liquid is), so a loop that
+  // never reads them never pays for them. Their buffers stay in place, and
+  // calling them from several threads at once is safe.
   int vertexCount() const;
   const stain::Triangles& faces() const;
   const Eigen::MatrixX3d& positions() const;   ///< m, at time()
@@ -275,7 +282,11 @@ class Engine {
   std::unique_ptr<coupling::CoupledSurface> buildSurface() const;
   stain::StepReport runInternalStep();
   void applyDueDrops();
-  void publishViews();
+  /// Marks the derived views stale (after anything that changes the state).
+  void invalidateViews();
+  /// Computes the derived views of the current state, if stale.
+  void refreshFrameViews() const;
+  void refreshColors() const;
 
   EngineDef def_;
   std::unique_ptr<stain::SurfaceTopology> topology_;
@@ -287,8 +298,11 @@ class Engine {
   double accumulator_ = 0;               // carried frame time in units of h
   std::int64_t steps_ = 0;
   std::uint64_t meshFingerprint_ = 0;
-  // Views (preallocated, rewritten by publishViews).
-  Eigen::MatrixX3d normals_, liquidVelocities_, liquidWorldVelocities_, colors_;
+  // Derived views (preallocated; rewritten on first read after a change,
+  // under viewsMutex_).
+  mutable std::mutex viewsMutex_;
+  mutable bool frameViewsCurrent_ = false, colorsCurrent_ = false;
+  mutable Eigen::MatrixX3d normals_, liquidVelocities_, liquidWorldVelocities_, colors_;
   // Statistics.
   double droppedTime_ = 0, wallSeconds_ = 0;
   int dropsApplied_ = 0, intrinsicRefreshes_ = 0;
