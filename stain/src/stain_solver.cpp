@@ -190,7 +190,7 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   diffusionScratch_.resize(n);
   systems_.setSolverChoice(def_.diffusionSolver);
   velocityScratch_.resize(n);
-  densityScratch_.resize(n, topology.edgeCount());
+  densityScratch_.resize(n, topology.edgeCount(), topology.faceCount());
   band_.resize(n);
   interactionScratch_.reserve(static_cast<size_t>(n));
   surfaceVelocityScratch_ = RowVectors3::Zero(n, 3);

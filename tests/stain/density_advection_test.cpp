@@ -68,7 +68,7 @@ TEST(DensityAdvection, RotatingFlowConservesMassExactlyAndStaysNonNegative) {
     const double solvent0 = totalMass(g, state.solvent), solute0 = totalMass(g, state.solute);
     StainState rerun = state;
     DensityAdvectionScratch scratch;
-    scratch.resize(g.vertexCount(), g.topology().edgeCount());
+    scratch.resize(g.vertexCount(), g.topology().edgeCount(), g.topology().faceCount());
     double worstSolvent = 0.0, worstSolute = 0.0, lowest = 0.0;
     int maxSubsteps = 0;
     // 1000 steps; 80 under the sanitizers, which run this test 30 to 40 times
@@ -115,7 +115,7 @@ TEST(DensityAdvection, ParallelPathWithWetMaskConservesMass) {
   }
   const double solvent0 = totalMass(g, state.solvent), solute0 = totalMass(g, state.solute);
   DensityAdvectionScratch scratch;
-  scratch.resize(g.vertexCount(), g.topology().edgeCount());
+  scratch.resize(g.vertexCount(), g.topology().edgeCount(), g.topology().faceCount());
   std::vector<int> substeps;
   for (const double h : {0.05, 0.08, 0.11, 0.14}) {
     const DensityAdvectionReport report =
@@ -148,7 +148,7 @@ TEST(DensityAdvection, WetRegionRestrictionMatchesTheWholeMeshBitForBit) {
     wet[static_cast<size_t>(i)] = state.solvent(i) > 0.0;
   }
   DensityAdvectionScratch scratch;
-  scratch.resize(g.vertexCount(), g.topology().edgeCount());
+  scratch.resize(g.vertexCount(), g.topology().edgeCount(), g.topology().faceCount());
   StainState restricted = state, whole = state;
   StepContext ctx = contextWithStep(0.16);
   const DensityAdvectionReport local =
@@ -183,7 +183,7 @@ TEST(DensityAdvection, SubstepCountFollowsTheCourantNumber) {
       g, [](const Vector3& x) { return Vector3(0.4 + 0.3 * x.y(), -0.2, 0.0); }, state);
   state.solvent.setConstant(1.0);
   DensityAdvectionScratch scratch;
-  scratch.resize(g.vertexCount(), g.topology().edgeCount());
+  scratch.resize(g.vertexCount(), g.topology().edgeCount(), g.topology().faceCount());
   for (const double h : {0.002, 0.01, 0.05, 0.2}) {
     StainState s = state;
     const DensityAdvectionReport report =
@@ -209,7 +209,7 @@ TEST(DensityAdvection, SubstepCapLimitsOutflowWithoutNegativeDensity) {
   StepContext ctx = contextWithStep(4.0 * testing::shortestEdge(g));
   ctx.maxAdvectionSubsteps = 1;
   DensityAdvectionScratch scratch;
-  scratch.resize(g.vertexCount(), g.topology().edgeCount());
+  scratch.resize(g.vertexCount(), g.topology().edgeCount(), g.topology().faceCount());
   const double mass0 = totalMass(g, state.solvent);
   int limited = 0;
   for (int step = 0; step < 50; ++step) {
@@ -238,7 +238,7 @@ TEST(DensityAdvection, UniformFlowKeepsConstantDensityInTheInterior) {
   state.solvent.setConstant(1.5);
   const double dx = 1.0 / 24;
   DensityAdvectionScratch scratch;
-  scratch.resize(g.vertexCount(), g.topology().edgeCount());
+  scratch.resize(g.vertexCount(), g.topology().edgeCount(), g.topology().faceCount());
   const DensityAdvectionReport report = advectDensities(contextWithStep(0.5 * dx / 0.3), g.topology(),
                                                         g.intrinsic, g.extrinsic, {}, scratch, state);
   const double margin = (report.substeps + 0.5) * dx;
@@ -273,7 +273,7 @@ TEST(DensityAdvection, UniformFlowTranslatesBlobCentroidAtFlowSpeed) {
   const Eigen::Vector2d before = centroid(g, state.solvent);
   const double h = 0.02, duration = 1.6;
   DensityAdvectionScratch scratch;
-  scratch.resize(g.vertexCount(), g.topology().edgeCount());
+  scratch.resize(g.vertexCount(), g.topology().edgeCount(), g.topology().faceCount());
   for (int step = 0; step < static_cast<int>(std::lround(duration / h)); ++step)
     advectDensities(contextWithStep(h), g.topology(), g.intrinsic, g.extrinsic, {}, scratch, state);
   const Eigen::Vector2d moved = centroid(g, state.solvent) - before;
@@ -295,7 +295,7 @@ TEST(DensityAdvection, BoundaryEdgesCarryFluxAlongButNothingLeavesTheMesh) {
   state.solvent(source) = 1.0;
   const double mass0 = totalMass(g, state.solvent);
   DensityAdvectionScratch scratch;
-  scratch.resize(g.vertexCount(), g.topology().edgeCount());
+  scratch.resize(g.vertexCount(), g.topology().edgeCount(), g.topology().faceCount());
   const double h = 0.02;
   for (int step = 0; step < 40; ++step)
     advectDensities(contextWithStep(h), g.topology(), g.intrinsic, g.extrinsic, {}, scratch, state);

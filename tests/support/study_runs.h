@@ -84,7 +84,7 @@ inline RotationAdvectionResult runRigidRotationAdvection(const stain::liquid_tes
   StepContext ctx = makeStepContext(s.h, Vector3(0, 0, -9.8), switches, LiquidParameters{});
   if (s.method == AdvectionMethod::CapOne) ctx.maxAdvectionSubsteps = 1;
   DensityAdvectionScratch scratch;
-  scratch.resize(n, g.topology.edgeCount());
+  scratch.resize(n, g.topology.edgeCount(), g.topology.faceCount());
   const Eigen::MatrixX2d normals = barycentricDualNormals(g.topology, g.mesh.vertexPositions);
   const std::vector<char> all;  // empty: every vertex
 

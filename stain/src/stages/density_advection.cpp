@@ -41,7 +41,7 @@ void addNextRing(const SurfaceTopology& topology, int from, int to, std::vector<
 
 }  // namespace
 
-void DensityAdvectionScratch::resize(int vertexCount, int edgeCount) {
+void DensityAdvectionScratch::resize(int vertexCount, int edgeCount, int faceCount) {
   activeVertices.clear();
   activeVertices.reserve(static_cast<size_t>(vertexCount));
   activeMarks.assign(static_cast<size_t>(vertexCount), 0);
@@ -67,6 +67,15 @@ void DensityAdvectionScratch::resize(int vertexCount, int edgeCount) {
   massSolute.setZero(vertexCount);
   nextMassSolvent.setZero(vertexCount);
   nextMassSolute.setZero(vertexCount);
+  activeEdges.clear();
+  activeEdges.reserve(static_cast<size_t>(edgeCount));
+  edgeMarks.assign(static_cast<size_t>(edgeCount), 0);
+  edgeDualNormals.setZero(edgeCount, 3);
+  activeFaces.clear();
+  activeFaces.reserve(static_cast<size_t>(faceCount));
+  faceMarks.assign(static_cast<size_t>(faceCount), 0);
+  faceUnitNormals.setZero(faceCount, 3);
+  faceCentroids.setZero(faceCount, 3);
 }
 
 DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopology& topology,
@@ -76,9 +85,11 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
                                        const std::vector<char>* reach, const std::vector<int>* among) {
   const int n = topology.vertexCount();
   const int edgeCount = topology.edgeCount();
+  const int faceCount = topology.faceCount();
   if (static_cast<int>(scratch.activeMarks.size()) != n || scratch.massSolvent.size() != n ||
-      scratch.ringSpeeds.size() != 2 * static_cast<Eigen::Index>(edgeCount)) {
-    scratch.resize(n, edgeCount);  // first call only
+      scratch.ringSpeeds.size() != 2 * static_cast<Eigen::Index>(edgeCount) ||
+      static_cast<int>(scratch.faceMarks.size()) != faceCount) {
+    scratch.resize(n, edgeCount, faceCount);  // first call only
   }
   const std::vector<int>& offsets = topology.ringOffsets();
   const std::vector<int>& neighbors = topology.ringNeighbors();
@@ -177,8 +188,63 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
     });
     return maxCourant;
   };
+  // Deforming surface: the dual-edge normal of every edge between two active
+  // vertices of active[from, to) and its neighbours, computed once per edge
+  // (not once from each end) from its faces' unit normals and centroids,
+  // computed once per face (not once per dual edge at each end, six times).
+  // The same terms in the same order as dualEdgeNormal: the same bits.
+  std::vector<int>& edges = scratch.activeEdges;
+  std::vector<int>& faces = scratch.activeFaces;
+  std::vector<char>& edgeMarks = scratch.edgeMarks;
+  std::vector<char>& faceMarks = scratch.faceMarks;
+  const std::vector<int>& edgeHalfedges = topology.edgeHalfedges();
+  const std::vector<int>& twins = topology.halfedgeTwins();
+  edges.clear();
+  faces.clear();
+  auto cacheDualNormals = [&](int from, int to) {
+    const int edgesBegin = static_cast<int>(edges.size()), facesBegin = static_cast<int>(faces.size());
+    const auto addFace = [&](int h) {
+      if (h < 0 || faceMarks[static_cast<size_t>(h / 3)]) return;
+      faceMarks[static_cast<size_t>(h / 3)] = 1;
+      faces.push_back(h / 3);
+    };
+    for (int k = from; k < to; ++k) {
+      const int i = active[static_cast<size_t>(k)];
+      for (int m = ringOffsets[i]; m < ringOffsets[i + 1]; ++m) {
+        const int e = ringEdgeIds[m];
+        if (!marked[ringNeighbors[m]] || edgeMarks[static_cast<size_t>(e)]) continue;
+        edgeMarks[static_cast<size_t>(e)] = 1;
+        edges.push_back(e);
+        const int first = edgeHalfedges[static_cast<size_t>(e)];
+        addFace(first);
+        addFace(twins[static_cast<size_t>(first)]);
+      }
+    }
+    const int edgesEnd = static_cast<int>(edges.size()), facesEnd = static_cast<int>(faces.size());
+    const auto cachedFace = [&](int f, Vector3& unitNormal, Vector3& centroid) {
+      unitNormal = scratch.faceUnitNormals.row(f).transpose();
+      centroid = scratch.faceCentroids.row(f).transpose();
+    };
+    threads::runLoop(edgesEnd - edgesBegin >= kMinParallelVertices, [&] {
+#pragma omp for schedule(static)
+      for (int k = facesBegin; k < facesEnd; ++k) {
+        const int f = faces[static_cast<size_t>(k)];
+        Vector3 unitNormal, centroid;
+        faceNormalAndCentroid(topology, extrinsic.positions, f, unitNormal, centroid);
+        scratch.faceUnitNormals.row(f) = unitNormal.transpose();
+        scratch.faceCentroids.row(f) = centroid.transpose();
+      }
+#pragma omp for schedule(static)
+      for (int k = edgesBegin; k < edgesEnd; ++k) {
+        const int e = edges[static_cast<size_t>(k)];
+        scratch.edgeDualNormals.row(e) = dualEdgeNormalFrom(topology, extrinsic.positions, e, cachedFace).transpose();
+      }
+    });
+  };
+  const double* dualNormals = scratch.edgeDualNormals.data();
   auto ringSpeedsAndOutflow = [&](int from, int to) {
     if (rigid) return ringSpeedsAndOutflowRigid(from, to);
+    cacheDualNormals(from, to);
     double maxCourant = 0.0;
     threads::runLoop(to - from >= kMinParallelVertices, [&] {
       decltype(maxCourant) maxCourantHere = threads::lowest<decltype(maxCourant)>();
@@ -192,7 +258,8 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
           const double* uj = velocities3 + 3 * static_cast<size_t>(j);
           // ½(U_i + U_j)·N_ij, written so that j's ring gets the exact negative
           // (sums commute; N_ji is N_ij negated, and negation is exact in IEEE).
-          const Vector3 dual = dualEdgeNormal(topology, extrinsic.positions, ringEdgeIds[m]);
+          // An edge to an inactive j has no cached normal: its speed is 0.
+          const double* dual = dualNormals + 3 * static_cast<size_t>(ringEdgeIds[m]);
           const double sign = i < j ? 1.0 : -1.0;
           const double along = sign * ((ui[0] + uj[0]) * dual[0] + (ui[1] + uj[1]) * dual[1] +
                                        (ui[2] + uj[2]) * dual[2]);
@@ -218,6 +285,8 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
   if (!(maxCourant > 0.0)) {  // nothing moves (or non-finite input: leave the state as is)
     for (const int i : active) marks[static_cast<size_t>(i)] = 0;
     active.clear();
+    for (const int e : edges) edgeMarks[static_cast<size_t>(e)] = 0;
+    for (const int f : faces) faceMarks[static_cast<size_t>(f)] = 0;
     return report;
   }
   const int substeps =
@@ -313,6 +382,8 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
       scratch.nextMassSolvent(i) = scratch.nextMassSolute(i) = 0.0;
     }
   });
+  for (const int e : edges) edgeMarks[static_cast<size_t>(e)] = 0;
+  for (const int f : faces) faceMarks[static_cast<size_t>(f)] = 0;
   report.limitedVertices = limited;
   return report;
 }

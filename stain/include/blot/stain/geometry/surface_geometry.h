@@ -119,31 +119,50 @@ static_assert(sizeof(ExtrinsicGeometry) == 6 * sizeof(RowVectors3) + 4 * sizeof(
 /// Per edge, 4 numbers (row-major #E by 4): see SurfaceGeometry::restEdgeFrameNormals.
 using EdgeFrameNormals = Eigen::Matrix<double, Eigen::Dynamic, 4, Eigen::RowMajor>;
 
-/// Integrated unit normal of the barycentric dual edge of edge e (m), oriented
-/// from edgeVertices(e, 0) to edgeVertices(e, 1): Σ over the edge's faces of
-/// (c_T − m) × n_T, c_T the face centroid, m the edge midpoint, n_T the unit
-/// face normal. Evaluated in the same order whichever endpoint asks, so the
-/// two ring entries of an edge can use bitwise opposite values.
-inline Vector3 dualEdgeNormal(const SurfaceTopology& topology, const RowVectors3& positions, int e) {
+/// Unit normal and centroid of face f at `positions` (the terms dualEdgeNormal
+/// takes from each face).
+inline void faceNormalAndCentroid(const SurfaceTopology& topology, const RowVectors3& positions, int f,
+                                  Vector3& unitNormal, Vector3& centroid) {
+  const Vector3 p0 = positions.row(topology.faces()(f, 0)).transpose();
+  const Vector3 p1 = positions.row(topology.faces()(f, 1)).transpose();
+  const Vector3 p2 = positions.row(topology.faces()(f, 2)).transpose();
+  unitNormal = (p1 - p0).cross(p2 - p0).normalized();
+  centroid = (p0 + p1 + p2) / 3.0;
+}
+
+/// dualEdgeNormal with each face's unit normal and centroid given by
+/// face(f, unitNormal, centroid), e.g. from a per-step cache: the same terms
+/// in the same order, so the same bits.
+template <typename FaceData>
+Vector3 dualEdgeNormalFrom(const SurfaceTopology& topology, const RowVectors3& positions, int e,
+                           const FaceData& face) {
   Vector3 normal = Vector3::Zero();
   const int lower = topology.edgeVertices()(e, 0);
   const int first = topology.edgeHalfedges()[static_cast<size_t>(e)];
   const int second = topology.halfedgeTwins()[static_cast<size_t>(first)];
   for (const int h : {first, second}) {
     if (h < 0) continue;
-    const int f = h / 3;
-    const Vector3 p0 = positions.row(topology.faces()(f, 0)).transpose();
-    const Vector3 p1 = positions.row(topology.faces()(f, 1)).transpose();
-    const Vector3 p2 = positions.row(topology.faces()(f, 2)).transpose();
-    const Vector3 faceNormal = (p1 - p0).cross(p2 - p0).normalized();
+    Vector3 faceNormal, centroid;
+    face(h / 3, faceNormal, centroid);
     const Vector3 pa = positions.row(topology.halfedgeTail(h)).transpose();
     const Vector3 pb = positions.row(topology.halfedgeHead(h)).transpose();
-    const Vector3 toCentroid = (p0 + p1 + p2) / 3.0 - 0.5 * (pa + pb);
+    const Vector3 toCentroid = centroid - 0.5 * (pa + pb);
     // (c − m) × n points from the half-edge's tail to its head.
     const Vector3 piece = toCentroid.cross(faceNormal);
     normal += topology.halfedgeTail(h) == lower ? piece : Vector3(-piece);
   }
   return normal;
+}
+
+/// Integrated unit normal of the barycentric dual edge of edge e (m), oriented
+/// from edgeVertices(e, 0) to edgeVertices(e, 1): Σ over the edge's faces of
+/// (c_T − m) × n_T, c_T the face centroid, m the edge midpoint, n_T the unit
+/// face normal. Evaluated in the same order whichever endpoint asks, so the
+/// two ring entries of an edge can use bitwise opposite values.
+inline Vector3 dualEdgeNormal(const SurfaceTopology& topology, const RowVectors3& positions, int e) {
+  return dualEdgeNormalFrom(topology, positions, e, [&](int f, Vector3& unitNormal, Vector3& centroid) {
+    faceNormalAndCentroid(topology, positions, f, unitNormal, centroid);
+  });
 }
 
 /// How refreshIntrinsic rebuilds the intrinsic tier.

@@ -34,8 +34,16 @@ struct DensityAdvectionScratch {
   Vector ringInflowShares;
   Vector massSolvent, massSolute;  ///< #V (kg)
   Vector nextMassSolvent, nextMassSolute;  ///< #V (kg), sub-step double buffer
+  /// Deforming surface: the edges between active vertices and their
+  /// dual-edge normals at t (#E by 3, row-major; valid on activeEdges during
+  /// a call), and the faces of those edges with their unit normals and
+  /// centroids (#F by 3): each computed once per call, where every ring
+  /// entry used to recompute its dual edge and both of its faces.
+  std::vector<int> activeEdges, activeFaces;
+  std::vector<char> edgeMarks, faceMarks;  ///< #E, #F: 1 on the lists during a call, 0 otherwise
+  Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> edgeDualNormals, faceUnitNormals, faceCentroids;
   /// Allocates every array (call at build time; no allocation per step).
-  void resize(int vertexCount, int edgeCount);
+  void resize(int vertexCount, int edgeCount, int faceCount);
 };
 
 struct DensityAdvectionReport {
