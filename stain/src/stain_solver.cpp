@@ -846,6 +846,10 @@ void StainSolver::restore(const StainSolverSnapshot& s) {
                                     " out of range [0, " + std::to_string(n) + ")");
   const ThreadScope threads(threads_);
   geometry_.restoreDynamicState(s.geometry);
+  // Tables filled from the replaced intrinsic tier are stamped with its
+  // rebuild count, which the restored tier may repeat with other values.
+  velocityScratch_.invalidate();
+  band_.invalidateIntrinsic();
   if (s.factorizedStep > 0) {  // the factors follow lazily, as after any assembly
     const SolverStatus status = systems_.assemble(geometry_.intrinsic(), s.factorizedStep);
     if (status != SolverStatus::Ok)

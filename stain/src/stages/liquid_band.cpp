@@ -127,23 +127,30 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
   const int n = topology.vertexCount();
   const std::vector<int>& offsets = topology.ringOffsets();
   const std::vector<int>& neighbors = topology.ringNeighbors();
-  if (band.preparedRebuildCount != intrinsic.rebuildCount ||
-      band.ringTransports.size() != static_cast<Eigen::Index>(neighbors.size())) {
-    // Intentional duplication of VelocityAdvectionScratch::prepare's table.
-    const std::vector<int>& ringEdges = topology.ringEdges();
+  if (band.ringTransports.size() != static_cast<Eigen::Index>(neighbors.size()) ||
+      band.ringRebuildCounts.size() != static_cast<size_t>(n)) {  // first call only
     band.ringTransports.resize(static_cast<Eigen::Index>(neighbors.size()));
-    for (int v = 0; v < n; ++v) {
-      for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m) {
-        const int e = ringEdges[static_cast<size_t>(m)];
-        const int j = neighbors[static_cast<size_t>(m)];
-        // edgeTransportAngles stores θ_ij for i < j; θ_ji = −θ_ij.
-        const double theta = v < j ? intrinsic.edgeTransportAngles(e) : -intrinsic.edgeTransportAngles(e);
-        band.ringTransports(m) = Complex(std::cos(theta), std::sin(theta));
-      }
-    }
+    band.ringRebuildCounts.assign(static_cast<size_t>(n), -1);
+  }
+  if (band.preparedRebuildCount != intrinsic.rebuildCount) {
     band.minEdgeLength = intrinsic.edgeLengths.size() > 0 ? intrinsic.edgeLengths.minCoeff() : 0.0;
     band.preparedRebuildCount = intrinsic.rebuildCount;
   }
+  // Vertex v's ring entries of ringTransports, filled once per rebuild.
+  // Intentional duplication of VelocityAdvectionScratch's table.
+  const auto fillRingTransports = [&](int v) {
+    int& filledFrom = band.ringRebuildCounts[static_cast<size_t>(v)];
+    if (filledFrom == intrinsic.rebuildCount) return;
+    const std::vector<int>& ringEdges = topology.ringEdges();
+    for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m) {
+      const int e = ringEdges[static_cast<size_t>(m)];
+      const int j = neighbors[static_cast<size_t>(m)];
+      // edgeTransportAngles stores θ_ij for i < j; θ_ji = −θ_ij.
+      const double theta = v < j ? intrinsic.edgeTransportAngles(e) : -intrinsic.edgeTransportAngles(e);
+      band.ringTransports(m) = Complex(std::cos(theta), std::sin(theta));
+    }
+    filledFrom = intrinsic.rebuildCount;
+  };
   const int wetCount = band.wetCount();
   if (wetCount == 0) return;
 
@@ -208,6 +215,7 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
       int count = 0;
       const Vector3 vi = moving ? surfaceVelocity(i) : Vector3::Zero();
       const Matrix3* frame = moving ? &extrinsic.frames[ii] : nullptr;
+      fillRingTransports(i);
       for (int m = offsets[ii]; m < offsets[ii + 1]; ++m) {
         const int j = neighbors[static_cast<size_t>(m)];
         const int lj = band.levels[static_cast<size_t>(j)];

@@ -35,9 +35,36 @@ struct Tables {
   const std::vector<char>& isBoundary;
   const ComplexVector& ringPoints;
   const ComplexVector& ringTransports;
-  const ComplexVector& apexRatios;
-  const ComplexVector& faceRotations;
+  const IntrinsicGeometry& geometry;
+  const Eigen::MatrixX3i& faceEdges;
+
+  /// Half-edge h = 3f + k from a = v_k to b = v_{k+1}: (c − a)/(b − a) for the
+  /// apex c = v_{k+2} of face f laid out flat, i.e. (ℓ_ca/ℓ_ab) exp(iγ_a).
+  Complex apexRatio(int h) const {
+    const int f = h / 3, k = h % 3;
+    const double lengthAB = geometry.edgeLengths(faceEdges(f, k));
+    const double lengthCA = geometry.edgeLengths(faceEdges(f, (k + 2) % 3));
+    return (lengthCA / lengthAB) * unitFromAngle(geometry.faceCornerAngles(f, k));
+  }
+  /// Half-edge h = 3f + k: exp(iφ(f, k)), vertex faces(f, k)'s frame -> face f's frame.
+  Complex faceRotation(int h) const { return unitFromAngle(geometry.faceTransportAngles(h / 3, h % 3)); }
 };
+
+// Fills vertex v's ring entries of ringPoints and ringTransports from `geometry`.
+void fillRing(const SurfaceTopology& topology, const IntrinsicGeometry& geometry, int v, ComplexVector& ringPoints,
+              ComplexVector& ringTransports) {
+  const std::vector<int>& offsets = topology.ringOffsets();
+  const std::vector<int>& neighbors = topology.ringNeighbors();
+  const std::vector<int>& ringEdges = topology.ringEdges();
+  for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m) {
+    const int e = ringEdges[static_cast<size_t>(m)];
+    const int j = neighbors[static_cast<size_t>(m)];
+    ringPoints(m) = geometry.edgeLengths(e) * unitFromAngle(geometry.polarMap.ringAngles(m));
+    // edgeTransportAngles stores θ_ij for i < j; θ_ji = −θ_ij.
+    const double theta = v < j ? geometry.edgeTransportAngles(e) : -geometry.edgeTransportAngles(e);
+    ringTransports(m) = unitFromAngle(theta);
+  }
+}
 
 struct Walk {
   Complex value;
@@ -77,9 +104,9 @@ bool interpolateInFace(const Tables& t, const ComplexVector& u, int g, const Com
   if (!(axisLength > 0.0) || !(sum > 0.0)) return false;
   const Complex toPlane = anchor * (axis / axisLength);
   const int h0 = 3 * g;
-  const Complex blend = l0 * (t.faceRotations(h0) * u(t.faces(g, 0))) +
-                        l1 * (t.faceRotations(h0 + 1) * u(t.faces(g, 1))) +
-                        l2 * (t.faceRotations(h0 + 2) * u(t.faces(g, 2)));
+  const Complex blend = l0 * (t.faceRotation(h0) * u(t.faces(g, 0))) +
+                        l1 * (t.faceRotation(h0 + 1) * u(t.faces(g, 1))) +
+                        l2 * (t.faceRotation(h0 + 2) * u(t.faces(g, 2)));
   walk.value = toPlane * blend / sum;
   setFoot(walk, t.faces(g, 0), l0 / sum, t.faces(g, 1), l1 / sum, t.faces(g, 2), l2 / sum);
   return true;
@@ -150,7 +177,7 @@ Walk backtrack(const Tables& t, const ComplexVector& u, int i, const Complex& d)
   // with a on its left and b on its right.
   Complex za = p2, zb = p1;
   int g = h / 3, k = h % 3;
-  Complex zc = za + (zb - za) * t.apexRatios(h);
+  Complex zc = za + (zb - za) * t.apexRatio(h);
   Complex z[3];
   z[k] = za;
   z[(k + 1) % 3] = zb;
@@ -161,8 +188,8 @@ Walk backtrack(const Tables& t, const ComplexVector& u, int i, const Complex& d)
   {
     const Complex axis = z[1] - z[0];
     const Complex toPlane = axis / std::sqrt(std::norm(axis));
-    const Complex fromA = t.ringTransports(m2) * std::conj(toPlane * t.faceRotations(3 * g + k));
-    const Complex fromB = t.ringTransports(m) * std::conj(toPlane * t.faceRotations(3 * g + (k + 1) % 3));
+    const Complex fromA = t.ringTransports(m2) * std::conj(toPlane * t.faceRotation(3 * g + k));
+    const Complex fromB = t.ringTransports(m) * std::conj(toPlane * t.faceRotation(3 * g + (k + 1) % 3));
     const Complex mean = fromA + fromB;
     const double length = std::sqrt(std::norm(mean));
     anchor = length > 1e-12 ? mean / length : fromA;
@@ -207,7 +234,7 @@ Walk backtrack(const Tables& t, const ComplexVector& u, int i, const Complex& d)
     k = h % 3;
     za = q;
     zb = p;
-    zc = za + (zb - za) * t.apexRatios(h);
+    zc = za + (zb - za) * t.apexRatio(h);
     z[k] = za;
     z[(k + 1) % 3] = zb;
     z[(k + 2) % 3] = zc;
@@ -217,36 +244,12 @@ Walk backtrack(const Tables& t, const ComplexVector& u, int i, const Complex& d)
 
 }  // namespace
 
-void VelocityAdvectionScratch::prepare(const SurfaceTopology& topology, const IntrinsicGeometry& geometry) {
-  const std::vector<int>& offsets = topology.ringOffsets();
-  const std::vector<int>& neighbors = topology.ringNeighbors();
-  const std::vector<int>& ringEdges = topology.ringEdges();
-  const auto entries = static_cast<Eigen::Index>(neighbors.size());
+void VelocityAdvectionScratch::prepare(const SurfaceTopology& topology) {
+  const auto entries = static_cast<Eigen::Index>(topology.ringNeighbors().size());
   resize(topology.vertexCount());
   ringPoints.resize(entries);
   ringTransports.resize(entries);
-  for (int v = 0; v < topology.vertexCount(); ++v) {
-    for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m) {
-      const int e = ringEdges[static_cast<size_t>(m)];
-      const int j = neighbors[static_cast<size_t>(m)];
-      ringPoints(m) = geometry.edgeLengths(e) * unitFromAngle(geometry.polarMap.ringAngles(m));
-      // edgeTransportAngles stores θ_ij for i < j; θ_ji = −θ_ij.
-      const double theta = v < j ? geometry.edgeTransportAngles(e) : -geometry.edgeTransportAngles(e);
-      ringTransports(m) = unitFromAngle(theta);
-    }
-  }
-  halfedgeApexRatios.resize(topology.halfedgeCount());
-  faceFrameRotations.resize(topology.halfedgeCount());
-  const Eigen::MatrixX3i& faceEdges = topology.faceEdges();
-  for (int f = 0; f < topology.faceCount(); ++f) {
-    for (int k = 0; k < 3; ++k) {
-      const double lengthAB = geometry.edgeLengths(faceEdges(f, k));
-      const double lengthCA = geometry.edgeLengths(faceEdges(f, (k + 2) % 3));
-      halfedgeApexRatios(3 * f + k) = (lengthCA / lengthAB) * unitFromAngle(geometry.faceCornerAngles(f, k));
-      faceFrameRotations(3 * f + k) = unitFromAngle(geometry.faceTransportAngles(f, k));
-    }
-  }
-  preparedRebuildCount = geometry.rebuildCount;
+  ringRebuildCounts.assign(static_cast<size_t>(topology.vertexCount()), -1);
 }
 
 VelocityAdvectionReport advectVelocity(const StepContext& ctx, const SurfaceTopology& topology,
@@ -254,16 +257,16 @@ VelocityAdvectionReport advectVelocity(const StepContext& ctx, const SurfaceTopo
                                        VelocityAdvectionScratch& scratch, StainState& state,
                                        const std::vector<int>* among) {
   const int n = topology.vertexCount();
-  if (scratch.preparedRebuildCount != geometry.rebuildCount || scratch.advected.size() != n ||
-      scratch.footVertices.rows() != n ||
+  if (scratch.advected.size() != n || scratch.footVertices.rows() != n ||
       scratch.ringPoints.size() != static_cast<Eigen::Index>(topology.ringNeighbors().size()) ||
-      scratch.halfedgeApexRatios.size() != topology.halfedgeCount()) {
-    scratch.prepare(topology, geometry);
+      scratch.ringRebuildCounts.size() != static_cast<size_t>(n)) {
+    scratch.prepare(topology);
   }
-  const Tables tables{topology.faces(),          topology.ringOffsets(),   topology.ringNeighbors(),
-                      topology.ringFaces(),      topology.halfedgeTwins(), topology.vertexIsBoundary(),
-                      scratch.ringPoints,        scratch.ringTransports,   scratch.halfedgeApexRatios,
-                      scratch.faceFrameRotations};
+  const Tables tables{topology.faces(),      topology.ringOffsets(),   topology.ringNeighbors(),
+                      topology.ringFaces(),  topology.halfedgeTwins(), topology.vertexIsBoundary(),
+                      scratch.ringPoints,    scratch.ringTransports,   geometry,
+                      topology.faceEdges()};
+  const int rebuildCount = geometry.rebuildCount;
   const ComplexVector& u = state.velocities;
   ComplexVector& advected = scratch.advected;
   const bool allWet = wet.empty();
@@ -277,6 +280,12 @@ VelocityAdvectionReport advectVelocity(const StepContext& ctx, const SurfaceTopo
   const auto walkFrom = [&](int k, int& steps, int& stops, int& capped) {
     const int i = visited(k, among);
     if (!allWet && !wet[static_cast<size_t>(i)]) return;
+    // i's ring entries are i's alone: filling them here is race-free.
+    int& filledFrom = scratch.ringRebuildCounts[static_cast<size_t>(i)];
+    if (filledFrom != rebuildCount) {
+      fillRing(topology, geometry, i, scratch.ringPoints, scratch.ringTransports);
+      filledFrom = rebuildCount;
+    }
     const Walk walk = backtrack(tables, u, i, -h * u(i));
     advected(i) = walk.value;
     for (int c = 0; c < 3; ++c) {

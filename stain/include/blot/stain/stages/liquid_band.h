@@ -9,6 +9,7 @@
 #include <blot/stain/stain_state.h>
 #include <blot/stain/geometry/surface_geometry.h>
 
+#include <algorithm>
 #include <vector>
 
 namespace blot::stain {
@@ -43,8 +44,12 @@ struct LiquidBand {
   /// Per ring entry (SurfaceTopology::ringNeighbors) of vertex i, neighbour j:
   /// exp(iθ_ij), carrying j's frame into i's (eq. 6). Duplicates
   /// VelocityAdvectionScratch::ringTransports on purpose: the band is built
-  /// before the advection and must not depend on its scratch.
+  /// before the advection and must not depend on its scratch. Filled per
+  /// vertex, when the band first reaches it after a rebuild.
   ComplexVector ringTransports;
+  /// #V: the IntrinsicGeometry::rebuildCount vertex i's ringTransports
+  /// entries were filled from (−1: not yet).
+  std::vector<int> ringRebuildCounts;
   /// Vertices not in the wet set whose free density σ_f + σ_s is > 0 (a
   /// trace below wetThreshold), in index order: no stage works on them, but
   /// the coupling reads their frames (their relative momentum).
@@ -64,10 +69,16 @@ struct LiquidBand {
   std::vector<char> candidateMarks;  ///< #V: 1 on `candidates`
   bool scanAll = true;
   double minEdgeLength = 0;  ///< ℓ_min over the mesh (m), intrinsic
-  int preparedRebuildCount = -1;  ///< IntrinsicGeometry::rebuildCount of the tables (−1: never)
+  int preparedRebuildCount = -1;  ///< IntrinsicGeometry::rebuildCount of minEdgeLength (−1: never)
 
   /// Sizes everything for the mesh (allocates: call at build time).
   void resize(int vertexCount);
+  /// Forgets what was computed from the intrinsic tier (call when it is
+  /// replaced by a restored snapshot, whose rebuildCount may repeat one).
+  void invalidateIntrinsic() {
+    preparedRebuildCount = -1;
+    std::fill(ringRebuildCounts.begin(), ringRebuildCounts.end(), -1);
+  }
   /// Level-0 count (vertices holding liquid).
   int wetCount() const { return ringEnds.empty() ? 0 : ringEnds[0]; }
   int size() const { return static_cast<int>(vertices.size()); }

@@ -7,6 +7,9 @@
 #include <blot/stain/geometry/surface_geometry.h>
 #include <blot/stain/stages/vertex_visits.h>
 
+#include <algorithm>
+#include <vector>
+
 namespace blot::stain {
 
 /// Per vertex, the three vertices and convex weights of a foot point (#V by 3).
@@ -29,24 +32,26 @@ struct VelocityAdvectionScratch {
   ComplexVector ringPoints;
   /// Per ring entry: exp(iθ_ij), carrying j's frame into i's (eq. 6).
   ComplexVector ringTransports;
-  /// #H, half-edge h = 3f + k from a = v_k to b = v_{k+1}: (c − a)/(b − a) for
-  /// the apex c = v_{k+2} of face f laid out flat, i.e. (ℓ_ca/ℓ_ab) exp(i γ_a).
-  ComplexVector halfedgeApexRatios;
-  /// #H: exp(iφ(f, k)), vertex faces(f, k)'s frame -> face f's frame.
-  ComplexVector faceFrameRotations;
-  /// IntrinsicGeometry::rebuildCount the tables were built from (−1: never).
-  int preparedRebuildCount = -1;
+  /// #V: the IntrinsicGeometry::rebuildCount vertex i's ring entries were
+  /// filled from (−1: not since the last prepare). A vertex's entries are
+  /// filled when it first walks after a rebuild, so a rebuild costs what the
+  /// liquid's vertices need, not the whole mesh. (The strip walk's per-face
+  /// values, (ℓ_ca/ℓ_ab) exp(iγ_a) and the face frame rotations, are computed
+  /// where a walk crosses a face: a few faces per step.)
+  std::vector<int> ringRebuildCounts;
 
   void resize(int vertexCount) {
     advected.resize(vertexCount);
     footVertices.resize(vertexCount, 3);
     footWeights.resize(vertexCount, 3);
   }
-  /// Sizes everything and fills the tables from `geometry` (allocates: call at
-  /// build time and after each intrinsic rebuild). advectVelocity calls it
-  /// itself when preparedRebuildCount differs from geometry.rebuildCount, so
-  /// the tables are never stale; use one scratch per geometry.
-  void prepare(const SurfaceTopology& topology, const IntrinsicGeometry& geometry);
+  /// Sizes everything for `topology` and marks every vertex's ring entries
+  /// unfilled (allocates: call at build time; advectVelocity calls it itself
+  /// when the sizes differ). Call invalidate() when the intrinsic tier is
+  /// replaced (a restored snapshot): its rebuildCount may repeat a count the
+  /// entries were filled from.
+  void prepare(const SurfaceTopology& topology);
+  void invalidate() { std::fill(ringRebuildCounts.begin(), ringRebuildCounts.end(), -1); }
 };
 
 /// Statistics of one advection (for the profile and tests).
