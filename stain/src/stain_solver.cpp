@@ -9,6 +9,8 @@
 #include <blot/stain/stain_solver.h>
 #include <blot/stain/thread_limit.h>
 
+#include "numerics/machine_load.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -550,6 +552,11 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
     report.message = "stepRigid: rotation must be a rotation matrix";
     return report;
   }
+  // A probe of the threads needs idle cores to measure anything but waiting
+  // (ThreadChoice, "skipProbe").
+  if (def_.adaptiveThreads && threadChoice_.laterProbeStarting() &&
+      !roomForThreads(threadChoice_.most(), omp_get_num_procs()))
+    threadChoice_.skipProbe();
   const ThreadScope threads(stepThreads());
   profile_ = StepProfile{};
   profile_.vertexCount = state_.vertexCount();

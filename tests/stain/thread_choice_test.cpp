@@ -3,6 +3,8 @@
 // depending on the machine.
 #include <blot/stain/numerics/thread_choice.h>
 
+#include "numerics/machine_load.h"
+
 #include <gtest/gtest.h>
 
 #include <functional>
@@ -55,6 +57,12 @@ TEST(ThreadChoice, TheProbeAlternatesBothCountsStartingWithAll) {
   run(choice, ThreadChoice::kProbeSteps, [](int t, int) { return t == 4 ? 1.0 : 2.0; }, used);
   for (int k = 0; k < ThreadChoice::kProbeSteps; ++k) EXPECT_EQ(used[k], k % 2 == 0 ? 4 : 1) << k;
   EXPECT_FALSE(choice.probing());
+  // A first win of all threads is provisional: one thread holds until the
+  // next probe confirms it (BackToAllThreadsTakesTwoProbesInARow).
+  EXPECT_EQ(choice.threads(), 1);
+  const auto time = [](int t, int) { return t == 4 ? 1.0 : 2.0; };
+  EXPECT_EQ(holdSteps(choice, time, 1), ThreadChoice::kFirstHold);
+  EXPECT_EQ(probe(choice, time), ThreadChoice::kProbeSteps);
   EXPECT_EQ(choice.threads(), 4);
 }
 
@@ -62,6 +70,8 @@ TEST(ThreadChoice, FasterThreadsAreKeptForTheHold) {
   ThreadChoice choice(2);
   const auto time = [](int t, int) { return t == 2 ? 6.0 : 10.0; };
   run(choice, ThreadChoice::kProbeSteps, time);
+  EXPECT_EQ(holdSteps(choice, time, 1), ThreadChoice::kFirstHold);  // the first win is provisional
+  probe(choice, time);
   EXPECT_EQ(holdSteps(choice, time, 2), ThreadChoice::kFirstHold);  // then a probe again
 }
 
@@ -91,7 +101,8 @@ TEST(ThreadChoice, ASpeedUpWithinTheMarginIsNotWorthACore) {
   run(choice, ThreadChoice::kProbeSteps, [](int t, int) { return t == 2 ? 0.97 : 1.0; });
   EXPECT_EQ(choice.threads(), 1);
   choice.reset(2);
-  run(choice, ThreadChoice::kProbeSteps, [](int t, int) { return t == 2 ? 0.94 : 1.0; });
+  // Two probes: the first win of all threads is provisional.
+  run(choice, 2 * ThreadChoice::kProbeSteps + ThreadChoice::kFirstHold, [](int t, int) { return t == 2 ? 0.94 : 1.0; });
   EXPECT_EQ(choice.threads(), 2);
 }
 
@@ -100,6 +111,8 @@ TEST(ThreadChoice, OneSpikeDoesNotDecide) {
   // probe steps are faster than one thread's.
   ThreadChoice choice(2);
   run(choice, ThreadChoice::kProbeSteps, [](int t, int k) { return k == 0 ? 20.0 : (t == 2 ? 0.6 : 1.0); });
+  EXPECT_EQ(choice.threads(), 1);  // two threads won, provisionally
+  run(choice, ThreadChoice::kFirstHold + ThreadChoice::kProbeSteps, [](int t, int) { return t == 2 ? 0.6 : 1.0; });
   EXPECT_EQ(choice.threads(), 2);
 }
 
@@ -123,7 +136,24 @@ TEST(ThreadChoice, TheMedianOfEachCountDecides) {
   const double faster[] = {5.0, 0.5, 0.8, 0.7};  // the slow one first: a first probe's first pair never ends it
   choice.reset(2);
   run(choice, ThreadChoice::kProbeSteps, [&](int t, int k) { return t == 2 ? faster[k / 2] : one[k / 2]; });
+  EXPECT_EQ(choice.threads(), 1);  // two threads won, provisionally; a second probe confirms
+  run(choice, ThreadChoice::kFirstHold + ThreadChoice::kProbeSteps, [](int t, int) { return t == 2 ? 0.75 : 1.15; });
   EXPECT_EQ(choice.threads(), 2);
+}
+
+TEST(ThreadChoice, ALuckyFirstProbeDoesNotHoldAllThreads) {
+  // Both cores busy with other work: two threads are 10x slower, except in
+  // the first probe, whose steps at two threads all found the cores free.
+  // Its win is provisional, and the next probe ends after one step at two.
+  ThreadChoice choice(2);
+  int atAll = 0;
+  for (int k = 0; k < 200; ++k) {
+    const int t = choice.threads();
+    atAll += t == 2 ? 1 : 0;
+    choice.record(t == 2 ? (k < ThreadChoice::kProbeSteps ? 0.5 : 10.0) : 1.0);
+  }
+  // The first probe's four steps, then one per later probe (steps ~40 and ~105).
+  EXPECT_EQ(atAll, ThreadChoice::kProbeSteps / 2 + 2);
 }
 
 TEST(ThreadChoice, BackToAllThreadsTakesTwoProbesInARow) {
@@ -166,6 +196,8 @@ TEST(ThreadChoice, TheHoldDoublesWhileTheWinnerStaysAndFallsBackWhenItChanges) {
   const auto time = [&](int t, int) { return t == 2 ? (busy ? 3.0 : 0.5) : 1.0; };
   int hold = ThreadChoice::kFirstHold;
   probe(choice, time);
+  EXPECT_EQ(holdSteps(choice, time, 1), ThreadChoice::kFirstHold);  // the first win is provisional
+  probe(choice, time);
   for (int round = 0; round < 8; ++round) {
     EXPECT_EQ(holdSteps(choice, time, 2), hold) << round;
     EXPECT_EQ(probe(choice, time), ThreadChoice::kProbeSteps);
@@ -202,6 +234,54 @@ TEST(ThreadChoice, ALaterProbeOnABusyMachineCostsOneStepAtAllThreads) {
   // A reset starts over: its first pair does not end the probe.
   choice.reset(2);
   EXPECT_EQ(probe(choice, time), 4);
+}
+
+TEST(ThreadChoice, ProbesSkippedForWantOfIdleCoresHoldOneThread) {
+  // Two threads would be faster if they ran, but the machine has no idle
+  // core: every later probe is skipped, one thread holds on, and the hold
+  // doubles as if one thread had won. The first probe always runs.
+  ThreadChoice choice(2);
+  const auto time = [](int t, int) { return t == 2 ? 0.5 : 1.0; };
+  EXPECT_FALSE(choice.laterProbeStarting());
+  choice.skipProbe();  // ignored: the first probe runs
+  EXPECT_EQ(choice.threads(), 2);
+  EXPECT_EQ(probe(choice, time), ThreadChoice::kProbeSteps);
+  EXPECT_EQ(choice.threads(), 1);  // a provisional win
+  int hold = ThreadChoice::kFirstHold;
+  for (int round = 0; round < 7; ++round) {
+    EXPECT_EQ(holdSteps(choice, time, 1), hold) << round;
+    EXPECT_TRUE(choice.laterProbeStarting());
+    choice.skipProbe();
+    EXPECT_FALSE(choice.probing());
+    EXPECT_EQ(choice.threads(), 1);
+    hold = std::min(2 * hold, ThreadChoice::kLongestHold);
+  }
+  // Cores free again: the next probe runs and confirms two threads (the
+  // provisional win was forgotten by the skipped probes, so it takes two).
+  holdSteps(choice, time, 1);
+  EXPECT_EQ(probe(choice, time), ThreadChoice::kProbeSteps);
+  EXPECT_EQ(choice.threads(), 1);
+  holdSteps(choice, time, 1);
+  probe(choice, time);
+  EXPECT_EQ(choice.threads(), 2);
+  // Mid-probe a skip is ignored.
+  holdSteps(choice, time, 2);
+  choice.record(time(choice.threads(), 0));
+  ASSERT_TRUE(choice.probing());
+  choice.skipProbe();
+  EXPECT_TRUE(choice.probing());
+}
+
+TEST(MachineLoad, RunnableTasksCountTheCallerAndBoundTheRoom) {
+  const int runnable = runnableTasks();
+#ifdef __linux__
+  EXPECT_GE(runnable, 1);  // this test is running
+  EXPECT_FALSE(roomForThreads(2, 1));  // one core cannot hold the caller and another thread
+#else
+  EXPECT_EQ(runnable, -1);
+#endif
+  EXPECT_TRUE(roomForThreads(2, 1 << 20));
+  EXPECT_TRUE(roomForThreads(1, 1 << 20));
 }
 
 }  // namespace

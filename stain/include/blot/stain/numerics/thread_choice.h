@@ -35,16 +35,27 @@
 // probe costs one step at `most` (it cost two before: over 2,048 steps that
 // was most of what adaptive threads cost above one thread).
 //
-// Going back from one thread to `most` takes two probes in a row that pick
-// `most` (the first one only shortens the hold at one thread to kFirstHold):
-// on a busy machine a probe's four steps at `most` can all be lucky, and a
-// hold at `most` that is slower costs far more than one at one thread.
-// Starting out (no winner yet) one probe decides.
+// Going to `most` takes two probes in a row that pick `most` (the first one
+// only shortens the hold at one thread to kFirstHold), starting out as after
+// a hold at one thread: on a busy machine a probe's four steps at `most` can
+// all be lucky, and a hold at `most` that is slower costs far more than one
+// at one thread. (Until 4 Dec 2026 one probe decided starting out: on the
+// game loop's flag with both cores busy, a lucky first probe held two threads
+// for 32 steps of 4-43 ms per frame against 2-9 at one thread.) On a quiet
+// machine this delays two threads by kFirstHold + kProbeSteps steps.
 //
 // The winner then runs for a hold of kFirstHold steps,
 // doubled (to kLongestHold) each time the next probe picks it again, and back
 // to kFirstHold when it does not: the machine's load changes, and a longer
 // hold makes the probe's cost (its steps at the slower count) smaller.
+//
+// A later probe is not run when the machine has no idle core for the other
+// threads (skipProbe, on the solver's reading of the runnable tasks,
+// machine_load.h): one thread holds on, as if it had won. Its steps at `most`
+// would have waited for cores (30-40 ms against 2 ms at one thread on the
+// game loop's flag with both cores busy), which no later saving repays. The
+// first probe always runs: a solver's first step starts the threads while
+// allocating is allowed.
 //
 // Not thread-safe, no allocation; the solver calls threads() before a step
 // and record() after each completed one.
@@ -77,6 +88,20 @@ class ThreadChoice {
   int most() const { return most_; }
   /// True while the steps alternate the two counts (at most kProbeSteps).
   bool probing() const { return most_ > 1 && probed_ < kProbeSteps; }
+  /// True when the coming step would start a probe other than the first.
+  bool laterProbeStarting() const { return probing() && probed_ == 0 && !firstProbe_; }
+
+  /// The machine has no idle core for the other threads: the probe about to
+  /// start is not run, and one thread holds as if it had won it (the hold
+  /// doubles if one thread held before). Only when laterProbeStarting().
+  void skipProbe() {
+    if (!laterProbeStarting()) return;
+    probed_ = kProbeSteps;
+    mostWonLast_ = false;
+    hold_ = chosen_ == 1 ? std::min(2 * hold_, kLongestHold) : kFirstHold;
+    chosen_ = current_ = 1;
+    left_ = hold_;
+  }
 
   /// The completed step took `milliseconds` at threads().
   void record(double milliseconds) {
@@ -93,7 +118,8 @@ class ThreadChoice {
       probed_ = kProbeSteps;
       firstProbe_ = false;
       int winner = !givenUp && median(timesMost_) < kMargin * median(timesOne_) ? most_ : 1;
-      const bool confirmed = winner != most_ || chosen_ != 1 || mostWonLast_;
+      // No winner yet (chosen_ 0) counts as a hold at one thread.
+      const bool confirmed = winner != most_ || chosen_ == most_ || mostWonLast_;
       mostWonLast_ = winner == most_;
       if (!confirmed) {  // one thread held, `most` won once: one more probe soon
         winner = 1;
