@@ -35,28 +35,34 @@ Matrix2 tensorInFace(const Vector2& e, double sww, double swp, double spp) {
   return basis * fabric * basis.transpose();
 }
 
-// Lays face f out in its own frame and rotates its fabric tensor into it.
-FaceLayout layoutFace(const SurfaceTopology& topology, const RowVectors3& positions,
-                      const Eigen::MatrixX3d& faceTensors, const RowVectors3& faceWeftDirections,
-                      int f) {
+// Face f laid out in its own frame: x along its first edge, n its unit
+// normal, y = n × x, and its corners in (x, y).
+struct FaceFrame {
+  Vector3 x, y, n;
+  Vector2 corners[3];
+};
+
+FaceFrame faceFrame(const SurfaceTopology& topology, const RowVectors3& positions, int f) {
   const Triangles& faces = topology.faces();
   const Vector3 p0 = positions.row(faces(f, 0)).transpose();
   const Vector3 e1 = positions.row(faces(f, 1)).transpose() - p0;
   const Vector3 e2 = positions.row(faces(f, 2)).transpose() - p0;
-  const Vector3 x = e1.normalized();
-  const Vector3 n = e1.cross(e2).normalized();
-  const Vector3 y = n.cross(x);
+  FaceFrame frame;
+  frame.x = e1.normalized();
+  frame.n = e1.cross(e2).normalized();
+  frame.y = frame.n.cross(frame.x);
+  frame.corners[0] = Vector2::Zero();
+  frame.corners[1] = Vector2(e1.norm(), 0.0);
+  frame.corners[2] = Vector2(e2.dot(frame.x), e2.dot(frame.y));
+  return frame;
+}
 
-  FaceLayout layout;
-  layout.corners[0] = Vector2::Zero();
-  layout.corners[1] = Vector2(e1.norm(), 0.0);
-  layout.corners[2] = Vector2(e2.dot(x), e2.dot(y));
-
+// Face f's fabric tensor rotated into its frame.
+Matrix2 tensorInFrame(const FaceFrame& frame, const Eigen::MatrixX3d& faceTensors,
+                      const RowVectors3& faceWeftDirections, int f) {
   const double sww = faceTensors(f, 0), swp = faceTensors(f, 1), spp = faceTensors(f, 2);
-  if (swp == 0.0 && sww == spp) {  // isotropic: orientation irrelevant
-    layout.tensor = sww * Matrix2::Identity();
-    return layout;
-  }
+  if (swp == 0.0 && sww == spp) return sww * Matrix2::Identity();  // isotropic: orientation irrelevant
+  const Vector3& n = frame.n;
   const Vector3 weft = faceWeftDirections.row(f).transpose();
   const Vector3 inPlane = weft - weft.dot(n) * n;
   const double length = inPlane.norm();
@@ -67,8 +73,18 @@ FaceLayout layoutFace(const SurfaceTopology& topology, const RowVectors3& positi
       << "); the fabric orientation is undefined for an anisotropic tensor";
     throw std::invalid_argument(s.str());
   }
-  const Vector2 e(inPlane.dot(x) / length, inPlane.dot(y) / length);
-  layout.tensor = tensorInFace(e, sww, swp, spp);  // e⊥ = n × e
+  const Vector2 e(inPlane.dot(frame.x) / length, inPlane.dot(frame.y) / length);
+  return tensorInFace(e, sww, swp, spp);  // e⊥ = n × e
+}
+
+// Lays face f out in its own frame and rotates its fabric tensor into it.
+FaceLayout layoutFace(const SurfaceTopology& topology, const RowVectors3& positions,
+                      const Eigen::MatrixX3d& faceTensors, const RowVectors3& faceWeftDirections,
+                      int f) {
+  const FaceFrame frame = faceFrame(topology, positions, f);
+  FaceLayout layout;
+  for (int k = 0; k < 3; ++k) layout.corners[k] = frame.corners[k];
+  layout.tensor = tensorInFrame(frame, faceTensors, faceWeftDirections, f);
   return layout;
 }
 
