@@ -569,6 +569,20 @@ TEST(SurfaceGeometry, RefilledOperatorsAreBitwiseANewAssembly) {
                             anisotropicStiffness(topology, second, fabric.densityTensors, fabric.weftDirections)));
   EXPECT_TRUE(sameValueBits(
       connection, connectionLaplacian(topology, second, angles, fabric.velocityTensors, fabric.weftDirections)));
+  // Both at once (the whole rebuild's path): the same bits, no allocation.
+  const RowVectors3 third = bumpedSheet(mesh.vertexPositions, 0.3, 0.7, 0.04, 3);
+  gAllocations = 0;
+  gCountAllocations = true;
+  refillStiffnessAndConnection(topology, third, fabric.densityTensors, angles, fabric.velocityTensors,
+                               fabric.weftDirections, entries, stiffness, connection);
+  gCountAllocations = false;
+  if (kCountsAllocations) {
+    EXPECT_EQ(gAllocations.load(), 0);
+  }
+  EXPECT_TRUE(sameValueBits(stiffness,
+                            anisotropicStiffness(topology, third, fabric.densityTensors, fabric.weftDirections)));
+  EXPECT_TRUE(sameValueBits(
+      connection, connectionLaplacian(topology, third, angles, fabric.velocityTensors, fabric.weftDirections)));
 
   const TriangleMesh other = jitteredIcosphere(1, 0.1, 3);
   SparseMatrix wrong = anisotropicStiffness(SurfaceTopology(other.faces, static_cast<int>(other.vertexPositions.rows())),
@@ -576,6 +590,9 @@ TEST(SurfaceGeometry, RefilledOperatorsAreBitwiseANewAssembly) {
                                             RowVectors3::Zero(other.faces.rows(), 3));
   EXPECT_THROW(refillAnisotropicStiffness(topology, second, fabric.densityTensors, fabric.weftDirections, entries,
                                           wrong),
+               std::invalid_argument);
+  EXPECT_THROW(refillStiffnessAndConnection(topology, second, fabric.densityTensors, angles, fabric.velocityTensors,
+                                            fabric.weftDirections, entries, wrong, connection),
                std::invalid_argument);
 }
 

@@ -313,6 +313,39 @@ void refillAnisotropicStiffness(const SurfaceTopology& topology, const RowVector
   });
 }
 
+void refillStiffnessAndConnection(const SurfaceTopology& topology, const RowVectors3& vertexPositions,
+                                  const Eigen::MatrixX3d& densityTensors, const Eigen::MatrixX3d& faceTransportAngles,
+                                  const Eigen::MatrixX3d& velocityTensors, const RowVectors3& faceWeftDirections,
+                                  const OneRingEntries& entries, SparseMatrix& stiffness,
+                                  ComplexSparseMatrix& connection) {
+  if (!entries.fits(topology, stiffness))
+    throw std::invalid_argument("refillStiffnessAndConnection: the stiffness or the entry table is not of this topology");
+  if (!entries.fits(topology, connection))
+    throw std::invalid_argument("refillStiffnessAndConnection: the connection or the entry table is not of this topology");
+  double* stiffnessValues = stiffness.valuePtr();
+  Complex* connectionValues = connection.valuePtr();
+  std::fill(stiffnessValues, stiffnessValues + stiffness.nonZeros(), 0.0);
+  std::fill(connectionValues, connectionValues + connection.nonZeros(), Complex(0.0, 0.0));
+  const int* entry = entries.index.data();
+  // The terms of forEachStiffnessEntry and forEachConnectionEntry, face by
+  // face in the same order, each matrix summing only its own: the same bits
+  // as the two refills, with each face laid out once.
+  for (int f = 0; f < topology.faceCount(); ++f) {
+    const FaceFrame frame = faceFrame(topology, vertexPositions, f);
+    const int* at = entry + 9 * static_cast<size_t>(f);
+    const Matrix3 Kd = triangleStiffness(frame.corners[0], frame.corners[1], frame.corners[2],
+                                         tensorInFrame(frame, densityTensors, faceWeftDirections, f));
+    for (int k = 0; k < 3; ++k)
+      for (int l = 0; l < 3; ++l) stiffnessValues[at[3 * k + l]] += Kd(k, l);
+    const Matrix3 Kv = triangleStiffness(frame.corners[0], frame.corners[1], frame.corners[2],
+                                         tensorInFrame(frame, velocityTensors, faceWeftDirections, f));
+    Complex r[3];
+    for (int k = 0; k < 3; ++k) r[k] = std::polar(1.0, faceTransportAngles(f, k));
+    for (int k = 0; k < 3; ++k)
+      for (int l = 0; l < 3; ++l) connectionValues[at[3 * k + l]] += connectionEntry(Kv, r, k, l);
+  }
+}
+
 SparseMatrix cotanLaplacian(const SurfaceTopology& topology, const Vector& edgeCotanWeights) {
   const Eigen::MatrixX2i& ev = topology.edgeVertices();
   std::vector<Eigen::Triplet<double>> triplets;

@@ -347,11 +347,10 @@ void SurfaceGeometry::refreshIntrinsicFromPositions(const RowVectors3& positions
                                                fabric_.velocityTensors, wefts);
   } else {
     // The same values, into the existing patterns: no pattern build, no
-    // search for each entry, no new matrices.
-    refillAnisotropicStiffness(topology, positions, fabric_.densityTensors, wefts, faceEntries_,
-                               in.densityStiffness);
-    refillConnectionLaplacian(topology, positions, in.faceTransportAngles, fabric_.velocityTensors, wefts,
-                              faceEntries_, in.velocityStiffness);
+    // search for each entry, no new matrices, each face laid out once.
+    refillStiffnessAndConnection(topology, positions, fabric_.densityTensors, in.faceTransportAngles,
+                                 fabric_.velocityTensors, wefts, faceEntries_, in.densityStiffness,
+                                 in.velocityStiffness);
   }
   dynamic_.inverseBuiltSquaredLengths = in.edgeLengths.array().square().inverse().matrix();
   dynamic_.maxEdgeStrain = 0;
