@@ -556,33 +556,32 @@ TEST(SurfaceGeometry, RefilledOperatorsAreBitwiseANewAssembly) {
   ComplexSparseMatrix connection =
       connectionLaplacian(topology, first, angles * 0.5, fabric.velocityTensors, fabric.weftDirections);
   const OneRingEntries entries = oneRingFaceEntries(topology);
-  gAllocations = 0;
-  gCountAllocations = true;
-  refillAnisotropicStiffness(topology, second, fabric.densityTensors, fabric.weftDirections, entries, stiffness);
-  refillConnectionLaplacian(topology, second, angles, fabric.velocityTensors, fabric.weftDirections, entries,
-                            connection);
-  gCountAllocations = false;
-  if (kCountsAllocations) {
-    EXPECT_EQ(gAllocations.load(), 0);
-  }
-  EXPECT_TRUE(sameValueBits(stiffness,
-                            anisotropicStiffness(topology, second, fabric.densityTensors, fabric.weftDirections)));
-  EXPECT_TRUE(sameValueBits(
-      connection, connectionLaplacian(topology, second, angles, fabric.velocityTensors, fabric.weftDirections)));
-  // Both at once (the whole rebuild's path): the same bits, no allocation.
+  // Runs `refill` counting allocations (none allowed), then checks both
+  // matrices against a new assembly at `positions`.
+  const auto expectRefilledAt = [&](const RowVectors3& positions, const auto& refill) {
+    gAllocations = 0;
+    gCountAllocations = true;
+    refill();
+    gCountAllocations = false;
+    if (kCountsAllocations) {
+      EXPECT_EQ(gAllocations.load(), 0);
+    }
+    EXPECT_TRUE(sameValueBits(stiffness,
+                              anisotropicStiffness(topology, positions, fabric.densityTensors, fabric.weftDirections)));
+    EXPECT_TRUE(sameValueBits(
+        connection, connectionLaplacian(topology, positions, angles, fabric.velocityTensors, fabric.weftDirections)));
+  };
+  expectRefilledAt(second, [&] {
+    refillAnisotropicStiffness(topology, second, fabric.densityTensors, fabric.weftDirections, entries, stiffness);
+    refillConnectionLaplacian(topology, second, angles, fabric.velocityTensors, fabric.weftDirections, entries,
+                              connection);
+  });
+  // Both at once (the whole rebuild's path).
   const RowVectors3 third = bumpedSheet(mesh.vertexPositions, 0.3, 0.7, 0.04, 3);
-  gAllocations = 0;
-  gCountAllocations = true;
-  refillStiffnessAndConnection(topology, third, fabric.densityTensors, angles, fabric.velocityTensors,
-                               fabric.weftDirections, entries, stiffness, connection);
-  gCountAllocations = false;
-  if (kCountsAllocations) {
-    EXPECT_EQ(gAllocations.load(), 0);
-  }
-  EXPECT_TRUE(sameValueBits(stiffness,
-                            anisotropicStiffness(topology, third, fabric.densityTensors, fabric.weftDirections)));
-  EXPECT_TRUE(sameValueBits(
-      connection, connectionLaplacian(topology, third, angles, fabric.velocityTensors, fabric.weftDirections)));
+  expectRefilledAt(third, [&] {
+    refillStiffnessAndConnection(topology, third, fabric.densityTensors, angles, fabric.velocityTensors,
+                                 fabric.weftDirections, entries, stiffness, connection);
+  });
 
   const TriangleMesh other = jitteredIcosphere(1, 0.1, 3);
   SparseMatrix wrong = anisotropicStiffness(SurfaceTopology(other.faces, static_cast<int>(other.vertexPositions.rows())),
