@@ -136,18 +136,15 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
     band.minEdgeLength = intrinsic.edgeLengths.size() > 0 ? intrinsic.edgeLengths.minCoeff() : 0.0;
     band.preparedRebuildCount = intrinsic.rebuildCount;
   }
-  // Vertex v's ring entries of ringTransports, filled once per rebuild.
-  // Intentional duplication of VelocityAdvectionScratch's table.
+  // Vertex v's ring entries of ringTransports, filled once per rebuild (the
+  // velocity advection keeps its own copy: the band is built before it).
   const auto fillRingTransports = [&](int v) {
     int& filledFrom = band.ringRebuildCounts[static_cast<size_t>(v)];
     if (filledFrom == intrinsic.rebuildCount) return;
     const std::vector<int>& ringEdges = topology.ringEdges();
     for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m) {
-      const int e = ringEdges[static_cast<size_t>(m)];
-      const int j = neighbors[static_cast<size_t>(m)];
-      // edgeTransportAngles stores θ_ij for i < j; θ_ji = −θ_ij.
-      const double theta = v < j ? intrinsic.edgeTransportAngles(e) : -intrinsic.edgeTransportAngles(e);
-      band.ringTransports(m) = Complex(std::cos(theta), std::sin(theta));
+      band.ringTransports(m) = ringTransport(intrinsic.edgeTransportAngles, v, neighbors[static_cast<size_t>(m)],
+                                             ringEdges[static_cast<size_t>(m)]);
     }
     filledFrom = intrinsic.rebuildCount;
   };

@@ -60,9 +60,7 @@ void fillRing(const SurfaceTopology& topology, const IntrinsicGeometry& geometry
     const int e = ringEdges[static_cast<size_t>(m)];
     const int j = neighbors[static_cast<size_t>(m)];
     ringPoints(m) = geometry.edgeLengths(e) * unitFromAngle(geometry.polarMap.ringAngles(m));
-    // edgeTransportAngles stores θ_ij for i < j; θ_ji = −θ_ij.
-    const double theta = v < j ? geometry.edgeTransportAngles(e) : -geometry.edgeTransportAngles(e);
-    ringTransports(m) = unitFromAngle(theta);
+    ringTransports(m) = ringTransport(geometry.edgeTransportAngles, v, j, e);
   }
 }
 

@@ -13,6 +13,8 @@
 #include <blot/stain/geometry/surface_topology.h>
 #include <blot/stain/types.h>
 
+#include <cmath>
+
 namespace blot::stain {
 
 struct PolarMap {
@@ -28,6 +30,15 @@ PolarMap geodesicPolarMap(const SurfaceTopology& topology, const Eigen::MatrixX3
 /// #E transport angles θ_ij for each edge (i, j) = edgeVertices row, i < j:
 /// the rotation carrying vectors in j's frame into i's frame. θ_ji = −θ_ij.
 Vector edgeTransportAngles(const SurfaceTopology& topology, const PolarMap& polarMap);
+
+/// exp(iθ_vj) for the ring entry of vertex v whose neighbour j lies across
+/// edge e: carries j's frame into v's (θ stored for the lower end, negated
+/// from the upper one). The one formula the band's and the velocity
+/// advection's ring tables fill from.
+inline Complex ringTransport(const Vector& edgeTransportAngles, int v, int j, int e) {
+  const double theta = v < j ? edgeTransportAngles(e) : -edgeTransportAngles(e);
+  return {std::cos(theta), std::sin(theta)};
+}
 
 /// #F by 3 rotation angles φ(f, k) carrying a vector from the frame of vertex
 /// faces(f, k) into face f's own frame (x along the half-edge faces(f,0) ->
