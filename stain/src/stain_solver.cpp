@@ -485,7 +485,7 @@ void StainSolver::prepareBand() {
   inputs.useAccelerations = on.linearInertia;
   inputs.surfaceMoved = surfaceMoved_;
   const bool directVelocitySolve = on.velocityDiffusion && !systems_.vectorIterative();
-  inputs.extraRings = directVelocitySolve ? state_.vertexCount() : 0;
+  inputs.coverComponent = directVelocitySolve;
   growLiquidBand(inputs, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), band_, state_, &geometry_);
   // The half rotation wrote the wet u, the extension the rest of the band;
   // every later stage but the diffusion and the interaction writes inside it.

@@ -12,7 +12,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
+#include <limits>
 #include <vector>
 
 namespace blot::stain {
@@ -257,6 +259,50 @@ TEST(LiquidBand, LiquidAtRestOnARotatingDiscStaysAtRest) {
   }
 }
 
+// On a rotating disc the extended velocities (the liquid's world velocity
+// carried outward) exceed the wet ones, so the speed bound grows while the
+// band grows and a band stopped with the smaller bound is grown again: the
+// band still holds every vertex within h U (reach) and 2 h U of the wet set.
+TEST(LiquidBand, BandGrownWithAGrowingSpeedBoundStillHoldsTheReach) {
+  const double omega = 2.0, h = 0.02;
+  const TriangleMesh mesh = discMesh(24, 1.0);
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  StainSolver solver(topology, mesh.vertexPositions,
+                     isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 1e-4), transportOnly(false));
+  const int n = static_cast<int>(mesh.vertexPositions.rows());
+  const Vector3 w(0, 0, omega);
+  RowVectors3 velocities(n, 3);
+  for (int i = 0; i < n; ++i) velocities.row(i) = w.cross(Vector3(mesh.vertexPositions.row(i))).transpose();
+  solver.setInitialMotion(mesh.vertexPositions, velocities);
+  DropDef drop;
+  drop.centerPoint = Vector3(0.3, 0, 0);
+  drop.radius = 0.1;
+  solver.addDrop(drop);
+  int regrowths = 0, checked = 0;
+  for (int k = 1; k <= 20; ++k) {
+    const Matrix3 R = Eigen::AngleAxisd(omega * k * h, Vector3::UnitZ()).toRotationMatrix();
+    ASSERT_EQ(solver.stepRigid(h, mesh.vertexPositions * R.transpose(), R).status, StepStatus::Ok);
+    const LiquidBand& band = solver.band();
+    regrowths += band.regrowths;
+    const double distance = h * band.speedBound;
+    for (int v = 0; v < n; ++v) {
+      double nearest = std::numeric_limits<double>::infinity();
+      for (int i = 0; i < band.wetCount(); ++i) {
+        const int wet = band.vertices[static_cast<size_t>(i)];
+        nearest = std::min(nearest, (mesh.vertexPositions.row(v) - mesh.vertexPositions.row(wet)).norm());
+      }
+      if (nearest <= distance) EXPECT_NE(band.reachMask[static_cast<size_t>(v)], 0) << "step " << k << " vertex " << v;
+      if (nearest <= 2 * distance) {
+        EXPECT_NE(band.bandMask[static_cast<size_t>(v)], 0) << "step " << k << " vertex " << v;
+        ++checked;
+      }
+    }
+    EXPECT_LT(band.size(), n) << "step " << k;
+  }
+  EXPECT_GT(regrowths, 0) << "the case must exercise the regrowth";
+  EXPECT_GT(checked, 1000);
+}
+
 TEST(LiquidBand, LiquidMovingStraightOverARotatingDiscKeepsItsWorldVelocity) {
   // The moving case of docs/accuracy.md (c): v₀ = (−0.2, 0.2) m/s.
   const Vector3 v0(-0.2, 0.2, 0.0);
@@ -386,6 +432,131 @@ TEST(LiquidBand, BandIsWetFirstThenRingByRingAndCountedInTheProfile) {
   }
   // Extended velocities: the drop's uniform velocity, carried unchanged on a flat sheet.
   for (const int i : vertices) EXPECT_LT((relativeWorld(solver, i) - Vector3(1, 0, 0)).norm(), 1e-12) << i;
+}
+
+/// A 40 x 40 grid over 1 m x 1 m whose columns right of x = 0.5 are squeezed
+/// fourfold (edges of 1/160 m there, 1/40 m on the left).
+TriangleMesh gradedGrid() {
+  TriangleMesh mesh = gridMesh(40, 40, 1.0, 1.0);
+  for (int i = 0; i < mesh.vertexPositions.rows(); ++i) {
+    double& x = mesh.vertexPositions(i, 0);
+    if (x > 0.5) x = 0.5 + 0.25 * (x - 0.5);
+  }
+  return mesh;
+}
+
+/// The band of the first step of a drop of radius 0.08 m at (x, 0.5) moving
+/// at 1 m/s along +x, h = 0.05 s.
+struct FirstBand {
+  int size = 0, rings = 0;
+  std::vector<int> levels;
+  std::vector<char> reach;
+  double distance = 0;  ///< h U (m)
+};
+FirstBand firstBand(const TriangleMesh& mesh, double x) {
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  StainSolver solver(topology, mesh.vertexPositions,
+                     isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 1e-4), transportOnly(false));
+  DropDef drop;
+  drop.centerPoint = Vector3(x, 0.5, 0);
+  drop.radius = 0.08;
+  drop.velocity = Vector3(1.0, 0.0, 0.0);
+  solver.addDrop(drop);
+  EXPECT_EQ(solver.step(0.05, mesh.vertexPositions).status, StepStatus::Ok);
+  const LiquidBand& band = solver.band();
+  return {band.size(), band.rings, band.levels, band.reachMask, 0.05 * band.speedBound};
+}
+
+// The band is as wide as the distance the liquid can go, measured with the
+// edges where it is: short edges elsewhere on the mesh do not widen it (a
+// rule with the mesh's shortest edge would take 4x the rings here).
+TEST(LiquidBand, ShortEdgesAwayFromTheLiquidDoNotWidenTheBand) {
+  const FirstBand uniform = firstBand(gridMesh(40, 40, 1.0, 1.0), 0.2);
+  const FirstBand graded = firstBand(gradedGrid(), 0.2);
+  ASSERT_GT(uniform.size, 0);
+  EXPECT_EQ(graded.size, uniform.size);
+  EXPECT_EQ(graded.rings, uniform.rings);
+  EXPECT_TRUE(graded.levels == uniform.levels);
+  EXPECT_TRUE(graded.reach == uniform.reach);
+}
+
+// Whatever the edges, the band holds every vertex within h U of the wet set
+// in its reach set and every vertex within 2 h U in the band (flat sheets,
+// so the distance is Euclidean), for drops on coarse edges, on fine ones and
+// across the change of resolution, on a squeezed grid and on a jittered one.
+TEST(LiquidBand, BandHoldsEveryVertexTheLiquidAndItsFootPointsCanReach) {
+  TriangleMesh jittered = gridMesh(40, 40, 1.0, 1.0);
+  std::uint32_t seed = 12345;
+  const auto uniform01 = [&] {
+    seed = seed * 1664525u + 1013904223u;
+    return (seed >> 8) / double(1u << 24);
+  };
+  for (int i = 0; i < jittered.vertexPositions.rows(); ++i) {
+    const double x = jittered.vertexPositions(i, 0), y = jittered.vertexPositions(i, 1);
+    if (x <= 0 || x >= 1 || y <= 0 || y >= 1) continue;
+    jittered.vertexPositions(i, 0) += 0.35 / 40 * (2 * uniform01() - 1);
+    jittered.vertexPositions(i, 1) += 0.35 / 40 * (2 * uniform01() - 1);
+  }
+  const TriangleMesh graded = gradedGrid();
+  int checked = 0;
+  for (const TriangleMesh* mesh : {&graded, static_cast<const TriangleMesh*>(&jittered)}) {
+    for (const double x : {0.3, 0.45, 0.55, 0.6}) {
+      const FirstBand band = firstBand(*mesh, x);
+      ASSERT_GT(band.distance, 0.05);
+      const int n = static_cast<int>(mesh->vertexPositions.rows());
+      for (int v = 0; v < n; ++v) {
+        double nearest = std::numeric_limits<double>::infinity();
+        for (int w = 0; w < n; ++w) {
+          if (band.levels[static_cast<size_t>(w)] != 0) continue;
+          nearest = std::min(nearest, (mesh->vertexPositions.row(v) - mesh->vertexPositions.row(w)).norm());
+        }
+        if (nearest <= band.distance) {
+          EXPECT_NE(band.reach[static_cast<size_t>(v)], 0) << "x " << x << " vertex " << v << " at " << nearest;
+        }
+        if (nearest <= 2 * band.distance) {
+          EXPECT_GE(band.levels[static_cast<size_t>(v)], 0) << "x " << x << " vertex " << v << " at " << nearest;
+          ++checked;
+        }
+      }
+      // Never wider than the rule with the mesh's shortest edge ℓ_min:
+      // 2R rings, R = ceil(h U / ℓ_min) + 1.
+      double shortest = std::numeric_limits<double>::infinity();
+      for (int f = 0; f < mesh->faces.rows(); ++f) {
+        for (int c = 0; c < 3; ++c) {
+          shortest = std::min(shortest, (mesh->vertexPositions.row(mesh->faces(f, c)) -
+                                         mesh->vertexPositions.row(mesh->faces(f, (c + 1) % 3)))
+                                            .norm());
+        }
+      }
+      const int reachRings = static_cast<int>(std::ceil(band.distance / shortest)) + 1;
+      EXPECT_LE(band.rings, 2 * reachRings) << "x " << x;
+      // That rule's band, breadth-first from the wet set.
+      const SurfaceTopology topology(mesh->faces, n);
+      std::vector<int> levels(static_cast<size_t>(n), -1), queue;
+      for (int v = 0; v < n; ++v) {
+        if (band.levels[static_cast<size_t>(v)] == 0) {
+          levels[static_cast<size_t>(v)] = 0;
+          queue.push_back(v);
+        }
+      }
+      for (size_t k = 0; k < queue.size(); ++k) {
+        const int v = queue[k];
+        if (levels[static_cast<size_t>(v)] == 2 * reachRings) continue;
+        for (int m = topology.ringOffsets()[static_cast<size_t>(v)];
+             m < topology.ringOffsets()[static_cast<size_t>(v) + 1]; ++m) {
+          const int w = topology.ringNeighbors()[static_cast<size_t>(m)];
+          if (levels[static_cast<size_t>(w)] >= 0) continue;
+          levels[static_cast<size_t>(w)] = levels[static_cast<size_t>(v)] + 1;
+          queue.push_back(w);
+        }
+      }
+      for (int v = 0; v < n; ++v) {
+        if (band.levels[static_cast<size_t>(v)] >= 0) EXPECT_GE(levels[static_cast<size_t>(v)], 0) << v;
+      }
+      EXPECT_LT(band.size, static_cast<int>(queue.size())) << "x " << x;
+    }
+  }
+  EXPECT_GT(checked, 1000);
 }
 
 

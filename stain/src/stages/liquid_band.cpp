@@ -22,16 +22,8 @@ void clearBand(LiquidBand& band) {
   band.ringEnds.clear();
   band.dampVertices.clear();
   band.absorbingVertices.clear();
-  band.rings = band.reachRings = band.haloCount = 0;
+  band.rings = band.reachRings = band.haloCount = band.regrowths = 0;
   band.speedBound = 0;
-}
-
-// Rings R = ceil(h U / ℓ_min) + 1 for the speed bound U (m/s), capped so that
-// the conversion to int cannot overflow.
-int reachRingsFor(double h, double speed, double minEdgeLength) {
-  if (!(minEdgeLength > 0.0) || !std::isfinite(speed)) return std::numeric_limits<int>::max() / 4;
-  const double rings = std::ceil(h * speed / minEdgeLength);
-  return rings >= 1e8 ? std::numeric_limits<int>::max() / 4 : static_cast<int>(rings) + 1;
 }
 
 }  // namespace
@@ -57,7 +49,8 @@ void LiquidBand::resize(int vertexCount) {
   bandMask.assign(n, 0);
   diffusionMask.assign(n, 0);
   weights = Vector::Zero(vertexCount);
-  rings = reachRings = haloCount = 0;
+  distances.assign(n, Distances());
+  rings = reachRings = haloCount = regrowths = 0;
   speedBound = 0;
 }
 
@@ -132,20 +125,22 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
     band.ringTransports.resize(static_cast<Eigen::Index>(neighbors.size()));
     band.ringRebuildCounts.assign(static_cast<size_t>(n), -1);
   }
-  if (band.preparedRebuildCount != intrinsic.rebuildCount) {
-    band.minEdgeLength = intrinsic.edgeLengths.size() > 0 ? intrinsic.edgeLengths.minCoeff() : 0.0;
-    band.preparedRebuildCount = intrinsic.rebuildCount;
-  }
-  // Vertex v's ring entries of ringTransports, filled once per rebuild (the
-  // velocity advection keeps its own copy: the band is built before it).
-  const auto fillRingTransports = [&](int v) {
+  const std::vector<int>& ringEdges = topology.ringEdges();
+  const bool haveLengths = intrinsic.edgeLengths.size() > 0;
+  // Vertex v's ring entries of ringTransports and its shortest edge (m,
+  // intrinsic; 0 without a metric, whose band then covers the component: the
+  // distance to cover is infinite), filled once per rebuild (the velocity
+  // advection keeps its own copy of the transports: the band is built before it).
+  const auto fillVertexTables = [&](int v) {
     int& filledFrom = band.ringRebuildCounts[static_cast<size_t>(v)];
     if (filledFrom == intrinsic.rebuildCount) return;
-    const std::vector<int>& ringEdges = topology.ringEdges();
+    double shortest = haveLengths ? std::numeric_limits<double>::infinity() : 0.0;
     for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m) {
-      band.ringTransports(m) = ringTransport(intrinsic.edgeTransportAngles, v, neighbors[static_cast<size_t>(m)],
-                                             ringEdges[static_cast<size_t>(m)]);
+      const int edge = ringEdges[static_cast<size_t>(m)];
+      band.ringTransports(m) = ringTransport(intrinsic.edgeTransportAngles, v, neighbors[static_cast<size_t>(m)], edge);
+      if (haveLengths) shortest = std::min(shortest, intrinsic.edgeLengths[edge]);
     }
+    band.distances[static_cast<size_t>(v)].shortestEdge = shortest;
     filledFrom = intrinsic.rebuildCount;
   };
   const int wetCount = band.wetCount();
@@ -174,81 +169,167 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
   double speed = 0.0, acceleration = 0.0;
   for (int k = 0; k < wetCount; ++k) {
     const int i = band.vertices[static_cast<size_t>(k)];
+    const size_t ii = static_cast<size_t>(i);
     band.weights[i] = areas[i] * (std::max(state.solvent[i], 0.0) + std::max(state.solute[i], 0.0));
     speed = std::max(speed, std::abs(state.velocities[i]));
     acceleration = std::max(acceleration, kick(i));
+    fillVertexTables(i);
+    LiquidBand::Distances& labels = band.distances[ii];
+    labels.fromWet = labels.fromReach = labels.nearestWet = labels.nearestReach = 0.0;
   }
 
-  bool closed = false;  // the band covers its connected component: no ring left outside
-  while (true) {
-    const int reach = reachRingsFor(inputs.h, speed + inputs.h * acceleration, band.minEdgeLength);
-    const long long target = 2LL * reach + inputs.extraRings;
-    if (band.rings >= target) break;
-    const int level = band.rings + 1;
-    const int begin = band.rings == 0 ? 0 : band.ringEnds[static_cast<size_t>(band.rings) - 1];
-    const int end = band.ringEnds[static_cast<size_t>(band.rings)];
-    for (int k = begin; k < end; ++k) {
-      const int i = band.vertices[static_cast<size_t>(k)];
-      for (int m = offsets[static_cast<size_t>(i)]; m < offsets[static_cast<size_t>(i) + 1]; ++m) {
-        const int j = neighbors[static_cast<size_t>(m)];
-        if (band.levels[static_cast<size_t>(j)] >= 0) continue;
-        band.levels[static_cast<size_t>(j)] = level;
-        band.vertices.push_back(j);
-      }
-    }
-    const int ringEnd = static_cast<int>(band.vertices.size());
-    if (ringEnd == end) {
-      closed = true;
-      break;
-    }
-    if (toPrepare != nullptr) toPrepare->prepareVertices(band.vertices.data() + end, ringEnd - end);
-    for (int k = end; k < ringEnd; ++k) {
-      const int i = band.vertices[static_cast<size_t>(k)];
-      const size_t ii = static_cast<size_t>(i);
-      band.bandMask[ii] = 1;
-      if (level == 1) band.haloMask[ii] = 1;
-      Complex weighted(0.0, 0.0), plain(0.0, 0.0);
-      double weightSum = 0.0;
-      int count = 0;
-      const Vector3 vi = moving ? surfaceVelocity(i) : Vector3::Zero();
-      const Matrix3* frame = moving ? &extrinsic.frames[ii] : nullptr;
-      fillRingTransports(i);
-      for (int m = offsets[ii]; m < offsets[ii + 1]; ++m) {
-        const int j = neighbors[static_cast<size_t>(m)];
-        const int lj = band.levels[static_cast<size_t>(j)];
-        if (lj < 0 || lj >= level) continue;
-        Complex carried = band.ringTransports(m) * state.velocities[j];
-        if (moving) {
-          const Vector3 change = surfaceVelocity(j) - vi;
-          carried += Complex(frame->col(0).dot(change), frame->col(1).dot(change));
+  // Distance labels (growLiquidBand's comment in the header): a vertex is a
+  // reach centre if wet or nearestWet < d, in the reach set if wet or next to
+  // a reach centre of the level below, and it lets the band grow past it if
+  // in the reach set or nearestReach < d. Decisions are taken with the d of
+  // the moment; U only grows, so a "no" taken with a d smaller than the final
+  // one may be wrong: the rings are then grown again from the wet set with
+  // the final d (`decidedBelow`).
+  const auto distanceFor = [&](double bound) {
+    const double d = inputs.h * bound;
+    return haveLengths && std::isfinite(d) ? d : std::numeric_limits<double>::infinity();
+  };
+  bool everything = inputs.coverComponent;
+  double distance = 0.0;
+  for (int attempt = 0;; ++attempt) {
+    distance = distanceFor(speed + inputs.h * acceleration);
+    double decidedBelow = std::numeric_limits<double>::infinity();  // smallest d of a "no"
+    const auto isReachCentre = [&](int v) {
+      const size_t vv = static_cast<size_t>(v);
+      if (band.levels[vv] == 0 || band.distances[vv].nearestWet < distance) return true;
+      decidedBelow = std::min(decidedBelow, distance);
+      return false;
+    };
+    const auto letsGrow = [&](int v) {
+      const size_t vv = static_cast<size_t>(v);
+      if (everything || band.reachMask[vv] != 0 || band.distances[vv].nearestReach < distance) return true;
+      decidedBelow = std::min(decidedBelow, distance);
+      return false;
+    };
+    while (true) {
+      const int level = band.rings + 1;
+      const int begin = band.rings == 0 ? 0 : band.ringEnds[static_cast<size_t>(band.rings) - 1];
+      const int end = band.ringEnds[static_cast<size_t>(band.rings)];
+      for (int k = begin; k < end; ++k) {
+        const int i = band.vertices[static_cast<size_t>(k)];
+        if (!letsGrow(i)) continue;
+        for (int m = offsets[static_cast<size_t>(i)]; m < offsets[static_cast<size_t>(i) + 1]; ++m) {
+          const int j = neighbors[static_cast<size_t>(m)];
+          if (band.levels[static_cast<size_t>(j)] >= 0) continue;
+          band.levels[static_cast<size_t>(j)] = level;
+          band.vertices.push_back(j);
         }
-        const double w = band.weights[j];
-        weighted += w * carried;
-        plain += carried;
-        weightSum += w;
-        ++count;
       }
-      // count >= 1: i was found from a vertex of the level below.
-      state.velocities[i] = weightSum > 0.0 ? weighted / weightSum : plain / static_cast<double>(count);
-      band.weights[i] = weightSum / static_cast<double>(count);
-      speed = std::max(speed, std::abs(state.velocities[i]));
-      acceleration = std::max(acceleration, kick(i));
+      const int ringEnd = static_cast<int>(band.vertices.size());
+      if (ringEnd == end) break;
+      if (toPrepare != nullptr) toPrepare->prepareVertices(band.vertices.data() + end, ringEnd - end);
+      for (int k = end; k < ringEnd; ++k) {
+        const int i = band.vertices[static_cast<size_t>(k)];
+        const size_t ii = static_cast<size_t>(i);
+        band.bandMask[ii] = 1;
+        if (level == 1) band.haloMask[ii] = 1;
+        Complex weighted(0.0, 0.0), plain(0.0, 0.0);
+        double weightSum = 0.0;
+        int count = 0;
+        bool inReach = false;
+        double fromWet = std::numeric_limits<double>::infinity(), fromReach = fromWet;
+        double nearestWet = fromWet, nearestReach = fromWet;
+        const Vector3 vi = moving ? surfaceVelocity(i) : Vector3::Zero();
+        const Matrix3* frame = moving ? &extrinsic.frames[ii] : nullptr;
+        fillVertexTables(i);
+        const double shortest = band.distances[ii].shortestEdge;
+        for (int m = offsets[ii]; m < offsets[ii + 1]; ++m) {
+          const int j = neighbors[static_cast<size_t>(m)];
+          const size_t jj = static_cast<size_t>(j);
+          const int lj = band.levels[jj];
+          if (lj < 0 || lj >= level) continue;
+          Complex carried = band.ringTransports(m) * state.velocities[j];
+          if (moving) {
+            const Vector3 change = surfaceVelocity(j) - vi;
+            carried += Complex(frame->col(0).dot(change), frame->col(1).dot(change));
+          }
+          const double w = band.weights[j];
+          weighted += w * carried;
+          plain += carried;
+          weightSum += w;
+          ++count;
+          // Crossing from j to i covers at least the shorter of their shortest edges.
+          const LiquidBand::Distances& from = band.distances[jj];
+          const double step = std::min(from.shortestEdge, shortest);
+          nearestWet = std::min(nearestWet, from.fromWet);
+          fromWet = std::min(fromWet, from.fromWet + step);
+          if (!everything) {  // covering the component, only the reach set is needed
+            nearestReach = std::min(nearestReach, from.fromReach);
+            fromReach = std::min(fromReach, from.fromReach + step);
+            if (!inReach && band.reachMask[jj] != 0 && isReachCentre(j)) inReach = true;
+          }
+        }
+        // count >= 1: i was found from a vertex of the level below.
+        state.velocities[i] = weightSum > 0.0 ? weighted / weightSum : plain / static_cast<double>(count);
+        band.weights[i] = weightSum / static_cast<double>(count);
+        band.reachMask[ii] = inReach ? 1 : 0;
+        LiquidBand::Distances& labels = band.distances[ii];
+        labels.fromWet = fromWet;
+        labels.fromReach = inReach ? 0.0 : fromReach;
+        labels.nearestWet = nearestWet;
+        labels.nearestReach = nearestReach;
+        speed = std::max(speed, std::abs(state.velocities[i]));
+        acceleration = std::max(acceleration, kick(i));
+      }
+      band.ringEnds.push_back(ringEnd);
+      band.rings = level;
+      distance = distanceFor(speed + inputs.h * acceleration);
     }
-    band.ringEnds.push_back(ringEnd);
-    band.rings = level;
+    // Every "no" was taken with the final d: the band is complete. Otherwise
+    // grow it again with the final d (the speed bound is kept); after two
+    // tries, cover the component (the reach set is then marked again below).
+    if (!(decidedBelow < distance) || everything) break;
+    for (int k = wetCount; k < band.size(); ++k) {
+      const size_t ii = static_cast<size_t>(band.vertices[static_cast<size_t>(k)]);
+      band.levels[ii] = -1;
+      band.haloMask[ii] = band.reachMask[ii] = band.bandMask[ii] = 0;
+    }
+    band.vertices.resize(static_cast<size_t>(wetCount));
+    band.ringEnds.resize(1);
+    band.rings = 0;
+    ++band.regrowths;
+    if (attempt == 1) everything = true;
   }
 
   band.speedBound = speed + inputs.h * acceleration;
-  band.reachRings = std::min(reachRingsFor(inputs.h, band.speedBound, band.minEdgeLength), band.rings);
-  band.haloCount = band.rings >= 1 ? band.ringEnds[1] - band.ringEnds[0] : 0;
+  band.reachRings = 0;
+  int deepestCentre = 0;  // deepest level of a reach centre so far (marking again)
   for (int k = wetCount; k < band.size(); ++k) {
     const int i = band.vertices[static_cast<size_t>(k)];
-    const int level = band.levels[static_cast<size_t>(i)];
-    band.reachMask[static_cast<size_t>(i)] = level <= band.reachRings ? 1 : 0;
-    // The outermost ring is the velocity solve's boundary data, unless
-    // nothing lies beyond it.
-    band.diffusionMask[static_cast<size_t>(i)] = closed || level < band.rings ? 1 : 0;
+    const size_t ii = static_cast<size_t>(i);
+    const int level = band.levels[ii];
+    if (everything && level > deepestCentre + 1) {
+      band.reachMask[ii] = 0;  // no reach centre at the level below
+    } else if (everything) {  // the reach set again, with the final d, level by level
+      char inReach = 0;
+      for (int m = offsets[ii]; m < offsets[ii + 1] && inReach == 0; ++m) {
+        const size_t jj = static_cast<size_t>(neighbors[static_cast<size_t>(m)]);
+        if (band.levels[jj] >= 0 && band.levels[jj] < level && band.reachMask[jj] != 0 &&
+            (band.levels[jj] == 0 || band.distances[jj].nearestWet < distance)) {
+          inReach = 1;
+        }
+      }
+      band.reachMask[ii] = inReach;
+      if (inReach != 0 && band.distances[ii].nearestWet < distance) deepestCentre = level;
+    }
+    if (band.reachMask[ii] != 0) band.reachRings = std::max(band.reachRings, level);
+    // A vertex with a neighbour outside the band is the velocity solve's
+    // boundary data (none when the band is the component).
+    char interior = 1;
+    for (int m = offsets[ii]; m < offsets[ii + 1] && !everything; ++m) {
+      if (band.levels[static_cast<size_t>(neighbors[static_cast<size_t>(m)])] < 0) {
+        interior = 0;
+        break;
+      }
+    }
+    band.diffusionMask[ii] = interior;
   }
+  band.haloCount = band.rings >= 1 ? band.ringEnds[1] - band.ringEnds[0] : 0;
 }
 
 }  // namespace blot::stain

@@ -60,7 +60,7 @@ enum class StepTerm : unsigned {
   DensityAdvection = 1u << 9,    ///< AdvectDensity: upwind σ fluxes (wet + sub-step rings, inside the reach set)
   DensityDiffusionKrylov = 1u << 10,   ///< Diffuse: σ_f, σ_s by CG on the liquid's Krylov support
   DensityDiffusionDirect = 1u << 11,   ///< Diffuse: σ_f, σ_s by the factorization (all #V)
-  VelocityDiffusionKrylov = 1u << 12,  ///< Diffuse: u by CG on the band (its outermost ring as boundary data)
+  VelocityDiffusionKrylov = 1u << 12,  ///< Diffuse: u by CG on the band (its vertices next to the outside as boundary data)
   VelocityDiffusionDirect = 1u << 13,  ///< Diffuse: u by the factorization (all #V)
   Absorption = 1u << 14,         ///< Interact: K_p > 0 (reach set)
   Adsorption = 1u << 15,         ///< Interact: K_d > 0 (reach set)
@@ -96,8 +96,8 @@ struct StepProfile {
   /// Vertices of the liquid band (wet + the rings the step can reach and read,
   /// StainSolver::bandVertices; the whole mesh with a direct velocity solve).
   int bandVertices = 0;
-  int bandRings = 0;               ///< rings of the band beyond the wet set
-  int reachRings = 0;              ///< rings liquid and foot points can move this step (R)
+  int bandRings = 0;               ///< deepest level of the band (rings beyond the wet set)
+  int reachRings = 0;              ///< deepest level of the reach set (where liquid can be after this step)
   int geometryVertices = 0;        ///< vertices whose extrinsic geometry the step computed (the band and
                                    ///< traces of liquid; #V in VertexRefresh::AllVertices; 0 if the surface did not move)
   int advectionVertices = 0;       ///< vertices density advection worked on (wet + sub-step halo, or #V)

@@ -215,7 +215,7 @@ struct DiffusionReport {
 /// predicted cost, DiffusionSolverChoice); the velocity the same way between
 /// CG and RKL2 when vectorIterative(), on the mask below.
 /// `wet` (optional, #V, 0 = outside; StainSolver passes the liquid band less
-/// its outermost ring, LiquidBand::diffusionMask): the velocity is then
+/// its vertices next to the outside, LiquidBand::diffusionMask): the velocity is then
 /// diffused (CG or RKL2) only on the marked vertices, with the velocities of their
 /// unmarked neighbours (the band's extended values) as fixed boundary values
 /// (u matters only where there is liquid); without it the velocity solve

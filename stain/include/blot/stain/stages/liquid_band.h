@@ -32,11 +32,14 @@ struct LiquidBand {
   std::vector<char> haloMask;       ///< levels 0..1: wet and the one-ring halo
   std::vector<char> reachMask;      ///< levels 0..reachRings: where liquid can be after this step
   std::vector<char> bandMask;       ///< every level: forces act here, u is defined here
-  std::vector<char> diffusionMask;  ///< every level but the outermost (velocity CG rows; the
-                                    ///< outermost ring is their boundary data)
+  std::vector<char> diffusionMask;  ///< band vertices whose neighbours are all in the band (the
+                                    ///< velocity solve's rows; the others are its boundary data)
   int rings = 0;       ///< levels beyond the wet set (outermost level)
-  int reachRings = 0;  ///< rings liquid and foot points can move this step, R = ceil(h U / ℓ_min) + 1
+  int reachRings = 0;  ///< deepest level of the reach set (R = ceil(h U / ℓ) + 1 on equal edges ℓ)
   int haloCount = 0;   ///< vertices at level 1
+  /// Times growLiquidBand grew the rings again this step: U grew past the
+  /// value a "stop here" was decided with (0 on most steps).
+  int regrowths = 0;
   double speedBound = 0;  ///< U (m/s): bound on |u| over the band after this step's forces
   /// #V extension weights: liquid mass A(σ_f + σ_s) on wet vertices, and on
   /// an extended vertex the mean weight of the neighbours it was built from.
@@ -48,7 +51,7 @@ struct LiquidBand {
   /// vertex, when the band first reaches it after a rebuild.
   ComplexVector ringTransports;
   /// #V: the IntrinsicGeometry::rebuildCount vertex i's ringTransports
-  /// entries were filled from (−1: not yet).
+  /// entries and distances[i].shortestEdge were filled from (−1: not yet).
   std::vector<int> ringRebuildCounts;
   /// Vertices not in the wet set whose free density σ_f + σ_s is > 0 (a
   /// trace below wetThreshold), in index order: no stage works on them, but
@@ -68,15 +71,22 @@ struct LiquidBand {
   std::vector<int> candidates;
   std::vector<char> candidateMarks;  ///< #V: 1 on `candidates`
   bool scanAll = true;
-  double minEdgeLength = 0;  ///< ℓ_min over the mesh (m), intrinsic
-  int preparedRebuildCount = -1;  ///< IntrinsicGeometry::rebuildCount of minEdgeLength (−1: never)
+  /// Per vertex, m: the shortest edge at it (intrinsic, filled with its
+  /// ringTransports), then growLiquidBand's distance labels (valid on band
+  /// vertices): the least distance a path from the wet set (the reach set)
+  /// covers to reach the vertex, and the least such label among its
+  /// neighbours at the level below. One record per vertex: the band's sweep
+  /// reads all of a neighbour's at once.
+  struct Distances {
+    double shortestEdge = 0, fromWet = 0, fromReach = 0, nearestWet = 0, nearestReach = 0;
+  };
+  std::vector<Distances> distances;  ///< #V
 
   /// Sizes everything for the mesh (allocates: call at build time).
   void resize(int vertexCount);
   /// Forgets what was computed from the intrinsic tier (call when it is
   /// replaced by a restored snapshot, whose rebuildCount may repeat one).
   void invalidateIntrinsic() {
-    preparedRebuildCount = -1;
     std::fill(ringRebuildCounts.begin(), ringRebuildCounts.end(), -1);
   }
   /// Level-0 count (vertices holding liquid).
@@ -108,9 +118,9 @@ struct LiquidBandInputs {
   /// Frame velocities enter the extension (the surface moved): the extension
   /// then carries the liquid's world velocity, see extendBandVelocities.
   bool surfaceMoved = false;
-  /// Extra rings beyond 2R (e.g. INT_MAX/2 to cover the whole connected mesh,
-  /// when the velocity diffusion is a whole-mesh direct solve).
-  int extraRings = 0;
+  /// Grow the band over the whole connected component (the velocity
+  /// diffusion is a whole-mesh direct solve, which reads u everywhere).
+  bool coverComponent = false;
 };
 
 /// Level 0 of the band: the vertices holding liquid (σ_f, σ_s or σ_p above
@@ -129,15 +139,29 @@ void updateWetVertices(double wetThreshold, const StainState& state, LiquidBand&
 /// velocity onto it: state.velocities on band vertices outside the wet set
 /// are overwritten; wet ones and vertices outside the band are untouched.
 ///
-/// Radius: R = ceil(h U / ℓ_min) + 1 rings with U = max |u| over the band plus
-/// h max |tangential part of g − p̈| (the speed after this step's kick; extended values included,
-/// which on a moving surface can exceed the wet ones by the frame velocity's
-/// change). A foot point of a vertex is at most h U away, so within R rings
-/// (the +1 is the triangle that contains it), and liquid is moved at most
-/// R rings by the density advection (clipped to reachMask). The band holds
-/// 2R rings (+ extraRings): the reach set, and the rings its foot points can
-/// read. Rings are added until the count satisfies the bound computed with
-/// the vertices already in it (U is updated ring by ring).
+/// Extent: U = max |u| over the band plus h max |tangential part of g − p̈|
+/// (the speed after this step's kick; extended values included, which on a
+/// moving surface can exceed the wet ones by the frame velocity's change),
+/// and d = h U, the farthest a foot point of the semi-Lagrangian backtrack
+/// lies from its vertex. Crossing from a vertex j to its neighbour i is taken
+/// to cover at least min(s_j, s_i), s the shortest edge at a vertex (the rule
+/// the band had with the mesh's shortest edge ℓ_min, applied where the path
+/// goes). fromWet (fromReach) is the least such distance along the levels
+/// from the wet set (the reach set), and nearest* the least label among a
+/// vertex's neighbours at the level below. A vertex is in the reach set if it
+/// is wet or has a neighbour at the level below that is wet or whose
+/// nearestWet < d: the liquid can get to that neighbour's star, so to every
+/// vertex of a triangle there (liquid is moved only inside the reach set by
+/// the density advection, clipped to reachMask). The band grows past a
+/// vertex if it is in the reach set or its nearestReach < d: the foot points
+/// of reach vertices, d further. On a mesh of equal edges ℓ this is the old
+/// rule, levels 0..R in the reach set and 2R rings in the band,
+/// R = ceil(d / ℓ) + 1; with unequal edges it is never wider than that rule
+/// with ℓ_min, and short edges away from the liquid do not widen it. The
+/// speed bound grows ring by ring; a band stopped somewhere with a smaller d
+/// than the final one is grown again from the wet set (LiquidBand::regrowths;
+/// after two tries it covers the component). coverComponent: the whole
+/// component, reach set as above.
 ///
 /// Extension (breadth-first, level by level): vertex i at level k gets
 ///   u_i = Σ_j w_j (e^{iθ_ij} u_j + P_i (v_j − v_i)) / Σ_j w_j
