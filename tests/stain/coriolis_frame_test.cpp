@@ -11,6 +11,8 @@
 
 #include <gtest/gtest.h>
 
+#include "stain_fixture.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -51,9 +53,7 @@ DiscRun runDisc(double omega, double h, int steps, const Vector3& v0,
                      isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 1e-4), def);
   const int n = static_cast<int>(mesh.vertexPositions.rows());
   const Vector3 w(0, 0, omega);
-  RowVectors3 velocities(n, 3);
-  for (int i = 0; i < n; ++i) velocities.row(i) = w.cross(Vector3(mesh.vertexPositions.row(i))).transpose();
-  solver.setInitialMotion(mesh.vertexPositions, velocities);
+  solver.setInitialMotion(mesh.vertexPositions, testing::spinVelocities(mesh.vertexPositions, w));
   DropDef drop;
   drop.centerPoint = Vector3(0, 0, 0);
   drop.radius = 3 * radius;  // covers the disc

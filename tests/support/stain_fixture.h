@@ -45,6 +45,15 @@ inline StainState zeroState(int n) {
   return s;
 }
 
+/// w × x for every row x of `positions` (m/s): the surface velocities of a
+/// rigid spin about the origin, for StainSolver::setInitialMotion.
+inline RowVectors3 spinVelocities(const RowVectors3& positions, const Vector3& w) {
+  RowVectors3 velocities(positions.rows(), 3);
+  for (Eigen::Index i = 0; i < positions.rows(); ++i)
+    velocities.row(i) = w.cross(Vector3(positions.row(i).transpose())).transpose();
+  return velocities;
+}
+
 }  // namespace blot::stain::testing
 
 namespace blot::stain::liquid_testing {
