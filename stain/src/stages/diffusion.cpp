@@ -43,6 +43,16 @@ double massOf(const Vector& rhs) {
 // of the masses restores conservation to rounding (a relative change of that
 // same 1e-13 size, far below the discretization error; zeros stay zero and
 // signs are kept).
+// Values below kIterativeTolerance × max |σ| are set to zero, as after CG:
+// backward Euler's exponential tail, below what either solve resolves. Left
+// in place, a factor's solution holds a trace on every vertex, and every
+// later step's support, damp set and limiter would cover the mesh.
+void flushTail(Vector& solution) {
+  const double floor = kIterativeTolerance * solution.cwiseAbs().maxCoeff();
+  for (Eigen::Index i = 0; i < solution.size(); ++i)
+    if (std::abs(solution[i]) < floor) solution[i] = 0.0;
+}
+
 void restoreMass(const Vector& dualAreas, double mass, Vector& solution) {
   CompensatedSum solved;
   for (Eigen::Index i = 0; i < solution.size(); ++i) solved.add(dualAreas[i] * solution[i]);
@@ -218,6 +228,7 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
       report.status = systems.solveScalar(scratch.rhs, scratch.solution);
       report.factorizations = systems.factorizationCount() - factorizationsBefore;
       if (report.status != SolverStatus::Ok) return report;
+      flushTail(scratch.solution);
       restoreMass(areas, mass, scratch.solution);
     }
     if (solute) {
@@ -226,6 +237,7 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
       report.status = systems.solveScalar(scratch.rhs, scratch.rhs);
       report.factorizations = systems.factorizationCount() - factorizationsBefore;
       if (report.status != SolverStatus::Ok) return report;
+      flushTail(scratch.rhs);
       restoreMass(areas, mass, scratch.rhs);
     }
   }
