@@ -465,6 +465,7 @@ void StainSolver::prepareBand() {
   // (liquid_band.h). A whole-mesh direct velocity solve reads u everywhere,
   // so then the band (and the extension) covers the mesh.
   updateWetVertices(def_.liquid.wetThreshold, state_, band_);
+  velocityByFactor_ = ctx_.switches.velocityDiffusion && !systems_.vectorIterative();
   // The per-vertex geometry where this step reads it (the wet set now, each
   // ring as the band grows) and where the coupling does (traces of liquid).
   geometry_.prepareVertices(band_.dampVertices);
@@ -484,9 +485,20 @@ void StainSolver::prepareBand() {
   inputs.gravity = on.gravity ? ctx_.gravity : Vector3::Zero();
   inputs.useAccelerations = on.linearInertia;
   inputs.surfaceMoved = surfaceMoved_;
-  const bool directVelocitySolve = on.velocityDiffusion && !systems_.vectorIterative();
-  inputs.coverComponent = directVelocitySolve;
+  // A direct velocity solve reads u everywhere: the band then covers the
+  // mesh. Under Auto the factor is also taken when the band's own solve is
+  // predicted dearer than it plus that wider band.
+  inputs.coverComponent = velocityByFactor_;
   growLiquidBand(inputs, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), band_, state_, &geometry_);
+  if (on.velocityDiffusion && !velocityByFactor_ && systems_.solverChoice() == DiffusionSolverChoice::Auto &&
+      velocityCostOnBand(systems_, band_.interiorCount) >
+          velocityCostByFactor(systems_, state_.vertexCount() - band_.size())) {
+    velocityByFactor_ = true;
+    inputs.coverComponent = true;
+    shrinkBandToWetSet(band_);
+    growLiquidBand(inputs, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), band_, state_,
+                   &geometry_);
+  }
   // The half rotation wrote the wet u, the extension the rest of the band;
   // every later stage but the diffusion and the interaction writes inside it.
   noteChanged(band_.vertices.data(), band_.size());
@@ -690,7 +702,7 @@ StepReport StainSolver::runStages() {
   // whole-mesh velocity solve.
   applyBoundaryWall(ctx, topology, intrinsic, band_.wetMask, state_, among);
   if (!runStage(Stage::AdvectDensity, on.densityAdvection, report, [&] { recordAdvection(advectDensities(ctx, topology, intrinsic, extrinsic, band_.wetMask, densityScratch_, state_, &geometry_.restEdgeFrameNormals(), &reach, among)); }) ||
-      !runStage(Stage::Diffuse, on.densityDiffusion || on.velocityDiffusion, report, [&] { return recordDiffusion(diffuse(ctx, intrinsic, systems_, diffusionScratch_, state_, &band_.diffusionMask)); }) ||
+      !runStage(Stage::Diffuse, on.densityDiffusion || on.velocityDiffusion, report, [&] { return recordDiffusion(diffuse(ctx, intrinsic, systems_, diffusionScratch_, state_, &band_.diffusionMask, velocityByFactor_)); }) ||
       !runStage(Stage::Interact, on.absorption || on.adsorption || on.evaporation, report, [&] { noteChanged(band_.absorbingVertices.data(), static_cast<int>(band_.absorbingVertices.size()));
                                                                                                    interact(ctx, topology, intrinsic, reach, state_, &evaporatedMass_, interactionVertices());
                                                                                                    evaporationWritten_ = on.evaporation;

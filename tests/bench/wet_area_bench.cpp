@@ -13,10 +13,11 @@
 // diffusion on the Krylov support, interaction). The stain is set directly in
 // the state (a uniform film on the disc) instead of with addDrop, whose bump
 // would make the wet area depend on the threshold. Two fabrics: diffusivity
-// and viscosity 1e-4 m²/s keep max h L_ii / A_i below
-// kIterativeStiffnessRatio, so both solves run by CG on the liquid's support;
-// 4e-3 and 2e-3 m²/s (the Table 1 flag's) pass it, so Auto picks the direct
-// factorizations, whole-mesh solves however small the stain. Static rows (no
+// and viscosity 1e-4 m²/s keep max h L_ii / A_i small, so both solves run on
+// the liquid's support; 4e-3 and 2e-3 m²/s (the Table 1 flag's) make them
+// 40x stiffer, where Auto weighs CG on the support against the whole-mesh
+// factorizations by predicted cost (until stop 34 of issue 15 it took the
+// factors there, whole-mesh solves however small the stain). Static rows (no
 // motion) show the geometry refresh skipped. Deforming rows (moving = 2)
 // add a travelling wave across the grid under the same rotation, z̄ +=
 // A sin(k x̄ − Ω t) cos(k ȳ) (A = 3 mm, wavelength 0.5 m, 1 Hz), stepped by
@@ -78,7 +79,7 @@ void deformedAt(const RowVectors3& rest, double t, const Matrix3& R, RowVectors3
 // Args: wet area in basis points of the cloth (0..10000), moving (0 static,
 // 1 rigid, 2 deforming), all_vertices (1: the per-vertex geometry on every
 // vertex, VertexRefresh::AllVertices, as before it followed the band),
-// fabric (0: D = ν = 1e-4 m²/s, Krylov; 1: D = 4e-3, ν = 2e-3 m²/s, direct).
+// fabric (0: D = ν = 1e-4 m²/s, mild; 1: D = 4e-3, ν = 2e-3 m²/s, stiff).
 void BM_WetArea(benchmark::State& state) {
   const double fraction = static_cast<double>(state.range(0)) * 1e-4;
   const bool moving = state.range(1) != 0;

@@ -114,7 +114,7 @@ SolverStatus DiffusionSystems::assemble(const IntrinsicGeometry& geometry, doubl
   const bool cgForced = choice_ == DiffusionSolverChoice::Iterative;
   const bool rklForced = choice_ == DiffusionSolverChoice::SuperTimeStepping;
   const bool automatic = choice_ == DiffusionSolverChoice::Auto;
-  const auto cgAllowed = [&](double ratio) { return cgForced || (automatic && ratio <= kIterativeStiffnessRatio); };
+  const auto cgAllowed = [&](double ratio, double limit) { return cgForced || (automatic && ratio <= limit); };
   // Auto takes RKL2 only where it is at least as accurate as backward Euler
   // (h λ ≤ kRklAutoStepStiffness; docs/accuracy.md); forced, up to kMaxRklStages.
   const auto stages = [&](double bound) {
@@ -123,13 +123,13 @@ SolverStatus DiffusionSystems::assemble(const IntrinsicGeometry& geometry, doubl
   };
   scalarRatio_ = inverseDiagonal(scalarSystem_, areas, scalarInverseDiagonal_);
   scalarBound_ = spectralBound(scalarStiffness, areas);
-  scalarCg_ = cgAllowed(scalarRatio_);
+  scalarCg_ = cgAllowed(scalarRatio_, kIterativeStiffnessRatio);
   scalarStages_ = stages(scalarBound_);
   scalarIterative_ = scalarCg_ || scalarStages_ > 0;
   if (vectorStiffness.rows() != 0) {
     vectorRatio_ = inverseDiagonal(vectorSystem_, areas, vectorInverseDiagonal_);
     vectorBound_ = spectralBound(vectorStiffness, areas);
-    vectorCg_ = cgAllowed(vectorRatio_);
+    vectorCg_ = cgAllowed(vectorRatio_, kBandIterativeStiffnessRatio);
     vectorStages_ = stages(vectorBound_);
     vectorIterative_ = vectorCg_ || vectorStages_ > 0;
   } else {

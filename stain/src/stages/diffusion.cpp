@@ -78,9 +78,25 @@ void DiffusionScratch::resize(int vertexCount) {
   krylovPartials.assign(static_cast<size_t>(chunks) * kKrylovPartialsPerChunk, 0.0);
 }
 
+double velocityCostOnBand(const DiffusionSystems& systems, int rows) {
+  const SparseMatrix& scalarSystem = systems.scalarSystem();
+  const Eigen::Index n = scalarSystem.rows();
+  const double entriesPerRow = n > 0 ? static_cast<double>(scalarSystem.nonZeros()) / static_cast<double>(n) : 0.0;
+  const int stages = systems.vectorStages();
+  const double rkl = stages > 0 ? rklCost(stages, rows, 0, entriesPerRow) : kNever;
+  const double cg = systems.vectorCgAllowed()
+                        ? cgCost(predictedCgIterations(systems.vectorStiffnessRatio()), rows, 0, entriesPerRow)
+                        : kNever;
+  return std::min(rkl, cg);
+}
+
+double velocityCostByFactor(const DiffusionSystems& systems, int addedBandVertices) {
+  return directCost(static_cast<int>(systems.scalarSystem().rows()), 2) + kBandVertexCost * addedBandVertices;
+}
+
 DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometry,
                         DiffusionSystems& systems, DiffusionScratch& scratch, StainState& state,
-                        const std::vector<char>* wet) {
+                        const std::vector<char>* wet, bool velocityByFactor) {
   DiffusionReport report;
   const PhysicsSwitches& switches = ctx.switches;
   if (!switches.densityDiffusion && !switches.velocityDiffusion) return report;
@@ -252,7 +268,7 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
   ActiveSet velocityActive(scratch.velocityActive, scratch.velocityMarks);
   bool velocityOnBand = false;
   double* ux = scratch.velocityX.data();
-  if (velocity && systems.vectorIterative()) {
+  if (velocity && systems.vectorIterative() && !velocityByFactor) {
     const int vertices = static_cast<int>(n);
     const Complex* u0 = state.velocities.data();
     int ring = 0;
@@ -270,16 +286,23 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
     const double* u0Pairs = reinterpret_cast<const double*>(u0);
     const double* x0[2] = {u0Pairs, u0Pairs + 1};
     double mass[2];
-    // The band was sized for a restricted solve (assemble chose it): the
-    // factor is not a candidate here.
+    // The band was sized for a restricted solve (StainSolver chose it): the
+    // factor is not a candidate here. Without a band the support grows with
+    // the solve like the densities', and Auto allows CG only up to their
+    // ratio (kIterativeStiffnessRatio); past it the factor solves below.
     const int stages = systems.vectorStages();
     const int rows = velocityActive.size();
+    const bool cgHere = systems.vectorCgAllowed() &&
+                        (wet != nullptr || systems.solverChoice() != DiffusionSolverChoice::Auto ||
+                         systems.vectorStiffnessRatio() <= kIterativeStiffnessRatio);
     const double rkl = stages > 0 ? rklCost(stages, rows, ring, entriesPerRow) : kNever;
-    const double cg = systems.vectorCgAllowed()
-                          ? cgCost(predictedCgIterations(systems.vectorStiffnessRatio()), rows, ring, entriesPerRow)
-                          : kNever;
+    const double cg =
+        cgHere ? cgCost(predictedCgIterations(systems.vectorStiffnessRatio()), rows, ring, entriesPerRow) : kNever;
     report.velocityPredictedCost = std::min(rkl, cg);
-    if (rkl <= cg) {
+    if (rkl >= kNever && cg >= kNever) {
+      releaseActive(velocityActive, {ux, scratch.velocityR.data(), scratch.velocityP.data()});
+      report.velocityPredictedCost = 0;
+    } else if (rkl <= cg) {
       const RklOutcome outcome =
           rkl2Step<true>(geometry.velocityStiffness, areas.data(), x0, 2, stages, ctx.h, ux, scratch.velocityR.data(),
                          scratch.velocityP.data(), velocityActive, wet == nullptr, mass, scratch.krylovPartials.data());

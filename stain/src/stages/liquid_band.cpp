@@ -22,7 +22,7 @@ void clearBand(LiquidBand& band) {
   band.ringEnds.clear();
   band.dampVertices.clear();
   band.absorbingVertices.clear();
-  band.rings = band.reachRings = band.haloCount = band.regrowths = 0;
+  band.rings = band.reachRings = band.haloCount = band.regrowths = band.interiorCount = 0;
   band.speedBound = 0;
 }
 
@@ -50,7 +50,7 @@ void LiquidBand::resize(int vertexCount) {
   diffusionMask.assign(n, 0);
   weights = Vector::Zero(vertexCount);
   distances.assign(n, Distances());
-  rings = reachRings = haloCount = regrowths = 0;
+  rings = reachRings = haloCount = regrowths = interiorCount = 0;
   speedBound = 0;
 }
 
@@ -112,6 +112,18 @@ void updateWetVertices(double wetThreshold, const StainState& state, LiquidBand&
   }
   list.resize(kept);
   band.ringEnds.push_back(static_cast<int>(band.vertices.size()));
+}
+
+void shrinkBandToWetSet(LiquidBand& band) {
+  const int wetCount = band.wetCount();
+  for (int k = wetCount; k < band.size(); ++k) {
+    const size_t ii = static_cast<size_t>(band.vertices[static_cast<size_t>(k)]);
+    band.levels[ii] = -1;
+    band.haloMask[ii] = band.reachMask[ii] = band.bandMask[ii] = band.diffusionMask[ii] = 0;
+  }
+  band.vertices.resize(static_cast<size_t>(wetCount));
+  band.ringEnds.resize(band.ringEnds.empty() ? 0 : 1);
+  band.rings = band.reachRings = band.haloCount = band.interiorCount = 0;
 }
 
 void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topology,
@@ -284,20 +296,14 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
     // grow it again with the final d (the speed bound is kept); after two
     // tries, cover the component (the reach set is then marked again below).
     if (!(decidedBelow < distance) || everything) break;
-    for (int k = wetCount; k < band.size(); ++k) {
-      const size_t ii = static_cast<size_t>(band.vertices[static_cast<size_t>(k)]);
-      band.levels[ii] = -1;
-      band.haloMask[ii] = band.reachMask[ii] = band.bandMask[ii] = 0;
-    }
-    band.vertices.resize(static_cast<size_t>(wetCount));
-    band.ringEnds.resize(1);
-    band.rings = 0;
+    shrinkBandToWetSet(band);
     ++band.regrowths;
     if (attempt == 1) everything = true;
   }
 
   band.speedBound = speed + inputs.h * acceleration;
   band.reachRings = 0;
+  band.interiorCount = wetCount;  // wet vertices are rows of the velocity solve
   int deepestCentre = 0;  // deepest level of a reach centre so far (marking again)
   for (int k = wetCount; k < band.size(); ++k) {
     const int i = band.vertices[static_cast<size_t>(k)];
@@ -328,6 +334,7 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
       }
     }
     band.diffusionMask[ii] = interior;
+    band.interiorCount += interior;
   }
   band.haloCount = band.rings >= 1 ? band.ringEnds[1] - band.ringEnds[0] : 0;
 }

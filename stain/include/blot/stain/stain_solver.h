@@ -269,6 +269,9 @@ class StainSolver {
   bool inStep_ = false;     // refreshGeometry succeeded and the step has not finished
   bool firstStep_ = false;  // this step is the solver's first (u is in the frames at t)
   DiffusionSystems systems_;
+  /// This step's velocity diffusion is the whole-mesh factor (chosen when the
+  /// band is built; the band then covers the mesh).
+  bool velocityByFactor_ = false;
   DiffusionScratch diffusionScratch_;
   VelocityAdvectionScratch velocityScratch_;
   DensityAdvectionScratch densityScratch_;

@@ -17,7 +17,8 @@ namespace blot::stain {
 /// predicted cost (docs/performance.md, "The cheapest solver"): among
 /// Jacobi-preconditioned conjugate gradients on the liquid's support (only
 /// while max_i h L_ii / A_i ≤ kIterativeStiffnessRatio, where the
-/// Jacobi-scaled system has a condition number below ~2(1 + ratio)), the
+/// Jacobi-scaled system has a condition number below ~2(1 + ratio); for the
+/// velocity on the band, kBandIterativeStiffnessRatio), the
 /// explicit RKL2 super-time-stepping on the liquid's rows (only while its
 /// stage count is at most kMaxRklStages, and for Auto while h λ ≤
 /// kRklAutoStepStiffness, where it is the more accurate) and the whole-mesh factorization
@@ -33,15 +34,25 @@ enum class DiffusionSolverChoice { Auto, Direct, Iterative, SuperTimeStepping };
 /// M σ' = −L σ that the other two integrate by backward Euler.
 enum class DiffusionMethod { None, Direct, ConjugateGradient, SuperTimeStepping };
 
-/// Largest max_i h L_ii / A_i for which Auto chooses conjugate gradients.
+/// Largest max_i h L_ii / A_i for which Auto chooses conjugate gradients for
+/// the densities, whose support grows with the solve.
 inline constexpr double kIterativeStiffnessRatio = 4.0;
+/// The same for the velocity on the liquid band, a fixed domain whose rows
+/// the cost model knows before the solve: CG competes there with the factor
+/// (charged for the whole-mesh band it needs) by predicted cost while the
+/// predicted Jacobi-PCG count (94 at this ratio) stays within kMaxIterations.
+/// The densities keep kIterativeStiffnessRatio: on a stiff system their
+/// support grows with the iterations further than the model predicts (a 2 %
+/// stain on 66K vertices at h λ = 57 grew to the whole mesh in 69
+/// iterations, 2x the factor's time, where the model predicted a tenth).
+inline constexpr double kBandIterativeStiffnessRatio = 150.0;
 /// CG stops when ‖r‖₂ ≤ kIterativeTolerance ‖M σ‖₂ (each field); the mass
 /// error this leaves (|1ᵀr|) is removed by the documented rescale, and density
 /// values below kIterativeTolerance × max |σ| (inside the iterate's own error)
 /// are flushed to zero before it, so the support does not creep outwards.
 inline constexpr double kIterativeTolerance = 1e-9;
 /// CG iterations before the solve falls back to the factorization.
-inline constexpr int kMaxIterations = 60;
+inline constexpr int kMaxIterations = 100;
 /// The CG's row loops (product, updates, dot products) work in chunks of this
 /// many active rows, fixed whatever the thread count; each chunk's partial
 /// sums are added in chunk order, so 1 and N threads give the same bits.
@@ -123,7 +134,8 @@ class DiffusionSystems {
   /// the method is not allowed by the solver choice).
   int scalarStages() const { return scalarStages_; }
   int vectorStages() const { return vectorStages_; }
-  /// Whether CG may run on a system (Auto: ratio ≤ kIterativeStiffnessRatio).
+  /// Whether CG may run on a system (Auto: ratio ≤ kIterativeStiffnessRatio,
+  /// for the velocity kBandIterativeStiffnessRatio).
   bool scalarCgAllowed() const { return scalarCg_; }
   bool vectorCgAllowed() const { return vectorCg_; }
   /// max_i h L_ii / A_i of each system (dimensionless; ~h D / dx² × 4 on a grid).
@@ -221,9 +233,30 @@ struct DiffusionReport {
 /// (u matters only where there is liquid); without it the velocity solve
 /// covers the mesh like the densities'. A direct velocity solve always covers
 /// the mesh (the solver then extends u onto the whole mesh).
+/// `velocityByFactor`: the caller chose the whole-mesh factor for this
+/// step's velocity although a restricted method was allowed (StainSolver,
+/// when the band's solve is predicted dearer than the factor and a band over
+/// the whole mesh: velocityCostOnBand, velocityCostByFactor).
 DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometry,
                         DiffusionSystems& systems, DiffusionScratch& scratch, StainState& state,
-                        const std::vector<char>* wet = nullptr);
+                        const std::vector<char>* wet = nullptr, bool velocityByFactor = false);
+
+/// The cost model's prediction (matrix entries visited; docs/performance.md,
+/// "The cheapest solver") for this step's velocity diffusion on `rows` band
+/// rows (a fixed domain) by the cheaper of the restricted methods the systems
+/// allow (CG, RKL2); infinite when neither is allowed.
+double velocityCostOnBand(const DiffusionSystems& systems, int rows);
+/// The same for the whole-mesh factor (one complex field), plus the work a
+/// band over the whole mesh adds for its `addedBandVertices` vertices beyond
+/// the restricted band (the factor reads u everywhere, so the band must
+/// extend it everywhere): kBandVertexCost entries each.
+double velocityCostByFactor(const DiffusionSystems& systems, int addedBandVertices);
+/// What one band vertex costs a step, in the cost model's entries (its
+/// geometry, the extension, and its share of the stages over the band):
+/// measured on the Table 1 bunny, 37.7K vertices, whose whole-mesh band took
+/// 10.9 ms a step (290 ns a vertex) while its CG solves took 0.8 ns per
+/// predicted entry.
+inline constexpr double kBandVertexCost = 300.0;
 
 /// Mass-conserving positivity limiter: moves mass from neighbours into each
 /// vertex with negative density until none is left below zero, along mesh

@@ -37,6 +37,7 @@ struct LiquidBand {
   int rings = 0;       ///< levels beyond the wet set (outermost level)
   int reachRings = 0;  ///< deepest level of the reach set (R = ceil(h U / ℓ) + 1 on equal edges ℓ)
   int haloCount = 0;   ///< vertices at level 1
+  int interiorCount = 0;  ///< vertices of diffusionMask (the velocity solve's rows)
   /// Times growLiquidBand grew the rings again this step: U grew past the
   /// value a "stop here" was decided with (0 on most steps).
   int regrowths = 0;
@@ -177,6 +178,10 @@ void updateWetVertices(double wetThreshold, const StainState& state, LiquidBand&
 /// vertices are prepared (SurfaceGeometry::prepareVertices) before their
 /// frames and p̈ are read, so a geometry in VertexRefresh::OnDemand computes
 /// exactly the band; the wet set must be prepared by the caller.
+/// Drops every level but the wet set (its masks and levels reset), so that
+/// growLiquidBand grows the band again, e.g. over the whole component.
+void shrinkBandToWetSet(LiquidBand& band);
+
 void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topology,
                     const IntrinsicGeometry& intrinsic, const ExtrinsicGeometry& extrinsic, LiquidBand& band,
                     StainState& state, SurfaceGeometry* toPrepare = nullptr);
