@@ -17,6 +17,7 @@
 #include <cstdio>
 #include <functional>
 #include <limits>
+#include <tuple>
 #include <vector>
 
 namespace blot::stain {
@@ -263,17 +264,24 @@ TEST(LiquidBand, LiquidAtRestOnARotatingDiscStaysAtRest) {
   }
 }
 
-// On a rotating disc the extended velocities (liquid at rest in the inertial
-// frame, u = −ω × r, carried outward) exceed the wet ones, so the speed
-// bound grows while the band grows and a band stopped with the smaller bound
-// is grown again: the band still holds every vertex within h U (reach) and
-// 2 h U of the wet set.
+// On a rotating disc the extended velocities (the liquid's world velocity
+// carried outward, u = v₀ − ω × r) exceed the wet ones, so the speed bound
+// grows while the band grows, and a band stopped somewhere that the final
+// bound would have passed is grown again: the band still holds every vertex
+// within h U (reach) and 2 h U of the wet set. Three discs and steps, some
+// of them growing the band again (11 regrowths in 80 steps when written;
+// the invariant also held with the regrowth switched off, so these cases
+// show it runs and keeps the band right, not that it is needed).
 TEST(LiquidBand, BandGrownWithAGrowingSpeedBoundStillHoldsTheReach) {
   int regrowths = 0, checked = 0;
-  discAtRest(24, 0.02, Vector3::Zero(), [&](const StainSolver& solver, const RowVectors3& rest, int k) {
+  int partial = 0, steps = 0;  // steps whose band is not the whole disc
+  for (const auto& [rings, h, v0] : std::vector<std::tuple<int, double, Vector3>>{
+           {24, 0.02, Vector3::Zero()}, {24, 0.04, Vector3(-0.2, 0.2, 0.0)}, {32, 0.02, Vector3(-0.2, 0.2, 0.0)}}) {
+  const int before = regrowths;
+  discAtRest(rings, h, v0, [&, h = h](const StainSolver& solver, const RowVectors3& rest, int k) {
     const LiquidBand& band = solver.band();
     regrowths += band.regrowths;
-    const double distance = 0.02 * band.speedBound;
+    const double distance = h * band.speedBound;
     const int n = static_cast<int>(rest.rows());
     for (int v = 0; v < n; ++v) {
       double nearest = std::numeric_limits<double>::infinity();
@@ -285,9 +293,13 @@ TEST(LiquidBand, BandGrownWithAGrowingSpeedBoundStillHoldsTheReach) {
         ++checked;
       }
     }
-    EXPECT_LT(band.size(), n) << "step " << k;
+    partial += band.size() < n ? 1 : 0;
+    ++steps;
   });
-  EXPECT_GT(regrowths, 0) << "the case must exercise the regrowth";
+  std::printf("disc %d rings, h %g: %d regrowths\n", rings, h, regrowths - before);
+  }
+  EXPECT_GT(regrowths, 0) << "the cases must exercise the regrowth";
+  EXPECT_GT(2 * partial, steps);
   EXPECT_GT(checked, 1000);
 }
 

@@ -205,17 +205,19 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
   double distance = 0.0;
   for (int attempt = 0;; ++attempt) {
     distance = distanceFor(speed + inputs.h * acceleration);
-    double decidedBelow = std::numeric_limits<double>::infinity();  // smallest d of a "no"
+    // The least label a "no" compared against d: the answer changes only if
+    // the final d exceeds it.
+    double rejected = std::numeric_limits<double>::infinity();
     const auto isReachCentre = [&](int v) {
       const size_t vv = static_cast<size_t>(v);
       if (band.levels[vv] == 0 || band.distances[vv].nearestWet < distance) return true;
-      decidedBelow = std::min(decidedBelow, distance);
+      rejected = std::min(rejected, band.distances[vv].nearestWet);
       return false;
     };
     const auto letsGrow = [&](int v) {
       const size_t vv = static_cast<size_t>(v);
       if (everything || band.reachMask[vv] != 0 || band.distances[vv].nearestReach < distance) return true;
-      decidedBelow = std::min(decidedBelow, distance);
+      rejected = std::min(rejected, band.distances[vv].nearestReach);
       return false;
     };
     while (true) {
@@ -225,6 +227,8 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
       for (int k = begin; k < end; ++k) {
         const int i = band.vertices[static_cast<size_t>(k)];
         if (!letsGrow(i)) continue;
+        // Its neighbours all join the band: a row of the velocity solve.
+        if (band.diffusionMask[static_cast<size_t>(i)] == 0) band.diffusionMask[static_cast<size_t>(i)] = 1;
         for (int m = offsets[static_cast<size_t>(i)]; m < offsets[static_cast<size_t>(i) + 1]; ++m) {
           const int j = neighbors[static_cast<size_t>(m)];
           if (band.levels[static_cast<size_t>(j)] >= 0) continue;
@@ -292,10 +296,10 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
       band.rings = level;
       distance = distanceFor(speed + inputs.h * acceleration);
     }
-    // Every "no" was taken with the final d: the band is complete. Otherwise
-    // grow it again with the final d (the speed bound is kept); after two
-    // tries, cover the component (the reach set is then marked again below).
-    if (!(decidedBelow < distance) || everything) break;
+    // Every "no" holds with the final d: the band is complete. Otherwise grow
+    // it again with the final d (the speed bound is kept); after two tries,
+    // cover the component (the reach set is then marked again below).
+    if (!(rejected < distance) || everything) break;
     shrinkBandToWetSet(band);
     ++band.regrowths;
     if (attempt == 1) everything = true;
@@ -325,9 +329,10 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
     }
     if (band.reachMask[ii] != 0) band.reachRings = std::max(band.reachRings, level);
     // A vertex with a neighbour outside the band is the velocity solve's
-    // boundary data (none when the band is the component).
+    // boundary data (none when the band is the component); those the band
+    // grew past are marked already.
     char interior = 1;
-    for (int m = offsets[ii]; m < offsets[ii + 1] && !everything; ++m) {
+    for (int m = offsets[ii]; m < offsets[ii + 1] && !everything && band.diffusionMask[ii] == 0; ++m) {
       if (band.levels[static_cast<size_t>(neighbors[static_cast<size_t>(m)])] < 0) {
         interior = 0;
         break;

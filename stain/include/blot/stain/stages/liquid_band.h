@@ -39,7 +39,7 @@ struct LiquidBand {
   int haloCount = 0;   ///< vertices at level 1
   int interiorCount = 0;  ///< vertices of diffusionMask (the velocity solve's rows)
   /// Times growLiquidBand grew the rings again this step: U grew past the
-  /// value a "stop here" was decided with (0 on most steps).
+  /// label a "stop here" was decided on (0 on most steps).
   int regrowths = 0;
   double speedBound = 0;  ///< U (m/s): bound on |u| over the band after this step's forces
   /// #V extension weights: liquid mass A(σ_f + σ_s) on wet vertices, and on
@@ -159,9 +159,9 @@ void updateWetVertices(double wetThreshold, const StainState& state, LiquidBand&
 /// rule, levels 0..R in the reach set and 2R rings in the band,
 /// R = ceil(d / ℓ) + 1; with unequal edges it is never wider than that rule
 /// with ℓ_min, and short edges away from the liquid do not widen it. The
-/// speed bound grows ring by ring; a band stopped somewhere with a smaller d
-/// than the final one is grown again from the wet set (LiquidBand::regrowths;
-/// after two tries it covers the component). coverComponent: the whole
+/// speed bound grows ring by ring; a band stopped somewhere the final d
+/// would have passed (a rejected label below it) is grown again from the wet
+/// set (LiquidBand::regrowths; after two tries it covers the component). coverComponent: the whole
 /// component, reach set as above.
 ///
 /// Extension (breadth-first, level by level): vertex i at level k gets
