@@ -77,10 +77,14 @@ void validateDrop(const stain::DropDef& d, int vertexCount) {
   for (int c = 0; c < 3; ++c) requirePlausible(d.velocity[c], "velocity");
   for (int c = 0; c < 3; ++c) requirePlausible(d.relativeVelocity[c], "relativeVelocity");
   if (!(d.radius > 0) || !std::isfinite(d.radius)) throw std::invalid_argument("drop: radius must be finite and > 0");
+  // Masses as a scene's numbers are bounded (kMaxSceneMagnitude kg): a 1e300
+  // kg drop gave densities past what the C API's float copies can hold.
   if (!(d.solventMass >= 0) || !std::isfinite(d.solventMass))
     throw std::invalid_argument("drop: solventMass must be finite and >= 0");
+  requirePlausible(d.solventMass, "solventMass");
   if (!(d.soluteMass >= 0) || !std::isfinite(d.soluteMass))
     throw std::invalid_argument("drop: soluteMass must be finite and >= 0");
+  requirePlausible(d.soluteMass, "soluteMass");
   if (!(d.splashSpeed >= 0) || !std::isfinite(d.splashSpeed))
     throw std::invalid_argument("drop: splashSpeed must be finite and >= 0");
 }

@@ -285,6 +285,24 @@ TEST(CApiTest, AbsurdFrameTimesAndTamperedStatesAreRefusedAndTheEngineStaysUsabl
   EXPECT_EQ(blotEngine_AddDropAtPoint(engine, far, &drop, &face), BLOT_ERROR_INVALID_ARGUMENT);
   EXPECT_NE(std::string(blotGetLastError()).find("point must be finite and at most 1000000"), std::string::npos)
       << blotGetLastError();
+  // A drop of 1e300 kg (as large as a scene may give: 1e6): refused, naming
+  // the field and the value; none of it reaches the cloth.
+  const double near[3] = {0, 0, 0};
+  blotStatistics beforeRefusal;
+  ASSERT_EQ(blotEngine_GetStatistics(engine, &beforeRefusal), BLOT_OK);
+  for (const bool solute : {false, true}) {
+    blotDropDef heavy = blotDefaultDropDef();
+    (solute ? heavy.soluteMass : heavy.solventMass) = 1e300;
+    EXPECT_EQ(blotEngine_AddDropAtPoint(engine, near, &heavy, nullptr), BLOT_ERROR_INVALID_ARGUMENT);
+    const std::string error = blotGetLastError();
+    const std::string expected = std::string(solute ? "soluteMass" : "solventMass") + " must be finite and at most 1000000";
+    EXPECT_NE(error.find(expected), std::string::npos) << error;
+    EXPECT_NE(error.find("1000000000"), std::string::npos) << error;  // the value given
+  }
+  blotStatistics afterRefusal;
+  ASSERT_EQ(blotEngine_GetStatistics(engine, &afterRefusal), BLOT_OK);
+  EXPECT_EQ(afterRefusal.massBudget.addedSolvent, beforeRefusal.massBudget.addedSolvent);
+  EXPECT_EQ(afterRefusal.massBudget.addedSolute, beforeRefusal.massBudget.addedSolute);
 
   // A state with a NaN density, and an endless stream: IO errors, the engine unchanged.
   const std::string path = (std::filesystem::temp_directory_path() / "blot_c_api_tampered.state").string();

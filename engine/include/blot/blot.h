@@ -54,8 +54,8 @@ typedef enum blotDensity {
 /** A drop (see blot::stain::DropDef). Start from blotDefaultDropDef(). */
 typedef struct blotDropDef {
   double radius;      /**< m, > 0 */
-  double solventMass; /**< kg, >= 0 */
-  double soluteMass;  /**< kg, >= 0 */
+  double solventMass; /**< kg, in [0, 1e6] (a scene's limit on any number) */
+  double soluteMass;  /**< kg, in [0, 1e6] */
   double velocity[3]; /**< m/s, world frame */
   double splashSpeed; /**< m/s outward, >= 0 */
   uint64_t splashSeed;
