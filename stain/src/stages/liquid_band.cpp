@@ -194,9 +194,9 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
   // reach centre if wet or nearestWet < d, in the reach set if wet or next to
   // a reach centre of the level below, and it lets the band grow past it if
   // in the reach set or nearestReach < d. Decisions are taken with the d of
-  // the moment; U only grows, so a "no" taken with a d smaller than the final
-  // one may be wrong: the rings are then grown again from the wet set with
-  // the final d (`decidedBelow`).
+  // the moment; U only grows, so a "no" whose label is below the final d is
+  // wrong: the rings are then grown again from the wet set with the final d
+  // (`rejected`).
   const auto distanceFor = [&](double bound) {
     const double d = inputs.h * bound;
     return haveLengths && std::isfinite(d) ? d : std::numeric_limits<double>::infinity();
