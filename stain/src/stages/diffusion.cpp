@@ -78,16 +78,29 @@ void DiffusionScratch::resize(int vertexCount) {
   krylovPartials.assign(static_cast<size_t>(chunks) * kKrylovPartialsPerChunk, 0.0);
 }
 
+namespace {
+
+// The velocity's restricted methods on `rows` rows growing by `ring` per
+// stage or iteration, predicted (kNever where not allowed).
+struct RestrictedCosts {
+  double rkl, cg;
+};
+RestrictedCosts velocityCosts(const DiffusionSystems& systems, int rows, int ring, bool cgAllowed,
+                              double entriesPerRow) {
+  const int stages = systems.vectorStages();
+  return {stages > 0 ? rklCost(stages, rows, ring, entriesPerRow) : kNever,
+          cgAllowed ? cgCost(predictedCgIterations(systems.vectorStiffnessRatio()), rows, ring, entriesPerRow)
+                    : kNever};
+}
+
+}  // namespace
+
 double velocityCostOnBand(const DiffusionSystems& systems, int rows) {
   const SparseMatrix& scalarSystem = systems.scalarSystem();
   const Eigen::Index n = scalarSystem.rows();
   const double entriesPerRow = n > 0 ? static_cast<double>(scalarSystem.nonZeros()) / static_cast<double>(n) : 0.0;
-  const int stages = systems.vectorStages();
-  const double rkl = stages > 0 ? rklCost(stages, rows, 0, entriesPerRow) : kNever;
-  const double cg = systems.vectorCgAllowed()
-                        ? cgCost(predictedCgIterations(systems.vectorStiffnessRatio()), rows, 0, entriesPerRow)
-                        : kNever;
-  return std::min(rkl, cg);
+  const RestrictedCosts costs = velocityCosts(systems, rows, 0, systems.vectorCgAllowed(), entriesPerRow);
+  return std::min(costs.rkl, costs.cg);
 }
 
 double velocityCostByFactor(const DiffusionSystems& systems, int addedBandVertices) {
@@ -295,9 +308,7 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
     const bool cgHere = systems.vectorCgAllowed() &&
                         (wet != nullptr || systems.solverChoice() != DiffusionSolverChoice::Auto ||
                          systems.vectorStiffnessRatio() <= kIterativeStiffnessRatio);
-    const double rkl = stages > 0 ? rklCost(stages, rows, ring, entriesPerRow) : kNever;
-    const double cg =
-        cgHere ? cgCost(predictedCgIterations(systems.vectorStiffnessRatio()), rows, ring, entriesPerRow) : kNever;
+    const auto [rkl, cg] = velocityCosts(systems, rows, ring, cgHere, entriesPerRow);
     report.velocityPredictedCost = std::min(rkl, cg);
     if (rkl >= kNever && cg >= kNever) {
       releaseActive(velocityActive, {ux, scratch.velocityR.data(), scratch.velocityP.data()});
