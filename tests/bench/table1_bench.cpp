@@ -256,6 +256,9 @@ void BM_Table1(benchmark::State& state) {
   state.counters["diffusion"] = stage({Stage::Diffuse});
   state.counters["interaction"] = stage({Stage::Interact, Stage::Sources});
   state.counters["geometry"] = stage({Stage::Geometry});
+  // The liquid band: the wet set, the rings around it, u extended onto them
+  // and the per-vertex geometry (fits or rigid frames) of the band.
+  state.counters["band"] = stage({Stage::LiquidBand});
   state.counters["cloth"] = (a.cloth - b.cloth) / n;
   state.counters["coupling"] = (a.coupling - b.coupling) / n;
   state.counters["stain"] = (a.stain - b.stain) / n;
