@@ -464,13 +464,20 @@ void StainSolver::prepareBand() {
   // The wet set, then the band around it with u extended onto it
   // (liquid_band.h). A whole-mesh direct velocity solve reads u everywhere,
   // so then the band (and the extension) covers the mesh.
-  updateWetVertices(def_.liquid.wetThreshold, state_, band_);
+  // Where u lives on the free liquid only, soaked vertices (liquid the
+  // fibres hold, u = 0) are filed apart: the band grows from the free liquid.
+  updateWetVertices(def_.liquid.wetThreshold, state_, band_, def_.soakedApart && ctx_.switches.velocityOnFreeLiquid);
   velocityByFactor_ = ctx_.switches.velocityDiffusion && !systems_.vectorIterative();
   // The per-vertex geometry where this step reads it (the wet set now, each
   // ring as the band grows) and where the coupling does (traces of liquid).
   geometry_.prepareVertices(band_.dampVertices);
+  const auto settleSoaked = [&] {
+    settleSoakedVelocities(band_, state_, [&](int i) { noteChanged(&i, 1); });
+  };
   if (band_.wetCount() == 0) {
+    settleSoaked();
     profile_.wetVertices = profile_.haloVertices = profile_.bandVertices = 0;
+    profile_.soakedVertices = static_cast<int>(band_.soakedVertices.size());
     return;
   }
   geometry_.prepareVertices(band_.vertices);
@@ -499,10 +506,12 @@ void StainSolver::prepareBand() {
     growLiquidBand(inputs, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), band_, state_,
                    &geometry_);
   }
+  settleSoaked();
   // The half rotation wrote the wet u, the extension the rest of the band;
   // every later stage but the diffusion and the interaction writes inside it.
   noteChanged(band_.vertices.data(), band_.size());
   profile_.wetVertices = band_.wetCount();
+  profile_.soakedVertices = static_cast<int>(band_.soakedVertices.size());
   profile_.haloVertices = band_.haloCount;
   profile_.bandVertices = band_.size();
   profile_.bandRings = band_.rings;
@@ -673,7 +682,15 @@ StepReport StainSolver::runStages() {
     prepareBand();
   }
   profile_.geometryVertices = surfaceMoved_ ? geometry_.preparedVertexCount() : 0;
-  if (band_.wetCount() == 0) ctx_.switches = activeTerms(surfaceMoved_, false);  // nothing to act on
+  if (band_.wetCount() == 0) {  // no free liquid: nothing to move
+    const PhysicsSwitches withLiquid = ctx_.switches;
+    ctx_.switches = activeTerms(surfaceMoved_, false);
+    if (!band_.soakedVertices.empty()) {  // liquid the fibres hold still dries and absorbs
+      ctx_.switches.absorption = withLiquid.absorption;
+      ctx_.switches.adsorption = withLiquid.adsorption;
+      ctx_.switches.evaporation = withLiquid.evaporation;
+    }
+  }
   const StepContext& ctx = ctx_;
   const PhysicsSwitches& on = ctx.switches;  // the terms this step runs (activeTerms)
   const SurfaceTopology& topology = geometry_.topology();
@@ -704,7 +721,7 @@ StepReport StainSolver::runStages() {
   if (!runStage(Stage::AdvectDensity, on.densityAdvection, report, [&] { recordAdvection(advectDensities(ctx, topology, intrinsic, extrinsic, band_.wetMask, densityScratch_, state_, &geometry_.restEdgeFrameNormals(), &reach, among)); }) ||
       !runStage(Stage::Diffuse, on.densityDiffusion || on.velocityDiffusion, report, [&] { return recordDiffusion(diffuse(ctx, intrinsic, systems_, diffusionScratch_, state_, &band_.diffusionMask, velocityByFactor_)); }) ||
       !runStage(Stage::Interact, on.absorption || on.adsorption || on.evaporation, report, [&] { noteChanged(band_.absorbingVertices.data(), static_cast<int>(band_.absorbingVertices.size()));
-                                                                                                   interact(ctx, topology, intrinsic, reach, state_, &evaporatedMass_, interactionVertices());
+                                                                                                   interact(ctx, topology, intrinsic, reach, state_, &evaporatedMass_, interactionVertices(), &band_.soakedMask);
                                                                                                    evaporationWritten_ = on.evaporation;
                                                                                                    markTerms({{StepTerm::Absorption, on.absorption}, {StepTerm::Adsorption, on.adsorption}, {StepTerm::Evaporation, on.evaporation}}); }))
     return report;

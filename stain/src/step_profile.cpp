@@ -114,8 +114,9 @@ std::string describeTerms(const StepProfile& profile) {
     }
   }
   if (!any) out << "none";
-  out << " (wet " << profile.wetVertices << " + halo " << profile.haloVertices << " of " << profile.vertexCount
-      << ")";
+  out << " (wet " << profile.wetVertices << " + halo " << profile.haloVertices;
+  if (profile.soakedVertices > 0) out << ", soaked " << profile.soakedVertices;
+  out << " of " << profile.vertexCount << ")";
   return out.str();
 }
 

@@ -733,6 +733,7 @@ TEST(LiquidBand, BandRestrictedGeometryIsBitIdenticalForOneAndTwoThreads) {
   const FabricField fabric = isotropicFabricField(static_cast<int>(mesh.faces.rows()), 2e-4, 2e-4);
   StainSolverDef one;
   one.threads = 1;
+  one.liquid.absorptionRate = 0.0;  // nothing soaks in: the band stays the drop's
   StainSolverDef two = one;
   two.threads = 2;
   StainSolverDef reference = one;
@@ -755,6 +756,53 @@ TEST(LiquidBand, BandRestrictedGeometryIsBitIdenticalForOneAndTwoThreads) {
     expectSameState(a.state(), b.state(), step);
     expectSameState(a.state(), c.state(), step);
   }
+}
+
+// A cloth holding only fibre-held liquid (a soaked patch, no free liquid)
+// on a tilted, turning sheet, its wet front exposed to the boundary
+// evaporation factor: with soaked vertices filed apart there is no band and
+// u stays 0, and the patch dries to the same bits as under the wet-set rule
+// (soaked vertices wet, u cleared), whose band grows around it every step.
+TEST(LiquidBand, ASoakedPatchDriesTheSameBitsWithoutABand) {
+  const TriangleMesh mesh = gridMesh(30, 30, 1.0, 1.0);
+  const int n = static_cast<int>(mesh.vertexPositions.rows());
+  const SurfaceTopology topology(mesh.faces, n);
+  StainSolverDef def;
+  def.gravity = Vector3(3.0, 0.0, -9.3);  // a tangential part on the sheet
+  def.liquid.evaporationRate = 0.05;
+  def.liquid.evaporationBoundary = EvaporationBoundary::WetFront;
+  StainSolverDef wetRule = def;
+  wetRule.soakedApart = false;
+  const FabricField fabric = isotropicFabricField(static_cast<int>(mesh.faces.rows()), 5e-3, 1e-4);
+  StainSolver apart(topology, mesh.vertexPositions, fabric, def);
+  StainSolver reference(topology, mesh.vertexPositions, fabric, wetRule);
+  const Vector3 axis = Vector3(0.2, 0.1, 1.0).normalized();
+  for (StainSolver* s : {&apart, &reference}) {
+    for (int i = 0; i < n; ++i) {
+      const Vector3 p = mesh.vertexPositions.row(i).transpose();
+      if ((p - Vector3(0.4, 0.5, 0.0)).norm() < 0.2) {
+        s->mutableState().absorbedSolvent[i] = 0.05;
+        s->mutableState().absorbedSolute[i] = 0.005;
+      }
+    }
+  }
+  const double h = 0.01;
+  for (int step = 1; step <= 40; ++step) {
+    const Matrix3 R = Eigen::AngleAxisd(0.5 * step * h, axis).toRotationMatrix();
+    for (StainSolver* s : {&apart, &reference})
+      ASSERT_EQ(s->stepRigid(h, mesh.vertexPositions * R.transpose(), R).status, StepStatus::Ok);
+    EXPECT_EQ(apart.profile().bandVertices, 0) << "step " << step;
+    EXPECT_GT(apart.profile().soakedVertices, 0) << "step " << step;
+    EXPECT_GT(reference.profile().bandVertices, reference.profile().wetVertices) << "step " << step;
+    EXPECT_TRUE(apart.profile().ran(StepTerm::Evaporation)) << "step " << step;
+    EXPECT_EQ(apart.state().velocities.cwiseAbs().maxCoeff(), 0.0) << "step " << step;
+  }
+  EXPECT_GT(reference.state().velocities.cwiseAbs().maxCoeff(), 0.0) << "the wet-set rule's band moves u";
+  for (const auto field : {&StainState::solvent, &StainState::solute, &StainState::absorbedSolvent,
+                           &StainState::absorbedSolute, &StainState::adsorbedSolute})
+    EXPECT_TRUE((apart.state().*field).array().cwiseEqual((reference.state().*field).array()).all());
+  EXPECT_EQ(apart.state().evaporatedSolvent, reference.state().evaporatedSolvent);
+  EXPECT_GT(apart.state().evaporatedSolvent, 0.0);
 }
 
 // The incremental wet set (LiquidBand::candidates): on a small stain on a
@@ -786,7 +834,7 @@ TEST(LiquidBand, IncrementalWetSetEqualsTheFullScan) {
   solver.addDrop(drop);
   solver.mutableState().absorbedSolvent[0] = 5e-5;  // a trace: absorbing, not wet
   const double h = 0.01;
-  int smallSteps = 0;
+  int smallSteps = 0, soakedSteps = 0;
   for (int step = 1; step <= 30; ++step) {
     if (step == 15) {
       DropDef second = drop;
@@ -796,7 +844,7 @@ TEST(LiquidBand, IncrementalWetSetEqualsTheFullScan) {
     }
     LiquidBand reference;
     reference.resize(n);
-    markWetVertices(def.liquid.wetThreshold, solver.state(), reference);
+    markWetVertices(def.liquid.wetThreshold, solver.state(), reference, def.switches.velocityOnFreeLiquid);
     const double evaporatedBefore = solver.state().evaporatedSolvent;
     const Matrix3 R = rotation(step * h);
     ASSERT_EQ(solver.stepRigid(h, mesh.vertexPositions * R.transpose(), R).status, StepStatus::Ok);
@@ -806,11 +854,14 @@ TEST(LiquidBand, IncrementalWetSetEqualsTheFullScan) {
         << "step " << step;
     EXPECT_EQ(band.dampVertices, reference.dampVertices) << "step " << step;
     EXPECT_EQ(band.absorbingVertices, reference.absorbingVertices) << "step " << step;
+    EXPECT_EQ(band.soakedVertices, reference.soakedVertices) << "step " << step;
+    soakedSteps += band.soakedVertices.empty() ? 0 : 1;
     const double evaporated = solver.state().evaporatedSolvent - evaporatedBefore;
     EXPECT_NEAR(solver.evaporatedMass().sum(), evaporated, 1e-12 * evaporated) << "step " << step;
     smallSteps += 4 * band.size() < n ? 1 : 0;
   }
   EXPECT_FALSE(solver.band().absorbingVertices.empty()) << "the trace should still be drying";
+  EXPECT_GT(soakedSteps, 0) << "the lists should have been compared with soaked vertices in them";
   EXPECT_EQ(smallSteps, 30) << "the band should stay under a quarter of the mesh";
 }
 

@@ -108,18 +108,25 @@ TEST(StepTerms, WetStepOnAMovingSurfaceRunsEveryTermOnTheWetRegionOnly) {
   EXPECT_FALSE(p.ran(StepTerm::SystemAssembly)) << "same h and metric: the systems are kept";
   EXPECT_FALSE(p.ran(StepTerm::Factorization));
 
-  // The wet and halo counts are those of the state at the start of the step:
-  // recount from the state before one more step.
+  // The wet, soaked and halo counts are those of the state at the start of
+  // the step: recount from the state before one more step. Wet: free liquid
+  // above the threshold; soaked: only fibre-held liquid above it (filed
+  // apart, u = 0); halo: the ring around the wet set, soaked ones included.
   const StainState before = solver.state();
   const double threshold = def.liquid.wetThreshold;
   const int n = cloth.vertexCount();
   std::vector<char> mask(static_cast<size_t>(n), 0);
-  int wet = 0, halo = 0;
-  for (int i = 0; i < n; ++i)
-    if (before.solvent[i] > threshold || before.absorbedSolvent[i] > threshold || before.solute[i] > threshold) {
-      mask[static_cast<size_t>(i)] = 2;
-      ++wet;
+  int wet = 0, halo = 0, soaked = 0;
+  for (int i = 0; i < n; ++i) {
+    if (!(before.solvent[i] > threshold || before.absorbedSolvent[i] > threshold || before.solute[i] > threshold))
+      continue;
+    if (!(before.solvent[i] + before.solute[i] > threshold) && before.absorbedSolvent[i] > threshold) {
+      ++soaked;
+      continue;
     }
+    mask[static_cast<size_t>(i)] = 2;
+    ++wet;
+  }
   for (int i = 0; i < n; ++i) {
     if (mask[static_cast<size_t>(i)] != 2) continue;
     for (int m = cloth.topology.ringOffsets()[static_cast<size_t>(i)];
@@ -135,7 +142,9 @@ TEST(StepTerms, WetStepOnAMovingSurfaceRunsEveryTermOnTheWetRegionOnly) {
   const StepProfile& q = solver.profile();
   EXPECT_EQ(q.wetVertices, wet);
   EXPECT_EQ(q.haloVertices, halo);
+  EXPECT_EQ(q.soakedVertices, soaked);
   EXPECT_GT(wet, 0);
+  EXPECT_GT(soaked, 0) << "the drop's centre should have soaked in by now";
   EXPECT_LT(wet + halo, n / 4) << "a small drop wets a small part of the cloth";
   // Diffusion at this stiffness runs by CG on the liquid's Krylov support, not on every vertex.
   ASSERT_TRUE(q.ran(StepTerm::DensityDiffusionKrylov)) << describeTerms(q);
@@ -168,8 +177,8 @@ TEST(StepTerms, WetStepOnAMovingSurfaceRunsEveryTermOnTheWetRegionOnly) {
   EXPECT_NE(text.find("density-diffusion-krylov[" + std::to_string(q.densityDiffusionVertices) + "]"),
             std::string::npos)
       << text;
-  EXPECT_NE(text.find("(wet " + std::to_string(wet) + " + halo " + std::to_string(halo) + " of " +
-                      std::to_string(n) + ")"),
+  EXPECT_NE(text.find("(wet " + std::to_string(wet) + " + halo " + std::to_string(halo) + ", soaked " +
+                      std::to_string(soaked) + " of " + std::to_string(n) + ")"),
             std::string::npos)
       << text;
 }

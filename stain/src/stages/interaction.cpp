@@ -89,7 +89,7 @@ inline double interactVertex(const Rates& r, bool onBoundary, double& free, doub
 
 void interact(const StepContext& ctx, const SurfaceTopology& topology, const IntrinsicGeometry& geometry,
               const std::vector<char>& wet, StainState& state, Vector* evaporatedMass,
-              const std::vector<int>* among) {
+              const std::vector<int>* among, const std::vector<char>* soaked) {
   const PhysicsSwitches& switches = ctx.switches;
   if (!switches.absorption && !switches.adsorption && !switches.evaporation) return;
   const LiquidParameters& liquid = ctx.liquid;
@@ -116,10 +116,12 @@ void interact(const StepContext& ctx, const SurfaceTopology& topology, const Int
   // The liquid's edge: holds liquid (mask 2) with a neighbour that does not.
   // Read from the mask (the start of the step), not from the densities being
   // updated here, so the result does not depend on the vertex order.
+  const bool withSoaked = soaked != nullptr && soaked->size() == static_cast<size_t>(n);
+  auto holdsLiquid = [&](size_t i) { return wet[i] == kHoldsLiquid || (withSoaked && (*soaked)[i] != 0); };
   auto onWetFront = [&](int i) {
-    if (wet[static_cast<size_t>(i)] != kHoldsLiquid) return false;
+    if (!holdsLiquid(static_cast<size_t>(i))) return false;
     for (int m = ringOffsets[static_cast<size_t>(i)]; m < ringOffsets[static_cast<size_t>(i) + 1]; ++m)
-      if (wet[static_cast<size_t>(ringNeighbors[static_cast<size_t>(m)])] != kHoldsLiquid) return true;
+      if (!holdsLiquid(static_cast<size_t>(ringNeighbors[static_cast<size_t>(m)]))) return true;
     return false;
   };
   const double* areas = geometry.vertexDualAreas.data();

@@ -22,6 +22,8 @@ void clearBand(LiquidBand& band) {
   band.ringEnds.clear();
   band.dampVertices.clear();
   band.absorbingVertices.clear();
+  for (const int v : band.soakedVertices) band.soakedMask[static_cast<size_t>(v)] = 0;
+  band.soakedVertices.clear();
   band.rings = band.reachRings = band.haloCount = band.regrowths = band.interiorCount = 0;
   band.speedBound = 0;
 }
@@ -38,6 +40,9 @@ void LiquidBand::resize(int vertexCount) {
   dampVertices.reserve(n);
   absorbingVertices.clear();
   absorbingVertices.reserve(n);
+  soakedVertices.clear();
+  soakedVertices.reserve(n);
+  soakedMask.assign(n, 0);
   candidates.clear();
   candidates.reserve(n);
   candidateMarks.assign(n, 0);
@@ -56,9 +61,9 @@ void LiquidBand::resize(int vertexCount) {
 
 namespace {
 
-// Files vertex i under the wet set, the damp or the absorbing list (index
+// Files vertex i under the wet set, the damp, absorbing or soaked list (index
 // order when called in index order); false when it is none of them.
-bool classify(double wetThreshold, const StainState& state, int i, LiquidBand& band) {
+bool classify(double wetThreshold, bool soakedApart, const StainState& state, int i, LiquidBand& band) {
   if (!(state.solvent[i] > wetThreshold || state.absorbedSolvent[i] > wetThreshold ||
         state.solute[i] > wetThreshold)) {
     const bool damp = state.solvent[i] + state.solute[i] > 0;
@@ -68,6 +73,14 @@ bool classify(double wetThreshold, const StainState& state, int i, LiquidBand& b
     return damp || absorbing;
   }
   const size_t k = static_cast<size_t>(i);
+  // The test clearVelocityWithoutFreeLiquid clears u by.
+  if (soakedApart && !(state.solvent[i] + state.solute[i] > wetThreshold) &&
+      state.absorbedSolvent[i] > wetThreshold) {
+    band.soakedVertices.push_back(i);
+    band.soakedMask[k] = 1;
+    band.absorbingVertices.push_back(i);
+    return true;
+  }
   band.vertices.push_back(i);
   band.levels[k] = 0;
   band.wetMask[k] = band.haloMask[k] = band.reachMask[k] = band.bandMask[k] = band.diffusionMask[k] =
@@ -77,21 +90,21 @@ bool classify(double wetThreshold, const StainState& state, int i, LiquidBand& b
 
 }  // namespace
 
-void markWetVertices(double wetThreshold, const StainState& state, LiquidBand& band) {
+void markWetVertices(double wetThreshold, const StainState& state, LiquidBand& band, bool soakedApart) {
   clearBand(band);
   for (const int v : band.candidates) band.candidateMarks[static_cast<size_t>(v)] = 0;
   band.candidates.clear();
   const int n = state.vertexCount();
   for (int i = 0; i < n; ++i)
-    if (classify(wetThreshold, state, i, band)) band.noteChanged(i);
+    if (classify(wetThreshold, soakedApart, state, i, band)) band.noteChanged(i);
   band.ringEnds.push_back(static_cast<int>(band.vertices.size()));
   band.scanAll = false;
 }
 
-void updateWetVertices(double wetThreshold, const StainState& state, LiquidBand& band) {
+void updateWetVertices(double wetThreshold, const StainState& state, LiquidBand& band, bool soakedApart) {
   // Sorting more than an eighth of the mesh costs more than the scan.
   if (band.scanAll || 8 * band.candidates.size() > band.candidateMarks.size()) {
-    markWetVertices(wetThreshold, state, band);
+    markWetVertices(wetThreshold, state, band, soakedApart);
     return;
   }
   clearBand(band);
@@ -104,7 +117,7 @@ void updateWetVertices(double wetThreshold, const StainState& state, LiquidBand&
   size_t kept = 0;
   for (size_t k = 0; k < list.size(); ++k) {
     const int i = list[k];
-    if (classify(wetThreshold, state, i, band)) {
+    if (classify(wetThreshold, soakedApart, state, i, band)) {
       list[kept++] = i;
     } else {
       band.candidateMarks[static_cast<size_t>(i)] = 0;
@@ -280,9 +293,13 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
             if (!inReach && band.reachMask[jj] != 0 && isReachCentre(j)) inReach = true;
           }
         }
-        // count >= 1: i was found from a vertex of the level below.
-        state.velocities[i] = weightSum > 0.0 ? weighted / weightSum : plain / static_cast<double>(count);
-        band.weights[i] = weightSum / static_cast<double>(count);
+        // count >= 1: i was found from a vertex of the level below. A soaked
+        // vertex's liquid moves with the cloth: u = 0, and no weight.
+        const bool soaked = band.soakedMask[ii] != 0;
+        state.velocities[i] = soaked ? Complex(0.0, 0.0)
+                              : weightSum > 0.0 ? weighted / weightSum
+                                                : plain / static_cast<double>(count);
+        band.weights[i] = soaked ? 0.0 : weightSum / static_cast<double>(count);
         band.reachMask[ii] = inReach ? 1 : 0;
         LiquidBand::Distances& labels = band.distances[ii];
         labels.fromWet = fromWet;

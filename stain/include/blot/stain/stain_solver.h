@@ -56,6 +56,13 @@ struct StainSolverDef {
   /// per-solve choice by predicted cost (docs/performance.md, "The cheapest
   /// solver"), or one method forced (tests, studies, a reference run).
   DiffusionSolverChoice diffusionSolver = DiffusionSolverChoice::Auto;
+  /// With switches.velocityOnFreeLiquid: soaked vertices (only fibre-held
+  /// liquid above wetThreshold, u = 0) are filed apart from the wet set, so
+  /// the band and its work follow the free liquid (LiquidBand::soakedVertices).
+  /// false: they are wet vertices whose u is cleared each step, the rule
+  /// before; the reference the approximation is measured against
+  /// (docs/transport.md, "Soaked vertices").
+  bool soakedApart = true;
 };
 
 /// Totals for the mass budget (kg). solute* sum to addedSolute; solvent

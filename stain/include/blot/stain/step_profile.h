@@ -93,6 +93,9 @@ struct StepProfile {
   int vertexCount = 0;             ///< #V of the surface
   int threads = 1;                 ///< OpenMP threads the step used (StainSolver::stepThreads)
   int haloVertices = 0;            ///< dry vertices next to wet ones (level 1 of the band)
+  /// Soaked vertices (liquid the fibres hold, u = 0) filed apart from the
+  /// wet set, which is then the free liquid (LiquidBand::soakedVertices).
+  int soakedVertices = 0;
   /// Vertices of the liquid band (wet + the rings the step can reach and read,
   /// StainSolver::bandVertices; the whole mesh with a direct velocity solve).
   int bandVertices = 0;

@@ -27,8 +27,10 @@ namespace blot::stain {
 /// among (optional, with a `wet` mask): the vertices visited instead of all
 /// #V, in increasing index order, a superset of those processed (the
 /// evaporated total is then summed in the same order, the same bits).
+/// soaked (optional, #V): vertices that hold liquid although `wet` does not
+/// mark them 2 (LiquidBand::soakedMask), for the wet-front test.
 void interact(const StepContext& ctx, const SurfaceTopology& topology, const IntrinsicGeometry& geometry,
               const std::vector<char>& wet, StainState& state, Vector* evaporatedMass = nullptr,
-              const std::vector<int>* among = nullptr);
+              const std::vector<int>* among = nullptr, const std::vector<char>* soaked = nullptr);
 
 }  // namespace blot::stain

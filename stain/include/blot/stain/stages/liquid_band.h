@@ -59,9 +59,19 @@ struct LiquidBand {
   /// the coupling reads their frames (their relative momentum).
   std::vector<int> dampVertices;
   /// Vertices not in the wet set whose absorbed solvent σ_p is > 0 (below
-  /// wetThreshold), in index order: the interaction dries them wherever they
-  /// are, so a step that runs it changes them.
+  /// wetThreshold, or a soaked vertex's), in index order: the interaction
+  /// dries them wherever they are, so a step that runs it changes them.
   std::vector<int> absorbingVertices;
+  /// Soaked vertices, filed apart from the wet set when the liquid's u lives
+  /// on the free liquid only (updateWetVertices with soakedApart): σ_p above
+  /// wetThreshold and σ_f + σ_s not, liquid the fibres hold, which moves
+  /// with the cloth (u = 0). The band does not grow around them: one it
+  /// reaches gets u = 0 and extension weight 0 instead of an extended u (the
+  /// body forces then act on it as on a wet vertex without free liquid, whose
+  /// u they clear); one outside it gets u = 0 (settleSoakedVelocities).
+  /// Index order; also in absorbingVertices.
+  std::vector<int> soakedVertices;
+  std::vector<char> soakedMask;  ///< #V: 1 on soakedVertices (the interaction's wet-front test)
   /// The incremental wet set (updateWetVertices): a superset of the vertices
   /// that are wet, damp or absorbing now, namely those the last scan found
   /// plus every vertex noted as changed since (noteChanged). A vertex outside
@@ -127,14 +137,26 @@ struct LiquidBandInputs {
 /// Level 0 of the band: the vertices holding liquid (σ_f, σ_s or σ_p above
 /// wetThreshold), in index order. Resets the previous band (O(previous band)
 /// for the masks, O(#V) for the scan). Call after the sources of the step.
-/// Also lists the band's dampVertices (same scan).
-void markWetVertices(double wetThreshold, const StainState& state, LiquidBand& band);
-/// markWetVertices from the incremental wet set: the same wet set, damp and
-/// absorbing lists, in the same order, scanning only band.candidates
-/// (sorted; O(k log k) for k candidates) unless band.scanAll or more than
-/// #V/8 candidates, which make it the full scan. Afterwards the candidates
-/// are what it found.
-void updateWetVertices(double wetThreshold, const StainState& state, LiquidBand& band);
+/// Also lists the band's dampVertices (same scan). soakedApart: a vertex
+/// whose σ_p is above wetThreshold and whose σ_f + σ_s is not is filed under
+/// soakedVertices (and absorbingVertices) instead of the wet set.
+void markWetVertices(double wetThreshold, const StainState& state, LiquidBand& band, bool soakedApart = false);
+/// markWetVertices from the incremental wet set: the same wet set, damp,
+/// absorbing and soaked lists, in the same order, scanning only
+/// band.candidates (sorted; O(k log k) for k candidates) unless band.scanAll
+/// or more than #V/8 candidates, which make it the full scan. Afterwards the
+/// candidates are what it found.
+void updateWetVertices(double wetThreshold, const StainState& state, LiquidBand& band, bool soakedApart = false);
+/// u = 0 on the soaked vertices outside the band (their liquid moves with the
+/// cloth); calls changed(i) for each vertex whose u it changed. O(soaked).
+template <class Changed>
+void settleSoakedVelocities(const LiquidBand& band, StainState& state, const Changed& changed) {
+  for (const int i : band.soakedVertices) {
+    if (band.levels[static_cast<size_t>(i)] >= 0 || state.velocities[i] == Complex(0.0, 0.0)) continue;
+    state.velocities[i] = Complex(0.0, 0.0);
+    changed(i);
+  }
+}
 
 /// Grows the band marked by markWetVertices ring by ring and extends the
 /// velocity onto it: state.velocities on band vertices outside the wet set
