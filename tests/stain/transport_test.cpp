@@ -26,7 +26,12 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <limits>
+#include <random>
+#include <vector>
 
 #include "geometry_test_support.h"
 
@@ -85,6 +90,29 @@ double linkLoopHolonomy(const Geometry& g, int v) {
 
 // Angle of the projection of a 3D direction in the xy-plane (flat meshes).
 double planarAngle(const Eigen::RowVector3d& d) { return std::atan2(d.y(), d.x()); }
+
+// wrapAngle is std::remainder(angle, 2π) to the bit: random angles over
+// [−20, 20] (both of its fast paths and the fallback) and the edges of each
+// path (±π and their neighbours, ±3π, ±9.4, exact ties at ±π), ±0 and NaN.
+TEST(Transport, WrapAngleIsBitwiseTheRemainder) {
+  const double pi = std::acos(-1.0);
+  const double twoPi = 2.0 * pi;
+  std::vector<double> angles = {0.0, -0.0, pi, -pi, 3.0 * pi, -3.0 * pi, 9.4, -9.4, twoPi, -twoPi, 1e300, -1e300};
+  for (const double a : {pi, 3.0 * pi, 9.4, twoPi}) {
+    for (const double s : {1.0, -1.0}) {
+      angles.push_back(std::nextafter(s * a, 0.0));
+      angles.push_back(std::nextafter(s * a, s * 1e9));
+    }
+  }
+  std::mt19937_64 random(7);
+  std::uniform_real_distribution<double> uniform(-20.0, 20.0);
+  for (int k = 0; k < 200000; ++k) angles.push_back(uniform(random));
+  for (const double a : angles) {
+    const double expected = std::remainder(a, twoPi), got = wrapAngle(a);
+    ASSERT_EQ(std::memcmp(&expected, &got, sizeof(double)), 0) << std::hexfloat << a << ": " << got << " vs " << expected;
+  }
+  EXPECT_TRUE(std::isnan(wrapAngle(std::numeric_limits<double>::quiet_NaN())));
+}
 
 TEST(Transport, PolarMapConventionsInteriorAndBoundary) {
   for (const Geometry& g : {Geometry(testing::jitteredIcosphere(2, 0.3, 2)),

@@ -12,14 +12,23 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kTwoPi = 2.0 * kPi;
 
-// Angle in [−π, π].
-double wrapAngle(double angle) { return std::remainder(angle, kTwoPi); }
-
 int cornerOf(const Triangles& faces, int f, int v) {
   return faces(f, 0) == v ? 0 : (faces(f, 1) == v ? 1 : 2);
 }
 
 }  // namespace
+
+// std::remainder(angle, 2π), whose result is exact, in the usual cases
+// without its ~50 ns call (10 % of a metric rebuild's samples), to the same
+// bits: |angle| ≤ π is returned as it is (quotient ≤ 1/2, rounded to the
+// even 0); up to 9.4 < 3π the quotient rounds to ±1 and angle ∓ 2π is exact
+// (Sterbenz: 2π/2 ≤ |angle| ≤ 2 · 2π). NaN and the rest go to std::remainder.
+double wrapAngle(double angle) {
+  if (angle >= -kPi && angle <= kPi) return angle;
+  if (angle > kPi && angle < 9.4) return angle - kTwoPi;
+  if (angle < -kPi && angle > -9.4) return angle + kTwoPi;
+  return std::remainder(angle, kTwoPi);
+}
 
 PolarMap geodesicPolarMap(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles) {
   PolarMap map;

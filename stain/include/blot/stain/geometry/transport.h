@@ -27,6 +27,10 @@ struct PolarMap {
 
 PolarMap geodesicPolarMap(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles);
 
+/// angle wrapped to [−π, π]: bitwise std::remainder(angle, 2π), without its
+/// call for |angle| < 9.4 (the transport angles' range).
+double wrapAngle(double angle);
+
 /// #E transport angles θ_ij for each edge (i, j) = edgeVertices row, i < j:
 /// the rotation carrying vectors in j's frame into i's frame. θ_ji = −θ_ij.
 Vector edgeTransportAngles(const SurfaceTopology& topology, const PolarMap& polarMap);
