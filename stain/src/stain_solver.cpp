@@ -291,7 +291,12 @@ void StainSolver::abandonStep(const RowVectors3& positions, const RowVectors3& v
 
 StainState& StainSolver::mutableState() {
   stateWrittenOutside();
+  writtenOutside_ = true;  // liquid may have been put on without a drop
   return state_;
+}
+
+bool StainSolver::everHeldLiquid() const {
+  return state_.addedSolvent > 0 || state_.addedSolute > 0 || writtenOutside_;
 }
 
 void StainSolver::stateWrittenOutside() {
@@ -601,7 +606,7 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
     started_ = true;
   }
   const bool rebuild = rigidRotation != nullptr ? geometry_.refreshExtrinsicRigid(nextPositions, *rigidRotation, h)
-                                                : geometry_.refreshExtrinsic(nextPositions, h);
+                                                : geometry_.refreshExtrinsic(nextPositions, h, everHeldLiquid());
   profile_.maxEdgeStrain = geometry_.maxEdgeStrain();
   if (rebuild) {
     noteAllChanged();  // every density is rescaled
@@ -894,6 +899,12 @@ void StainSolver::restore(const StainSolverSnapshot& s) {
   }
   state_ = s.state;
   stateWrittenOutside();
+  // A function of the state, so that a restored solver tests strain exactly
+  // where the one that saved it did (everHeldLiquid).
+  writtenOutside_ = false;
+  for (const Vector* f : {&state_.solvent, &state_.solute, &state_.absorbedSolvent, &state_.absorbedSolute,
+                          &state_.adsorbedSolute})
+    writtenOutside_ = writtenOutside_ || (f->array() != 0.0).any();
   backup_.commit(state_);  // the rollback point is the restored state (as a full backup of it was)
   heldRegions_ = s.heldRegions;
   initialVelocities_ = s.initialVelocities;

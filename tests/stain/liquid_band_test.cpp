@@ -805,6 +805,45 @@ TEST(LiquidBand, ASoakedPatchDriesTheSameBitsWithoutABand) {
   EXPECT_GT(apart.state().evaporatedSolvent, 0.0);
 }
 
+// A deforming cloth no liquid has been on skips the strain test (nothing
+// reads its metric): no rebuild however far it stretches. The step after
+// the first drop tests every edge and rebuilds from the positions then, and
+// the drop's mass is kept through the rescaling. A solver that had its
+// state written from outside tests every step, as before.
+TEST(LiquidBand, TheStrainTestWaitsForTheFirstLiquid) {
+  const TriangleMesh mesh = gridMesh(30, 30, 1.0, 1.0);
+  const int n = static_cast<int>(mesh.vertexPositions.rows());
+  const SurfaceTopology topology(mesh.faces, n);
+  const FabricField fabric = isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 1e-4);
+  StainSolverDef def;
+  def.strainTolerance = 1e-2;
+  StainSolver clean(topology, mesh.vertexPositions, fabric, def);
+  StainSolver written(topology, mesh.vertexPositions, fabric, def);
+  written.mutableState();  // nothing written, but it could have been
+  const double h = 0.01;
+  int cleanRebuilds = 0, writtenRebuilds = 0;
+  for (int step = 1; step <= 10; ++step) {
+    const RowVectors3 next = (1.0 + 0.01 * step) * mesh.vertexPositions;
+    for (StainSolver* s : {&clean, &written}) ASSERT_EQ(s->step(h, next).status, StepStatus::Ok);
+    cleanRebuilds += clean.profile().intrinsicRefreshes;
+    writtenRebuilds += written.profile().intrinsicRefreshes;
+    EXPECT_EQ(clean.profile().maxEdgeStrain, 0.0) << "step " << step;
+  }
+  EXPECT_EQ(cleanRebuilds, 0);
+  EXPECT_GE(writtenRebuilds, 4) << "1 % a step against a 1 % tolerance";
+  DropDef drop;
+  drop.centerPoint = Vector3(0.5, 0.5, 0.0);
+  drop.radius = 0.1;
+  drop.solventMass = 0.01;
+  clean.addDrop(drop);
+  ASSERT_EQ(clean.step(h, 1.11 * mesh.vertexPositions).status, StepStatus::Ok);
+  EXPECT_EQ(clean.profile().intrinsicRefreshes, 1);
+  EXPECT_NEAR(clean.profile().maxEdgeStrain, 0.11, 1e-9);
+  EXPECT_LT(clean.massBudget().solventError(), 1e-12);
+  ASSERT_EQ(clean.step(h, 1.111 * mesh.vertexPositions).status, StepStatus::Ok);
+  EXPECT_EQ(clean.profile().intrinsicRefreshes, 0) << "0.1 % since the rebuild";
+}
+
 // The incremental wet set (LiquidBand::candidates): on a small stain on a
 // turning cloth, with an absorbed trace far from it and a drop landing on the
 // dry side later, each step's wet set, damp and absorbing lists equal a full

@@ -204,6 +204,30 @@ TEST(SurfaceGeometry, UniformStretchTripsStrainTestWhenAndOnlyWhenPastTolerance)
   EXPECT_GT(expectedRebuilds, 20);  // 300 steps to 2.85 % stretch, ~1e-3 each
 }
 
+// refreshExtrinsic without the strain test (a surface no liquid has been
+// on): a 10 % stretch trips nothing and reports 0; the next refresh with the
+// test measures it, also when the surface has stopped since (the fast path
+// for a still surface must not reuse the skipped test's 0).
+TEST(SurfaceGeometry, SkippedStrainTestIsMeasuredByTheNextOne) {
+  const TriangleMesh mesh = gridMesh(20, 20, 1.0, 1.0);
+  const int n = static_cast<int>(mesh.vertexPositions.rows());
+  const SurfaceTopology topology(mesh.faces, n);
+  const RowVectors3 rest = mesh.vertexPositions;
+  const double tolerance = 1e-2, h = 0.01;
+  SurfaceGeometry geometry(topology, rest, anisotropicFabric(topology.faceCount(), 4), tolerance);
+  const RowVectors3 stretched = 1.1 * rest;
+  for (int k = 0; k < 4; ++k) {  // moved, then still for three refreshes
+    EXPECT_FALSE(geometry.refreshExtrinsic(stretched, h, false)) << k;
+    EXPECT_EQ(geometry.maxEdgeStrain(), 0.0) << k;
+  }
+  EXPECT_TRUE(geometry.refreshExtrinsic(stretched, h, true));
+  EXPECT_NEAR(geometry.maxEdgeStrain(), 0.1, 1e-12);
+  EXPECT_TRUE(geometry.refreshExtrinsic(stretched, h, true)) << "still: the measured value is kept";
+  geometry.refreshIntrinsic();
+  EXPECT_FALSE(geometry.refreshExtrinsic(stretched, h, true));
+  EXPECT_LT(geometry.maxEdgeStrain(), 1e-12);
+}
+
 TEST(SurfaceGeometry, StaticMeshHasExactlyZeroRatesAndSkipsFits) {
   const TriangleMesh mesh = jitteredIcosphere(2, 0.2, 6);
   const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));

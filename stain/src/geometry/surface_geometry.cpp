@@ -323,6 +323,7 @@ void SurfaceGeometry::refreshIntrinsic() {
                                  fabric_.velocityTensors, faceWeftCoefficients_, in);
     dynamic_.inverseBuiltSquaredLengths = in.edgeLengths.array().square().inverse().matrix();
     dynamic_.maxEdgeStrain = 0;
+    strainMeasured_ = true;
     refreshedEdges_ = topology_->edgeCount();
     refreshedFaces_ = topology_->faceCount();
   }
@@ -354,6 +355,7 @@ void SurfaceGeometry::refreshIntrinsicFromPositions(const RowVectors3& positions
   }
   dynamic_.inverseBuiltSquaredLengths = in.edgeLengths.array().square().inverse().matrix();
   dynamic_.maxEdgeStrain = 0;
+  strainMeasured_ = true;
   refreshedEdges_ = topology.edgeCount();
   refreshedFaces_ = topology.faceCount();
 }
@@ -459,13 +461,14 @@ bool SurfaceGeometry::refreshIntrinsicPartially(const RowVectors3& positions) {
   for (const int v : vertices1_) vertexMarks_[static_cast<size_t>(v)] = 0;
   for (const int v : vertices2_) vertexMarks2_[static_cast<size_t>(v)] = 0;
   dynamic_.maxEdgeStrain = std::max(std::sqrt(maxRatio) - 1.0, 1.0 - std::sqrt(minRatio));
+  strainMeasured_ = true;
   refreshedEdges_ = size(chosenEdges_);
   refreshedFaces_ = size(faces3_);
   return true;
 }
 
-bool SurfaceGeometry::refreshExtrinsic(const RowVectors3& nextPositions, double h) {
-  return refreshExtrinsicWith(nextPositions, h, nullptr);
+bool SurfaceGeometry::refreshExtrinsic(const RowVectors3& nextPositions, double h, bool strainTest) {
+  return refreshExtrinsicWith(nextPositions, h, nullptr, strainTest);
 }
 
 bool SurfaceGeometry::refreshExtrinsicRigid(const RowVectors3& nextPositions, const Matrix3& rotation,
@@ -485,11 +488,11 @@ bool SurfaceGeometry::refreshExtrinsicRigid(const RowVectors3& nextPositions, co
                              " does not follow the rigid motion");
   }
 #endif
-  return refreshExtrinsicWith(nextPositions, h, &rotation);
+  return refreshExtrinsicWith(nextPositions, h, &rotation, true);
 }
 
 bool SurfaceGeometry::refreshExtrinsicWith(const RowVectors3& nextPositions, double h,
-                                           const Matrix3* rigidRotation) {
+                                           const Matrix3* rigidRotation, bool strainTest) {
   const SurfaceTopology& topology = *topology_;
   const int n = topology.vertexCount();
   checkRows(nextPositions.rows(), n, "nextPositions");
@@ -498,7 +501,7 @@ bool SurfaceGeometry::refreshExtrinsicWith(const RowVectors3& nextPositions, dou
   rotationFitStats_ = RotationFitStats();
 
   const bool unchanged = nextPositions == ex.nextPositions;
-  if (unchanged && dynamic_.unchangedRefreshes >= 2) {
+  if (unchanged && dynamic_.unchangedRefreshes >= 2 && (strainMeasured_ || !strainTest)) {
     // t − h, t and t + h all hold these positions already; ω = p̈ = 0, and
     // every vertex prepared since the last shift keeps its values.
     dynamic_.lastH = h;
@@ -531,6 +534,7 @@ bool SurfaceGeometry::refreshExtrinsicWith(const RowVectors3& nextPositions, dou
     // non-zero (the surface just stopped).
     ex.nextRigid = ex.rigid;
     ++dynamic_.unchangedRefreshes;
+    if (strainTest && !strainMeasured_ && !ex.nextRigid) measureStrain();
   } else {
     dynamic_.unchangedRefreshes = 0;
     if (rigidRotation != nullptr) {
@@ -551,36 +555,48 @@ bool SurfaceGeometry::refreshExtrinsicWith(const RowVectors3& nextPositions, dou
       nextRule_ = SlotRule();
       nextRule_.kind = SlotKind::Fitted;
       // The strain test, per edge (the fits are per vertex and may not run).
-      const Eigen::Matrix<int, Eigen::Dynamic, 2>& edges = topology.edgeVertices();
-      const int edgeCount = topology.edgeCount();
-      const double* x = ex.nextPositions.data();
-      const double* y = x + n;
-      const double* z = y + n;
-      const double* inverseBuilt = dynamic_.inverseBuiltSquaredLengths.data();
-      double maxRatio = 1.0, minRatio = 1.0;
-      threads::runLoop(edgeCount >= 4 * kMinParallelVertices, [&] {
-        decltype(maxRatio) maxRatioHere = threads::lowest<decltype(maxRatio)>();
-        decltype(minRatio) minRatioHere = threads::highest<decltype(minRatio)>();
-#pragma omp for schedule(static) nowait
-        for (int e = 0; e < edgeCount; ++e) {
-          const int a = edges(e, 0), b = edges(e, 1);
-          const double dx = x[b] - x[a], dy = y[b] - y[a], dz = z[b] - z[a];
-          const double ratio = (dx * dx + dy * dy + dz * dz) * inverseBuilt[e];
-          maxRatioHere = std::max(maxRatioHere, ratio);
-          minRatioHere = std::min(minRatioHere, ratio);
-        }
-#pragma omp critical(blot_threads_combine)
-        {
-          maxRatio = std::max(maxRatio, maxRatioHere);
-          minRatio = std::min(minRatio, minRatioHere);
-        }
-      });
-      dynamic_.maxEdgeStrain = std::max(std::sqrt(maxRatio) - 1.0, 1.0 - std::sqrt(minRatio));
+      if (strainTest) {
+        measureStrain();
+      } else {
+        dynamic_.maxEdgeStrain = 0.0;
+        strainMeasured_ = false;
+      }
     }
   }
   dynamic_.nextSlotKind = static_cast<int>(nextRule_.kind);
   if (vertexRefresh_ == VertexRefresh::AllVertices) prepareAllVertices();
   return dynamic_.maxEdgeStrain > strainTolerance_;
+}
+
+void SurfaceGeometry::measureStrain() {
+  const SurfaceTopology& topology = *topology_;
+  const int n = topology.vertexCount();
+  const Eigen::Matrix<int, Eigen::Dynamic, 2>& edges = topology.edgeVertices();
+  const int edgeCount = topology.edgeCount();
+  const double* x = dynamic_.extrinsic.nextPositions.data();
+  const double* y = x + n;
+  const double* z = y + n;
+  const double* inverseBuilt = dynamic_.inverseBuiltSquaredLengths.data();
+  double maxRatio = 1.0, minRatio = 1.0;
+  threads::runLoop(edgeCount >= 4 * kMinParallelVertices, [&] {
+    decltype(maxRatio) maxRatioHere = threads::lowest<decltype(maxRatio)>();
+    decltype(minRatio) minRatioHere = threads::highest<decltype(minRatio)>();
+#pragma omp for schedule(static) nowait
+    for (int e = 0; e < edgeCount; ++e) {
+      const int a = edges(e, 0), b = edges(e, 1);
+      const double dx = x[b] - x[a], dy = y[b] - y[a], dz = z[b] - z[a];
+      const double ratio = (dx * dx + dy * dy + dz * dz) * inverseBuilt[e];
+      maxRatioHere = std::max(maxRatioHere, ratio);
+      minRatioHere = std::min(minRatioHere, ratio);
+    }
+#pragma omp critical(blot_threads_combine)
+    {
+      maxRatio = std::max(maxRatio, maxRatioHere);
+      minRatio = std::min(minRatio, minRatioHere);
+    }
+  });
+  dynamic_.maxEdgeStrain = std::max(std::sqrt(maxRatio) - 1.0, 1.0 - std::sqrt(minRatio));
+  strainMeasured_ = true;
 }
 
 void SurfaceGeometry::evaluateSlot(const SlotRule& rule, const RowVectors3& positions, int i,
@@ -769,6 +785,7 @@ SurfaceGeometry::DynamicState SurfaceGeometry::dynamicState() const {
 
 void SurfaceGeometry::restoreDynamicState(const DynamicState& s) {
   dynamic_ = s;
+  strainMeasured_ = false;  // measured again by the next test
   const ExtrinsicGeometry& ex = dynamic_.extrinsic;
   // A saved state has every vertex's values (dynamicState): only the t + h
   // slot's rule is needed for later refreshes.

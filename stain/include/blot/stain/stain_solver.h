@@ -253,6 +253,9 @@ class StainSolver {
   /// The vertices the interaction visits (interaction.h's `among`), or null
   /// for all when the band is not small.
   const std::vector<int>* interactionVertices();
+  // Liquid was ever on the surface (a drop, a source, a write from outside):
+  // until then nothing reads the metric, and the strain test is skipped.
+  bool everHeldLiquid() const;
   /// Marks each term whose condition is true as run this step.
   void markTerms(std::initializer_list<std::pair<StepTerm, bool>> terms);
   /// The profile's record of a density advection and of a diffusion.
@@ -269,6 +272,9 @@ class StainSolver {
   StainState state_;
   StateBackup backup_;       // the rollback point: a mirror of the state and the vertices this step changed
   bool validateAll_ = true;  // written from outside since the last full validation passed
+  // mutableState was called (or a restored state holds something): liquid
+  // may be on the surface though nothing was added (everHeldLiquid).
+  bool writtenOutside_ = false;
   double backupTime_ = 0;   // time_ when backup_ was taken
   InjectedFault fault_;      // testing; armed when set
   StepContext ctx_;          // this step's constants and active terms (refreshGeometry)

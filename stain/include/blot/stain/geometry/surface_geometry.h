@@ -240,7 +240,10 @@ class SurfaceGeometry {
   /// h (s, > 0) being the time from t to t + h, and recomputes the extrinsic
   /// tier. Returns whether the intrinsic tier must be rebuilt (strain test);
   /// does not rebuild it. Allocates nothing; uses OpenMP threads.
-  bool refreshExtrinsic(const RowVectors3& nextPositions, double h);
+  /// strainTest false: no strain test (O(#E)) and false returned, for a
+  /// surface whose metric nothing reads (no liquid has ever been on it);
+  /// maxEdgeStrain() is then 0 and the next test measures every edge.
+  bool refreshExtrinsic(const RowVectors3& nextPositions, double h, bool strainTest = true);
   /// The same for a surface known to move rigidly, nextPositions = R x̄ + c
   /// (x̄ the rest shape, R the rotation at t + h, any translation c): U_i = R
   /// for every vertex, normals R n̄, no rotation fits and no strain test
@@ -353,7 +356,10 @@ class SurfaceGeometry {
   void restoreDynamicState(const DynamicState& s);
 
  private:
-  bool refreshExtrinsicWith(const RowVectors3& nextPositions, double h, const Matrix3* rigidRotation);
+  bool refreshExtrinsicWith(const RowVectors3& nextPositions, double h, const Matrix3* rigidRotation,
+                            bool strainTest);
+  /// The strain test of every edge at t + h into dynamic_.maxEdgeStrain.
+  void measureStrain();
   // How a time slot's per-vertex values follow from its inputs.
   enum class SlotKind { Rest, Rigid, Fitted };
   struct SlotRule {
@@ -394,6 +400,8 @@ class SurfaceGeometry {
   RowVectors3 restPositions_;
   FabricField fabric_;
   double strainTolerance_;
+  // dynamic_.maxEdgeStrain is this surface's (not the 0 of a skipped test).
+  bool strainMeasured_ = true;
   // Both tiers, the rotation history (U_i at t − h, t, t + h as unit
   // quaternions: warm start and ω), nextNormals (#V by 3, vertex normals at
   // t + h, which become vertexNormals), 1 / ℓ_e² at the last intrinsic build,
