@@ -116,12 +116,7 @@ TEST(CoupledFlag, LiquidLoadsNeverTouchRestLengths) {
   test::CoupledFlag flag = test::makeCoupledFlag(24, true);
   flag.stain.strainTolerance = 0.02;
   auto surface = test::makeCoupledSurface(flag, CouplingMode::TwoWay);
-  stain::DropDef drop;
-  drop.centerVertex = flag.center();
-  drop.radius = 0.25;
-  drop.solventMass = 0.3;
-  drop.soluteMass = 0.03;
-  surface->stain().addDrop(drop);
+  surface->stain().addDrop(test::heavyCentreDrop(flag));
   const cloth::BulletCloth& cloth = blot::testing::bulletClothOf(*surface);
   double liquidRange = 0;
   for (int k = 0; k < 600; ++k) {

@@ -48,12 +48,7 @@ FlagRun runFlag(CouplingMode mode, bool coriolis, bool waving, double absorption
   flag.stain.strainTolerance = 0.02;
   auto surface = test::makeCoupledSurface(flag, mode);
   for (int k = 0; k < 30; ++k) EXPECT_EQ(surface->step(kFrame).status, stain::StepStatus::Ok);
-  stain::DropDef drop;
-  drop.centerVertex = flag.center();
-  drop.radius = 0.25;
-  drop.solventMass = 0.3;
-  drop.soluteMass = 0.03;
-  surface->stain().addDrop(drop);
+  surface->stain().addDrop(test::heavyCentreDrop(flag));
   FlagRun r;
   for (int k = 0; k < frames; ++k) {
     EXPECT_EQ(surface->step(kFrame).status, stain::StepStatus::Ok) << "frame " << k;

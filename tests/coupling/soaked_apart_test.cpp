@@ -43,12 +43,7 @@ SoakRun runSoakingFlag(bool soakedApart, int frames) {
   auto surface = test::makeCoupledSurface(flag, CouplingMode::OneWay);
   SoakRun run;
   for (int k = 0; k < 30; ++k) run.healthy &= surface->step(kFrame).ok();
-  stain::DropDef drop;
-  drop.centerVertex = flag.center();
-  drop.radius = 0.25;
-  drop.solventMass = 0.3;
-  drop.soluteMass = 0.03;
-  surface->stain().addDrop(drop);
+  surface->stain().addDrop(test::heavyCentreDrop(flag));
   for (int k = 0; k < frames && run.healthy; ++k) {
     const stain::StepReport report = surface->step(kFrame);
     EXPECT_TRUE(report.ok()) << "frame " << k << ": " << report.message;
