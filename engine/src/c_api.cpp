@@ -16,7 +16,9 @@
 #include <cmath>
 #include <cstring>
 #include <exception>
+#include <cstdio>
 #include <fstream>
+#include <limits>
 #include <memory>
 #include <string>
 
@@ -62,8 +64,26 @@ blot::stain::DropDef toDropDef(const blotDropDef& d) {
   return drop;
 }
 
+/// Whether a float copy of `value` would not be the finite number it is.
+/// Design note: the engine computes in double, and a finite double can lie
+/// beyond float's range: a liquid under a gravity of 1e308 m/s^2 (any finite
+/// gravity is accepted) moves at 1e306 m/s after one step. Such a copy is
+/// refused with BLOT_ERROR_NUMERICAL, naming the entry and its value, and
+/// writes nothing. Rejected: writing the infinity (a caller's vertex buffer
+/// would silently hold it) and clamping to FLT_MAX (a wrong number that
+/// looks valid).
+bool outsideFloat(double value) { return !(std::fabs(value) <= double(std::numeric_limits<float>::max())); }
+
+blotStatus refuseOutsideFloat(const char* function, const std::string& entry, double value) {
+  char text[64];
+  std::snprintf(text, sizeof text, "%.17g", value);
+  return fail(BLOT_ERROR_NUMERICAL, std::string(function) + ": " + entry + " is " + text +
+                                        ", beyond float range (|value| <= 3.4028235e+38); nothing copied");
+}
+
 /// Copies a #V by 3 view into `out` as interleaved floats (the engine's
-/// views are in place: no temporary).
+/// views are in place: no temporary); refused, with nothing written, when an
+/// entry does not fit in a float.
 template <typename View>
 blotStatus copyRows(const char* function, const blotEngine* engine, View view, float* out, int capacity) {
   if (engine == nullptr || out == nullptr) return fail(BLOT_ERROR_INVALID_ARGUMENT, std::string(function) + ": null argument");
@@ -72,6 +92,10 @@ blotStatus copyRows(const char* function, const blotEngine* engine, View view, f
   if (capacity < 3 * n)
     return fail(BLOT_ERROR_INVALID_ARGUMENT, std::string(function) + ": capacity " + std::to_string(capacity) +
                                                  " floats, need " + std::to_string(3 * n));
+  for (Eigen::Index i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c)
+      if (outsideFloat(rows(i, c)))
+        return refuseOutsideFloat(function, "vertex " + std::to_string(i) + " " + "xyz"[c], rows(i, c));
   for (Eigen::Index i = 0; i < n; ++i)
     for (int c = 0; c < 3; ++c) out[3 * i + c] = static_cast<float>(rows(i, c));
   return BLOT_OK;
@@ -489,6 +513,9 @@ blotStatus blotEngine_CopyDensities(const blotEngine* engine, blotDensity which,
   if (capacity < field->size())
     return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_CopyDensities: capacity " + std::to_string(capacity) +
                                                  ", need " + std::to_string(field->size()));
+  for (Eigen::Index i = 0; i < field->size(); ++i)
+    if (outsideFloat((*field)[i]))
+      return refuseOutsideFloat("blotEngine_CopyDensities", "vertex " + std::to_string(i), (*field)[i]);
   for (Eigen::Index i = 0; i < field->size(); ++i) out[i] = static_cast<float>((*field)[i]);
   return BLOT_OK;
 }

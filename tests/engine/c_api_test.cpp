@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <limits>
@@ -82,6 +83,59 @@ TEST(CApiTest, CopiesMatchTheEngineAndBadArgumentsAreStatuses) {
   std::remove(path.c_str());
   blotDestroyEngine(engine);
   blotDestroyEngine(nullptr);
+}
+
+// Every finite gravity is accepted, so a liquid's speed can pass float's
+// range (1e45 m/s^2 for 0.01 s: 1e43 m/s) while the engine's doubles stay
+// finite. Found by fuzz_capi in CI (docs/reliability.md, finding 9): the copy
+// wrote infinities. It is refused, names the entry, and writes nothing; a
+// copy whose values fit still works.
+TEST(CApiTest, ACopyBeyondFloatRangeIsRefusedAndWritesNothing) {
+  std::vector<double> positions;
+  std::vector<int32_t> faces;
+  for (int j = 0; j <= 3; ++j)
+    for (int i = 0; i <= 3; ++i) positions.insert(positions.end(), {0.1 * i, 0.0, 0.1 * j});
+  for (int j = 0; j < 3; ++j)
+    for (int i = 0; i < 3; ++i) {
+      const int a = j * 4 + i, b = a + 1, c = a + 4, d = c + 1;
+      faces.insert(faces.end(), {a, b, d, a, d, c});
+    }
+  blotEngineDef def = blotDefaultEngineDef();
+  def.positions = positions.data();
+  def.vertexCount = 16;
+  def.faces = faces.data();
+  def.faceCount = 18;
+  def.source = BLOT_MOTION_STATIC;
+  def.gravity[0] = 1e45;
+  def.gravity[1] = def.gravity[2] = 0.0;
+  blotEngine* engine = nullptr;
+  ASSERT_EQ(blotCreateEngine(&def, &engine), BLOT_OK) << blotGetLastError();
+  const blotDropDef drop = blotDefaultDropDef();
+  ASSERT_EQ(blotEngine_AddDropAtVertex(engine, 5, &drop), BLOT_OK) << blotGetLastError();
+  ASSERT_EQ(blotEngine_Step(engine, 0.01), BLOT_OK) << blotGetLastError();
+  std::vector<float> out(48, 7.0f);
+  for (const auto copy : {blotEngine_CopyLiquidRelativeVelocities, blotEngine_CopyLiquidWorldVelocities}) {
+    EXPECT_EQ(copy(engine, out.data(), 48), BLOT_ERROR_NUMERICAL);
+    const std::string message = blotGetLastError();
+    EXPECT_NE(message.find("blotEngine_CopyLiquid"), std::string::npos) << message;
+    EXPECT_NE(message.find("beyond float range (|value| <= 3.4028235e+38); nothing copied"), std::string::npos)
+        << message;
+    // "...: vertex <i> <axis> is <value>, beyond...": the value is the
+    // engine's, finite in double and past float's range.
+    const std::size_t is = message.find(" is ");
+    ASSERT_NE(message.find(": vertex "), std::string::npos) << message;
+    ASSERT_NE(is, std::string::npos) << message;
+    const double value = std::strtod(message.c_str() + is + 4, nullptr);
+    EXPECT_TRUE(std::isfinite(value)) << message;
+    EXPECT_GT(std::fabs(value), 1e40) << message;
+    EXPECT_EQ(std::count(out.begin(), out.end(), 7.0f), 48);
+  }
+  EXPECT_EQ(blotEngine_CopyPositions(engine, out.data(), 48), BLOT_OK);
+  EXPECT_EQ(out[3], 0.1f);
+  std::vector<float> densities(16, 7.0f);
+  EXPECT_EQ(blotEngine_CopyDensities(engine, BLOT_DENSITY_SOLVENT, densities.data(), 16), BLOT_OK);
+  EXPECT_GT(*std::max_element(densities.begin(), densities.end()), 0.0f);
+  blotDestroyEngine(engine);
 }
 
 // Definitions without files: the same engine as the scene JSON, step for step.

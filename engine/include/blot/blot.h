@@ -37,7 +37,9 @@ typedef enum blotStatus {
   BLOT_OK = 0,
   BLOT_ERROR_INVALID_ARGUMENT = 1, /**< null pointer, bad index, buffer too small, bad value */
   BLOT_ERROR_SCENE = 2,            /**< scene file or JSON rejected (message names the key) */
-  BLOT_ERROR_NUMERICAL = 3,        /**< a step failed (stage, vertex, step in the message); state kept */
+  BLOT_ERROR_NUMERICAL = 3,        /**< a step failed (stage, vertex, step in the message), state kept; or a
+                                        value to copy out is beyond float range (entry and value named),
+                                        nothing written */
   BLOT_ERROR_IO = 4,               /**< a file given to the call is missing, unreadable or unwritable */
   BLOT_ERROR_INTERNAL = 5          /**< anything else */
 } blotStatus;
@@ -189,6 +191,10 @@ int blotEngine_GetVertexCount(const blotEngine* engine);
 int blotEngine_GetFaceCount(const blotEngine* engine);
 /** Simulated time (s). */
 double blotEngine_GetTime(const blotEngine* engine);
+
+/* The copies below convert the engine's doubles to float. One whose entry is beyond float range
+ * (|value| > 3.4e38, e.g. a liquid velocity under an absurd gravity) returns BLOT_ERROR_NUMERICAL,
+ * naming the vertex and the value, and writes nothing. */
 
 /** Copies #V x 3 positions (m), interleaved xyz, into out (capacity: floats available, >= 3 #V). */
 blotStatus blotEngine_CopyPositions(const blotEngine* engine, float* out, int capacity);
