@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <iterator>
 #include <limits>
 #include <sstream>
@@ -316,13 +317,22 @@ void StainSolver::noteAllChanged() {
 }
 
 void StainSolver::restoreBackup() {
-  if (!backup_.any()) return;  // the step changed nothing yet
-  backup_.restore(state_);
-  if (profile_.intrinsicRefreshes > 0) {
-    for (Vector* f : {&state_.solvent, &state_.solute, &state_.absorbedSolvent, &state_.absorbedSolute,
-                      &state_.adsorbedSolute})
-      f->array() *= areaScratch_.array();
-    backup_.markStale();  // the rescaled state is no longer the mirror
+  if (backup_.any()) backup_.restore(state_);  // else the step changed nothing yet
+  if (rebuiltInStep_) {
+    // The restored densities are per the old dual areas: the old tier comes
+    // back with them (SurfaceGeometry keeps it; no copy), and M + hL is
+    // assembled from it again, the values the step found (factors follow
+    // lazily). So a failed rebuilding step leaves the stain to the bit as it
+    // was; rejected: keeping the new tier and rescaling the densities to it,
+    // which broke when the rebuilt surface had collapsed (a zero area) and
+    // left a metric from positions the step abandoned.
+    geometry_.undoIntrinsicRefresh();
+    // Tables filled from the abandoned tier carry its rebuild count, which
+    // the next rebuild repeats with another metric (as after restore()).
+    velocityScratch_.invalidate();
+    band_.invalidateIntrinsic();
+    if (systems_.assembledStep() > 0) systems_.assemble(geometry_.intrinsic(), systems_.assembledStep());
+    rebuiltInStep_ = false;
     band_.scanAll = true;
   }
 }
@@ -593,6 +603,7 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
   ScopedTimer total(profile_.total);  // the commit is the step's own pass ("other")
   backup_.commit(state_);
   undoable_ = false;
+  rebuiltInStep_ = false;
   backupTime_ = time_;
   ScopedTimer t(profile_.milliseconds[static_cast<size_t>(Stage::Geometry)]);
   report.stage = Stage::Geometry;
@@ -615,6 +626,11 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
     areaScratch_ = geometry_.intrinsic().vertexDualAreas;
     systems_.releaseFactors();  // the stale factors are not kept while new operators are assembled
     geometry_.refreshIntrinsic();
+    rebuiltInStep_ = true;
+    if (const StepReport collapsed = checkRebuiltAreas(); !collapsed.ok()) {
+      restoreBackup();  // the old tier back, before any density is rescaled by a zero area
+      return collapsed;
+    }
     areaScratch_.array() /= geometry_.intrinsic().vertexDualAreas.array();
     for (Vector* f : {&state_.solvent, &state_.solute, &state_.absorbedSolvent, &state_.absorbedSolute,
                       &state_.adsorbedSolute})
@@ -628,7 +644,7 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
     profile_.markRan(StepTerm::SystemAssembly);
     const SolverStatus status = systems_.assemble(geometry_.intrinsic(), h);
     if (status != SolverStatus::Ok) {
-      inStep_ = true;  // abandonStep restores the rescaled backup
+      restoreBackup();  // the densities, and the old tier when this step rebuilt it
       report.status = StepStatus::SolverFailure;
       report.message = std::string("diffusion system assembly failed: ") + toString(status);
       return report;
@@ -802,6 +818,26 @@ SolverStatus StainSolver::recordDiffusion(const DiffusionReport& r) {
     profile_.velocityDiffusionVertices = krylov ? r.velocityActiveVertices : n;
   }
   return r.status;
+}
+
+StepReport StainSolver::checkRebuiltAreas() const {
+  StepReport report;
+  const Vector& areas = geometry_.intrinsic().faceAreas;
+  for (Eigen::Index f = 0; f < areas.size(); ++f) {
+    if (areas[f] > 0 && std::isfinite(areas[f])) continue;
+    const Triangles& faces = geometry_.topology().faces();
+    char value[32];
+    std::snprintf(value, sizeof value, "%.17g", areas[f]);
+    report.status = StepStatus::NonFinite;
+    report.stage = Stage::Geometry;
+    report.vertex = faces(f, 0);
+    report.message = "intrinsic rebuild of step " + std::to_string(steps_ + 1) + ": face " + std::to_string(f) +
+                     " (vertices " + std::to_string(faces(f, 0)) + ", " + std::to_string(faces(f, 1)) + ", " +
+                     std::to_string(faces(f, 2)) + ") has area " + value +
+                     " m^2 at this step's positions, expected > 0 (the surface collapsed there); state restored";
+    return report;
+  }
+  return report;
 }
 
 StepReport StainSolver::finishStep() {

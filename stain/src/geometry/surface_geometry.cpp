@@ -307,18 +307,30 @@ void SurfaceGeometry::setIntrinsicRefresh(IntrinsicRefresh mode) {
     const Vector built = in.edgeLengths;
     intrinsicGeometryFromLengths(*topology_, built, fabric_.densityTensors, fabric_.velocityTensors,
                                  faceWeftCoefficients_, in);
+    kept_.valid = false;
   }
   intrinsicRefresh_ = mode;
 }
 
 void SurfaceGeometry::refreshIntrinsic() {
   const RowVectors3& positions = dynamic_.extrinsic.nextPositions;
+  IntrinsicGeometry& in = dynamic_.intrinsic;
+  if (intrinsicRefresh_ == IntrinsicRefresh::Full) {
+    std::swap(kept_.intrinsic, in);
+    std::swap(kept_.inverseBuiltSquaredLengths, dynamic_.inverseBuiltSquaredLengths);
+    in.rebuildCount = kept_.intrinsic.rebuildCount;
+  } else {
+    kept_.intrinsic = in;
+    kept_.inverseBuiltSquaredLengths = dynamic_.inverseBuiltSquaredLengths;
+  }
+  kept_.maxEdgeStrain = dynamic_.maxEdgeStrain;
+  kept_.strainMeasured = strainMeasured_;
+  kept_.valid = true;
   if (intrinsicRefresh_ == IntrinsicRefresh::Full) {
     refreshIntrinsicFromPositions(positions);
   } else if (dynamic_.intrinsic.rebuildCount == 0 || !refreshIntrinsicPartially(positions)) {
     // The first build of a Partial geometry, or too much changed: every
     // edge re-measured, the tier from the lengths.
-    IntrinsicGeometry& in = dynamic_.intrinsic;
     intrinsicGeometryFromLengths(*topology_, edgeLengths(*topology_, positions), fabric_.densityTensors,
                                  fabric_.velocityTensors, faceWeftCoefficients_, in);
     dynamic_.inverseBuiltSquaredLengths = in.edgeLengths.array().square().inverse().matrix();
@@ -327,7 +339,16 @@ void SurfaceGeometry::refreshIntrinsic() {
     refreshedEdges_ = topology_->edgeCount();
     refreshedFaces_ = topology_->faceCount();
   }
-  ++dynamic_.intrinsic.rebuildCount;
+  ++in.rebuildCount;
+}
+
+void SurfaceGeometry::undoIntrinsicRefresh() {
+  if (!kept_.valid) throw std::logic_error("SurfaceGeometry::undoIntrinsicRefresh: no refresh to undo");
+  std::swap(kept_.intrinsic, dynamic_.intrinsic);
+  std::swap(kept_.inverseBuiltSquaredLengths, dynamic_.inverseBuiltSquaredLengths);
+  dynamic_.maxEdgeStrain = kept_.maxEdgeStrain;
+  strainMeasured_ = kept_.strainMeasured;
+  kept_.valid = false;
 }
 
 void SurfaceGeometry::refreshIntrinsicFromPositions(const RowVectors3& positions) {
@@ -785,6 +806,7 @@ SurfaceGeometry::DynamicState SurfaceGeometry::dynamicState() const {
 
 void SurfaceGeometry::restoreDynamicState(const DynamicState& s) {
   dynamic_ = s;
+  kept_.valid = false;
   strainMeasured_ = false;  // measured again by the next test
   const ExtrinsicGeometry& ex = dynamic_.extrinsic;
   // A saved state has every vertex's values (dynamicState): only the t + h

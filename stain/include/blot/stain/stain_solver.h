@@ -139,9 +139,11 @@ class StainSolver {
   StepReport advanceStages();
   /// The one rollback of a failed coupled step, after any stage of it (the
   /// stain's own, or a later one such as the coupling): the state as it was
-  /// before the step (densities, velocities, totals, time, step count), then
-  /// the geometry restarted on the surface at (positions, velocities), #V by 3,
-  /// m and m/s (restartMotion). A step that never began changes nothing.
+  /// before the step (densities, velocities, totals, time, step count, and
+  /// the intrinsic tier with its assembled systems when the step rebuilt
+  /// them), then the geometry restarted on the surface at (positions,
+  /// velocities), #V by 3, m and m/s (restartMotion). A step that never began
+  /// changes nothing.
   void abandonStep(const RowVectors3& positions, const RowVectors3& velocities);
 
   /// Adds a drop now (DropDef::velocity is its world velocity, relativeVelocity
@@ -234,8 +236,8 @@ class StainSolver {
   /// The state was written outside a step (mutableState, addDrop, restore):
   /// the next step copies, scans and validates every vertex.
   void stateWrittenOutside();
-  /// The state as the step found it (backup_.restore), rescaled to the present dual areas when the step being
-  /// abandoned rebuilt the metric (each vertex keeps its mass).
+  /// The state as the step found it (backup_.restore), with the intrinsic tier and the assembled systems it
+  /// had when the step being abandoned rebuilt them (SurfaceGeometry::undoIntrinsicRefresh).
   void restoreBackup();
   /// One line of the stage list: when `active`, runs `work` (void, or a
   /// SolverStatus), adds its time to the stage's, marks the stage as run and
@@ -264,6 +266,9 @@ class StainSolver {
   /// Stage Validate: every value finite, no negative density; then the
   /// step counts (time, step number).
   StepReport finishStep();
+  /// After a rebuild: a failure naming the first face whose area is not
+  /// finite and positive (the surface collapsed there), else Ok.
+  StepReport checkRebuiltAreas() const;
   /// advanceStages after its check: the stain stages and finishStep.
   StepReport runStages();
 
@@ -278,8 +283,9 @@ class StainSolver {
   double backupTime_ = 0;   // time_ when backup_ was taken
   InjectedFault fault_;      // testing; armed when set
   StepContext ctx_;          // this step's constants and active terms (refreshGeometry)
-  bool undoable_ = false;   // the last step succeeded and undoLastStep has not run
+  bool undoable_ = false;   // the last step succeeded and no abandonStep has undone it
   bool inStep_ = false;     // refreshGeometry succeeded and the step has not finished
+  bool rebuiltInStep_ = false;  // this step rebuilt the intrinsic tier (abandonStep puts the old one back)
   bool firstStep_ = false;  // this step is the solver's first (u is in the frames at t)
   DiffusionSystems systems_;
   /// This step's velocity diffusion is the whole-mesh factor (chosen when the

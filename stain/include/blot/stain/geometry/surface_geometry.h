@@ -283,7 +283,14 @@ class SurfaceGeometry {
   /// Rebuilds the intrinsic tier from the current positions (t + h), wholly
   /// or partially (setIntrinsicRefresh; the mode should be set before the
   /// first refresh after construction). The partial path allocates nothing.
+  /// The tier it replaces is kept for undoIntrinsicRefresh.
   void refreshIntrinsic();
+  /// Puts back the tier, the built lengths and the strain measure as they
+  /// were before the last refreshIntrinsic: the rollback of a step that
+  /// rebuilt and then failed, so that the restored densities (per area) meet
+  /// the areas they were computed with. Valid once after each refresh; a
+  /// restore (restoreDynamicState) or a mode switch forgets the kept tier.
+  void undoIntrinsicRefresh();
   /// Switching to Partial rebuilds the tier from its built lengths
   /// (intrinsicGeometryFromLengths), so that every later partial refresh
   /// starts from a tier it is bitwise consistent with; allocates.
@@ -437,6 +444,18 @@ class SurfaceGeometry {
   std::vector<char> edgeMarks_, faceMarks_, vertexMarks_, vertexMarks2_;
   std::vector<int> chosenEdges_, faces1_, vertices1_, edges1_, faces2_, edges2_, vertices2_, faces3_;
   int refreshedEdges_ = 0, refreshedFaces_ = 0;
+  // The tier the last refreshIntrinsic replaced (undoIntrinsicRefresh). A
+  // whole rebuild assigns every field, so it swaps the tier away (no copy) and
+  // builds into the buffers of the one before; a partial one starts from the
+  // current values, so it copies them (the same sizes: no allocation after
+  // the first). Costs one more tier in memory.
+  struct KeptIntrinsic {
+    IntrinsicGeometry intrinsic;
+    Vector inverseBuiltSquaredLengths;
+    double maxEdgeStrain = 0;
+    bool strainMeasured = false;
+    bool valid = false;
+  } kept_;
   // Where each face's block lies in the operators' values (oneRingFaceEntries):
   // a whole rebuild after the first refills the two operators in place. Made
   // at the second build, so a mesh that never deforms does not hold it.
