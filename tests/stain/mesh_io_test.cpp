@@ -443,6 +443,29 @@ TEST(MeshIoMalformed, BinaryPlyIndexOutOfRangeNamesTheFace) {
   expectLoadError(path, {"face 0: vertex index -2 out of range [0, 2]"});
 }
 
+// A binary element without properties holds no bytes, so its count costs
+// nothing to read: eight of them at the largest count a header takes (1.7e10
+// instances) load at once. Before, each instance went round the element loop:
+// fuzz_mesh_ply timed out on a 300-byte file (docs/reliability.md finding 11);
+// this test then ran for minutes.
+TEST(MeshIoMalformed, BinaryElementsWithoutPropertiesCostNothingWhateverTheirCount) {
+  std::string header = "ply\nformat binary_little_endian 1.0\n";
+  for (int k = 0; k < 8; ++k) header += "element padding" + std::to_string(k) + " 2147483647\n";
+  header +=
+      "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  BinaryPlyWriter ply(header);
+  for (const float c : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) ply.put<float>(c);
+  ply.put<std::uint8_t>(3);
+  for (const int i : {0, 1, 2}) ply.put<std::int32_t>(i);
+  const std::string path = tempPath("binary_empty_elements.ply");
+  writeFile(path, ply.bytes());
+  const TriangleMesh mesh = loadMesh(path);
+  EXPECT_EQ(mesh.vertexPositions.rows(), 3);
+  EXPECT_EQ(mesh.faces.rows(), 1);
+  EXPECT_EQ(mesh.vertexPositions(1, 0), 1.0);
+}
+
 TEST(MeshIoMalformed, InconsistentOrientation) {
   expectLoadError(testDataPath("bad/inconsistent_orientation.obj"),
                   {"faces 0 and 1 disagree on orientation across edge (0, 1)"});
