@@ -164,7 +164,9 @@ TEST(KrylovDiffusion, AutoSolvesAStiffVelocityOnASmallBandByCgAndOnTheWholeMeshB
   EXPECT_LE(r.velocityIterations, kMaxIterations);
   EXPECT_EQ(r.velocityActiveVertices, rows);
   for (int i = 0; i < vertices; ++i) {
-    if (!band[static_cast<size_t>(i)]) ASSERT_EQ(onBand.velocities[i], before[i]) << i;
+    if (!band[static_cast<size_t>(i)]) {
+      ASSERT_EQ(onBand.velocities[i], before[i]) << i;
+    }
   }
   StainState byFactor = state;
   const DiffusionReport f =

@@ -287,7 +287,9 @@ TEST(LiquidBand, BandGrownWithAGrowingSpeedBoundStillHoldsTheReach) {
       double nearest = std::numeric_limits<double>::infinity();
       for (int i = 0; i < band.wetCount(); ++i)
         nearest = std::min(nearest, (rest.row(v) - rest.row(band.vertices[static_cast<size_t>(i)])).norm());
-      if (nearest <= distance) EXPECT_NE(band.reachMask[static_cast<size_t>(v)], 0) << "step " << k << " vertex " << v;
+      if (nearest <= distance) {
+        EXPECT_NE(band.reachMask[static_cast<size_t>(v)], 0) << "step " << k << " vertex " << v;
+      }
       if (nearest <= 2 * distance) {
         EXPECT_NE(band.bandMask[static_cast<size_t>(v)], 0) << "step " << k << " vertex " << v;
         ++checked;
@@ -551,7 +553,9 @@ TEST(LiquidBand, BandHoldsEveryVertexTheLiquidAndItsFootPointsCanReach) {
         }
       }
       for (int v = 0; v < n; ++v) {
-        if (band.levels[static_cast<size_t>(v)] >= 0) EXPECT_GE(levels[static_cast<size_t>(v)], 0) << v;
+        if (band.levels[static_cast<size_t>(v)] >= 0) {
+          EXPECT_GE(levels[static_cast<size_t>(v)], 0) << v;
+        }
       }
       EXPECT_LT(band.size, static_cast<int>(queue.size())) << "x " << x;
     }

@@ -203,10 +203,10 @@ DensityAdvectionReport advectDensities(const StepContext& ctx, const SurfaceTopo
   faces.clear();
   auto cacheDualNormals = [&](int from, int to) {
     const int edgesBegin = static_cast<int>(edges.size()), facesBegin = static_cast<int>(faces.size());
-    const auto addFace = [&](int h) {
-      if (h < 0 || faceMarks[static_cast<size_t>(h / 3)]) return;
-      faceMarks[static_cast<size_t>(h / 3)] = 1;
-      faces.push_back(h / 3);
+    const auto addFace = [&](int halfedge) {
+      if (halfedge < 0 || faceMarks[static_cast<size_t>(halfedge / 3)]) return;
+      faceMarks[static_cast<size_t>(halfedge / 3)] = 1;
+      faces.push_back(halfedge / 3);
     };
     for (int k = from; k < to; ++k) {
       const int i = active[static_cast<size_t>(k)];
