@@ -111,10 +111,22 @@ class BinaryPlyWriter {
       bytes_.push_back(static_cast<char>((bits >> (8 * b)) & 0xff));
   }
   const std::string& bytes() const { return bytes_; }
+  /// The body of kTrianglePlyElements: vertices (0,0,0), (1,0,0), (0,1,0) as
+  /// floats, then one face with these corners.
+  void putTriangle(int a, int b, int c) {
+    for (const float x : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) put<float>(x);
+    put<std::uint8_t>(3);
+    for (const int i : {a, b, c}) put<std::int32_t>(i);
+  }
 
  private:
   std::string bytes_;
 };
+
+/// Three float vertices and one face with uchar-counted int corners.
+const char* const kTrianglePlyElements =
+    "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+    "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
 
 TriangleMesh labelledGrid() {
   TriangleMesh mesh = gridMesh(5, 3, 1.5, 1.0);
@@ -432,12 +444,8 @@ TEST(MeshIoMalformed, PlyIndexOutOfRange) {
 }
 
 TEST(MeshIoMalformed, BinaryPlyIndexOutOfRangeNamesTheFace) {
-  BinaryPlyWriter ply(
-      "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-      "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n");
-  for (const float c : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) ply.put<float>(c);
-  ply.put<std::uint8_t>(3);
-  for (const int i : {0, 1, -2}) ply.put<std::int32_t>(i);
+  BinaryPlyWriter ply(std::string("ply\nformat binary_little_endian 1.0\n") + kTrianglePlyElements);
+  ply.putTriangle(0, 1, -2);
   const std::string path = tempPath("binary_bad_index.ply");
   writeFile(path, ply.bytes());
   expectLoadError(path, {"face 0: vertex index -2 out of range [0, 2]"});
@@ -451,13 +459,8 @@ TEST(MeshIoMalformed, BinaryPlyIndexOutOfRangeNamesTheFace) {
 TEST(MeshIoMalformed, BinaryElementsWithoutPropertiesCostNothingWhateverTheirCount) {
   std::string header = "ply\nformat binary_little_endian 1.0\n";
   for (int k = 0; k < 8; ++k) header += "element padding" + std::to_string(k) + " 2147483647\n";
-  header +=
-      "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-      "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
-  BinaryPlyWriter ply(header);
-  for (const float c : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) ply.put<float>(c);
-  ply.put<std::uint8_t>(3);
-  for (const int i : {0, 1, 2}) ply.put<std::int32_t>(i);
+  BinaryPlyWriter ply(header + kTrianglePlyElements);
+  ply.putTriangle(0, 1, 2);
   const std::string path = tempPath("binary_empty_elements.ply");
   writeFile(path, ply.bytes());
   const TriangleMesh mesh = loadMesh(path);
@@ -484,13 +487,9 @@ TEST(MeshIoMalformed, EmptyFile) {
 }
 
 TEST(MeshIoMalformed, TruncatedBinaryPly) {
-  const std::string header =
-      "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-      "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  const std::string header = std::string("ply\nformat binary_little_endian 1.0\n") + kTrianglePlyElements;
   BinaryPlyWriter ply(header);
-  for (const float c : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) ply.put<float>(c);
-  ply.put<std::uint8_t>(3);
-  for (const int i : {0, 1, 2}) ply.put<std::int32_t>(i);
+  ply.putTriangle(0, 1, 2);
   const std::string& full = ply.bytes();
   const std::string path = tempPath("truncated.ply");
 
