@@ -947,6 +947,10 @@ void StainSolver::restore(const StainSolverSnapshot& s) {
   time_ = s.time;
   steps_ = s.steps;
   started_ = s.started;
+  // No step of the restored state to undo: an abandonStep before the next
+  // step changes nothing (it would otherwise undo the step before the
+  // restore, whose kept tier restoreDynamicState forgot).
+  undoable_ = inStep_ = rebuiltInStep_ = false;
 }
 
 }  // namespace blot::stain

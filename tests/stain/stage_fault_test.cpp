@@ -229,6 +229,24 @@ TEST(StageFault, AbandonStepReturnsToTheStateBeforeTheLastStep) {
   EXPECT_EQ(solver->stepCount(), 1);
 }
 
+// A restore leaves no step to undo: abandonStep right after it changes
+// nothing, even when the step before the restore had rebuilt the metric
+// (whose kept tier the restore forgot) and succeeded.
+TEST(StageFault, AbandonStepRightAfterARestoreChangesNothing) {
+  const Scene scene;
+  auto solver = scene.solver(1e-4);
+  for (int k = 1; k <= 3; ++k) ASSERT_EQ(solver->step(kH, wavingPositions(scene.mesh, k * kH)).status, StepStatus::Ok);
+  const StainSolverSnapshot at3 = solver->snapshot();
+  ASSERT_EQ(solver->step(kH, wavingPositions(scene.mesh, 4 * kH)).status, StepStatus::Ok);
+  ASSERT_EQ(solver->profile().intrinsicRefreshes, 1);
+  solver->restore(at3);
+  solver->abandonStep(wavingPositions(scene.mesh, 3 * kH), RowVectors3::Zero(scene.mesh.vertexPositions.rows(), 3));
+  EXPECT_TRUE(sameState(solver->state(), at3.state));
+  EXPECT_TRUE(sameTier(solver->geometry().intrinsic(), at3.geometry.intrinsic));
+  EXPECT_EQ(solver->time(), at3.time);
+  EXPECT_EQ(solver->stepCount(), 3);
+}
+
 // A small stain on a large, turning cloth: the step changes a small part of
 // the state (the band, the CG diffusion's rows beyond it, an absorbed trace
 // far away that the interaction dries), its rollback point and validation
