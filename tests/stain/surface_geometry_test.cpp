@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <complex>
 #include <cstdio>
 #include <cstring>
 #include <random>
@@ -407,6 +408,32 @@ void expectSameIntrinsic(const IntrinsicGeometry& a, const IntrinsicGeometry& b)
                          b.densityStiffness.valuePtr()));
   EXPECT_TRUE(std::equal(a.velocityStiffness.valuePtr(), a.velocityStiffness.valuePtr() + nnz,
                          b.velocityStiffness.valuePtr()));
+}
+
+// swap(IntrinsicGeometry&, IntrinsicGeometry&) (what a whole rebuild and its
+// undo do with the kept tier) exchanges every field, the operators' buffers
+// themselves: no copy, so no pointer changes owner.
+TEST(SurfaceGeometry, SwappingTwoTiersExchangesEveryFieldAndCopiesNothing) {
+  const TriangleMesh mesh = wavySheet();
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  const FabricField fabric = anisotropicFabric(topology.faceCount(), 5);
+  SurfaceGeometry rest(topology, mesh.vertexPositions, fabric);
+  SurfaceGeometry bumped(topology, bumpedSheet(mesh.vertexPositions, 0.4, 0.35, 0.02, 3), fabric);
+  IntrinsicGeometry a = rest.intrinsic(), b = bumped.intrinsic();
+  b.rebuildCount = 7;
+  const IntrinsicGeometry a0 = a, b0 = b;
+  const double* aDensity = a.densityStiffness.valuePtr();
+  const std::complex<double>* bVelocity = b.velocityStiffness.valuePtr();
+  const double* aLengths = a.edgeLengths.data();
+  swap(a, b);
+  expectSameIntrinsic(a, b0);
+  expectSameIntrinsic(b, a0);
+  EXPECT_EQ(a.rebuildCount, 7);
+  EXPECT_EQ(b.rebuildCount, a0.rebuildCount);
+  EXPECT_EQ(b.densityStiffness.valuePtr(), aDensity);
+  EXPECT_EQ(a.velocityStiffness.valuePtr(), bVelocity);
+  EXPECT_EQ(b.edgeLengths.data(), aLengths);
+  EXPECT_NE(a0.edgeLengths, b0.edgeLengths);  // two different tiers, so the comparisons above can fail
 }
 
 // A partial refresh after local strain gives bitwise the whole tier built

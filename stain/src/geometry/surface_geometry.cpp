@@ -316,8 +316,8 @@ void SurfaceGeometry::refreshIntrinsic() {
   const RowVectors3& positions = dynamic_.extrinsic.nextPositions;
   IntrinsicGeometry& in = dynamic_.intrinsic;
   if (intrinsicRefresh_ == IntrinsicRefresh::Full) {
-    std::swap(kept_.intrinsic, in);
-    std::swap(kept_.inverseBuiltSquaredLengths, dynamic_.inverseBuiltSquaredLengths);
+    swap(kept_.intrinsic, in);
+    kept_.inverseBuiltSquaredLengths.swap(dynamic_.inverseBuiltSquaredLengths);
     in.rebuildCount = kept_.intrinsic.rebuildCount;
   } else {
     kept_.intrinsic = in;
@@ -344,8 +344,8 @@ void SurfaceGeometry::refreshIntrinsic() {
 
 void SurfaceGeometry::undoIntrinsicRefresh() {
   if (!kept_.valid) throw std::logic_error("SurfaceGeometry::undoIntrinsicRefresh: no refresh to undo");
-  std::swap(kept_.intrinsic, dynamic_.intrinsic);
-  std::swap(kept_.inverseBuiltSquaredLengths, dynamic_.inverseBuiltSquaredLengths);
+  swap(kept_.intrinsic, dynamic_.intrinsic);
+  kept_.inverseBuiltSquaredLengths.swap(dynamic_.inverseBuiltSquaredLengths);
   dynamic_.maxEdgeStrain = kept_.maxEdgeStrain;
   strainMeasured_ = kept_.strainMeasured;
   kept_.valid = false;

@@ -17,6 +17,7 @@
 #include <blot/stain/geometry/transport.h>
 #include <blot/stain/types.h>
 
+#include <utility>
 #include <vector>
 
 namespace blot::stain {
@@ -47,6 +48,22 @@ struct IntrinsicGeometry {
   SparseMatrix densityStiffness;        ///< #V by #V, L_Sf (PSD)
   ComplexSparseMatrix velocityStiffness;  ///< #V by #V, connection Laplacian with S_v (PSD)
   int rebuildCount = 0;                 ///< how many times this tier was built
+  /// Exchanges every field's buffers, copying nothing. std::swap would copy
+  /// the two operators three times each: Eigen 3.4's SparseMatrix has no move.
+  friend void swap(IntrinsicGeometry& a, IntrinsicGeometry& b) noexcept {
+    a.edgeLengths.swap(b.edgeLengths);
+    a.faceCornerAngles.swap(b.faceCornerAngles);
+    a.faceAreas.swap(b.faceAreas);
+    a.edgeCotanWeights.swap(b.edgeCotanWeights);
+    a.vertexDualAreas.swap(b.vertexDualAreas);
+    a.polarMap.ringAngles.swap(b.polarMap.ringAngles);
+    a.polarMap.vertexAngleScales.swap(b.polarMap.vertexAngleScales);
+    a.edgeTransportAngles.swap(b.edgeTransportAngles);
+    a.faceTransportAngles.swap(b.faceTransportAngles);
+    a.densityStiffness.swap(b.densityStiffness);
+    a.velocityStiffness.swap(b.velocityStiffness);
+    std::swap(a.rebuildCount, b.rebuildCount);
+  }
   /// Every field, once (save/load and the state hash are built on it).
   template <class Visitor> void visit(Visitor& v) { fields(*this, v); }
   template <class Visitor> void visit(Visitor& v) const { fields(*this, v); }
