@@ -83,7 +83,7 @@ nlohmann::json meshSummary(const std::string& path, const stain::TriangleMesh& m
   const stain::Vector lengths = stain::edgeLengths(topology, mesh.vertexPositions);
   const Eigen::MatrixX3d angles = stain::faceCornerAngles(topology, lengths);
   const stain::Vector areas = stain::faceAreas(topology, lengths);
-  const stain::Vector weights = stain::edgeCotanWeights(topology, angles);
+  const stain::Vector weights = stain::edgeCotanWeights(topology, lengths, areas);
 
   int obtuse = 0;
   for (Eigen::Index f = 0; f < angles.rows(); ++f) obtuse += angles.row(f).maxCoeff() > 0.5 * kPi ? 1 : 0;

@@ -350,7 +350,7 @@ void BM_IntrinsicRebuildPart(benchmark::State& state) {
       case kLengths: benchmark::DoNotOptimize(edgeLengths(topology, p)); break;
       case kAngles: benchmark::DoNotOptimize(faceCornerAngles(topology, lengths)); break;
       case kAreas: benchmark::DoNotOptimize(faceAreas(topology, lengths)); break;
-      case kCotan: benchmark::DoNotOptimize(edgeCotanWeights(topology, angles)); break;
+      case kCotan: benchmark::DoNotOptimize(edgeCotanWeights(topology, lengths, areas)); break;
       case kDualAreas: benchmark::DoNotOptimize(vertexDualAreas(topology, areas)); break;
       case kPolarMap: benchmark::DoNotOptimize(geodesicPolarMap(topology, angles)); break;
       case kEdgeTransport: benchmark::DoNotOptimize(edgeTransportAngles(topology, polar)); break;

@@ -53,7 +53,7 @@ struct GridProblem {
         topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()), "bench grid") {
     const Vector lengths = edgeLengths(topology, mesh.vertexPositions);
     const Eigen::MatrixX3d cornerAngles = faceCornerAngles(topology, lengths);
-    cotanWeights = edgeCotanWeights(topology, cornerAngles);
+    cotanWeights = edgeCotanWeights(topology, lengths, faceAreas(topology, lengths));
     faceAngles = faceTransportAngles(topology, cornerAngles, geodesicPolarMap(topology, cornerAngles));
     const double dx = 1.0 / cells;
     const double hDiffusivity = kWeftDiffusionSteps * dx * dx;  // h·D_weft in m²

@@ -51,7 +51,7 @@ struct Geometry {
     lengths = edgeLengths(topology, mesh.vertexPositions);
     angles = faceCornerAngles(topology, lengths);
     areas = faceAreas(topology, lengths);
-    cotanWeights = edgeCotanWeights(topology, angles);
+    cotanWeights = edgeCotanWeights(topology, lengths, areas);
     dualAreas = vertexDualAreas(topology, areas);
     angleSums = vertexAngleSums(topology, angles);
     polarMap = geodesicPolarMap(topology, angles);

@@ -3,6 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <limits>
+
 #include "geometry_test_support.h"
 
 namespace blot::stain {
@@ -33,7 +36,7 @@ TEST(IntrinsicGeometry, RightTriangleAnglesAreaAndCotanWeights) {
   EXPECT_NEAR(angles(0, 1), std::atan2(4.0, 3.0), 1e-15);
   EXPECT_NEAR(angles(0, 2), std::atan2(3.0, 4.0), 1e-15);
   EXPECT_NEAR(faceAreas(t.topology, l)(0), 6.0, 1e-14);
-  const Vector w = edgeCotanWeights(t.topology, angles);
+  const Vector w = edgeCotanWeights(t.topology, l, faceAreas(t.topology, l));
   for (int e = 0; e < 3; ++e) {
     const int a = t.topology.edgeVertices()(e, 0), b = t.topology.edgeVertices()(e, 1);
     // Boundary edges: one term, ½ cot of the opposite angle.
@@ -95,6 +98,39 @@ TEST(IntrinsicGeometry, RandomMeshAnglesAreasAndCotansMatchEmbedding) {
     }
   }
   EXPECT_LE((g.cotanWeights - expected).cwiseAbs().maxCoeff(), 1e-12 * expected.cwiseAbs().maxCoeff());
+}
+
+// The weights come from the lengths ((b² + c² − a²) / 4A), the angles from
+// atan2 of the same two numbers: on every edge of a jittered sphere (acute
+// and obtuse corners) the weight is ½ Σ cot of the returned angles to 1e-14
+// relative. A face of area 0 keeps the angles' limits: +inf opposite a zero
+// angle, a large finite negative weight opposite an angle of π.
+TEST(IntrinsicGeometry, CotanWeightsAreHalfTheCotOfTheCornerAngles) {
+  const Geometry g(testing::jitteredIcosphere(3, 0.45, 7));
+  Vector fromAngles = Vector::Zero(g.topology.edgeCount());
+  int obtuse = 0;
+  for (int f = 0; f < g.faceCount(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const double angle = g.angles(f, k);
+      obtuse += angle > kPi / 2 ? 1 : 0;
+      fromAngles(g.topology.faceEdges()(f, (k + 1) % 3)) += 0.5 * std::cos(angle) / std::sin(angle);
+    }
+  EXPECT_GT(obtuse, 0);  // the comparison covers negative cotangents too
+  for (int e = 0; e < g.topology.edgeCount(); ++e)
+    EXPECT_NEAR(g.cotanWeights(e), fromAngles(e), 1e-14 * (1.0 + std::abs(fromAngles(e)))) << "edge " << e;
+
+  const SingleTriangle t;
+  const Vector flat = t.lengths(1.0, 1.0, 2.0);  // vertex 1 at angle π, vertices 0 and 2 at 0
+  const Vector w = edgeCotanWeights(t.topology, flat, faceAreas(t.topology, flat));
+  for (int e = 0; e < 3; ++e) {
+    const int a = t.topology.edgeVertices()(e, 0), b = t.topology.edgeVertices()(e, 1);
+    if (a == 0 && b == 2) {
+      EXPECT_TRUE(std::isfinite(w(e)));  // opposite vertex 1, angle π
+      EXPECT_LT(w(e), -1e15);
+    } else {
+      EXPECT_EQ(w(e), std::numeric_limits<double>::infinity()) << "edge " << a << "-" << b;
+    }
+  }
 }
 
 TEST(IntrinsicGeometry, AngleSumsOnFlatAndClosedMeshes) {

@@ -21,27 +21,38 @@ double stableHeronArea(double a, double b, double c) {
   return 0.25 * std::sqrt(std::max(p, 0.0));
 }
 
+// Corner k of a face with edge lengths l: its adjacent edges faceEdges(f, k)
+// and faceEdges(f, k + 2), its opposite edge faceEdges(f, k + 1). Returns
+// b² + c² − a² = 2bc·cos θ_k in the cancellation-free order (b >= c), so that
+// θ_k = atan2(4A, that) and cot θ_k = that / 4A.
+inline double cornerCosineTerm(const double (&l)[3], int k) {
+  double b = l[k], c = l[(k + 2) % 3];
+  const double a = l[(k + 1) % 3];
+  if (b < c) std::swap(b, c);
+  return (b - a) * (b + a) + c * c;
+}
+
 // Corner angles and area of face f (the body of faceCornerAngles and faceAreas).
 inline void faceAnglesAndArea(const Eigen::MatrixX3i& fe, const Vector& edgeLengths, int f, Eigen::MatrixX3d& angles,
                               double& area) {
-  const double l0 = edgeLengths(fe(f, 0)), l1 = edgeLengths(fe(f, 1)), l2 = edgeLengths(fe(f, 2));
-  area = stableHeronArea(l0, l1, l2);
+  const double l[3] = {edgeLengths(fe(f, 0)), edgeLengths(fe(f, 1)), edgeLengths(fe(f, 2))};
+  area = stableHeronArea(l[0], l[1], l[2]);
   const double fourArea = 4.0 * area;
-  // Corner k: adjacent edges faceEdges(f, k) and faceEdges(f, k + 2),
-  // opposite edge faceEdges(f, k + 1).
-  const double l[3] = {l0, l1, l2};
-  for (int k = 0; k < 3; ++k) {
-    double b = l[k], c = l[(k + 2) % 3];
-    const double a = l[(k + 1) % 3];
-    if (b < c) std::swap(b, c);
-    angles(f, k) = std::atan2(fourArea, (b - a) * (b + a) + c * c);
-  }
+  for (int k = 0; k < 3; ++k) angles(f, k) = std::atan2(fourArea, cornerCosineTerm(l, k));
 }
 
 // Half of the cotangent of the angle opposite half-edge h (its face's corner
-// (h % 3 + 2) % 3).
-inline double halfCotangentOpposite(const Eigen::MatrixX3d& angles, int h) {
-  const double angle = angles(h / 3, (h % 3 + 2) % 3);
+// (h % 3 + 2) % 3): ½ (b² + c² − a²) / 4A, from the lengths and the area the
+// corner angles are built from, without a trigonometric call. A face of area
+// 0 keeps the limit of the angle's cot: +inf at θ = 0, its cos / sin at θ = π.
+inline double halfCotangentOpposite(const Eigen::MatrixX3i& fe, const Vector& edgeLengths, const Vector& faceAreas,
+                                    int h) {
+  const int f = h / 3;
+  const double l[3] = {edgeLengths(fe(f, 0)), edgeLengths(fe(f, 1)), edgeLengths(fe(f, 2))};
+  const double cosineTerm = cornerCosineTerm(l, (h % 3 + 2) % 3);
+  const double fourArea = 4.0 * faceAreas(f);
+  if (fourArea > 0.0) return 0.5 * cosineTerm / fourArea;
+  const double angle = std::atan2(fourArea, cosineTerm);
   return 0.5 * std::cos(angle) / std::sin(angle);
 }
 
@@ -75,9 +86,10 @@ Vector faceAreas(const SurfaceTopology& topology, const Vector& edgeLengths) {
   return areas;
 }
 
-Vector edgeCotanWeights(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles) {
+Vector edgeCotanWeights(const SurfaceTopology& topology, const Vector& edgeLengths, const Vector& faceAreas) {
   Vector weights(topology.edgeCount());
-  for (int e = 0; e < topology.edgeCount(); ++e) updateEdgeCotanWeights(topology, faceCornerAngles, &e, 1, weights);
+  for (int e = 0; e < topology.edgeCount(); ++e)
+    updateEdgeCotanWeights(topology, edgeLengths, faceAreas, &e, 1, weights);
   return weights;
 }
 
@@ -97,16 +109,17 @@ void updateFaceAnglesAndAreas(const SurfaceTopology& topology, const Vector& edg
   for (int n = 0; n < count; ++n) faceAnglesAndArea(fe, edgeLengths, faces[n], faceCornerAngles, faceAreas(faces[n]));
 }
 
-void updateEdgeCotanWeights(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles,
+void updateEdgeCotanWeights(const SurfaceTopology& topology, const Vector& edgeLengths, const Vector& faceAreas,
                             const int* edges, int count, Vector& edgeCotanWeights) {
+  const Eigen::MatrixX3i& fe = topology.faceEdges();
   for (int n = 0; n < count; ++n) {
     // The lower-index face's half first, then the other's: the order of a
     // face-by-face sum, so the bits do not depend on which edges are updated.
     const int e = edges[n];
     const int h = topology.edgeHalfedges()[static_cast<size_t>(e)];
     const int twin = topology.halfedgeTwins()[static_cast<size_t>(h)];
-    double w = halfCotangentOpposite(faceCornerAngles, h);
-    if (twin >= 0) w += halfCotangentOpposite(faceCornerAngles, twin);
+    double w = halfCotangentOpposite(fe, edgeLengths, faceAreas, h);
+    if (twin >= 0) w += halfCotangentOpposite(fe, edgeLengths, faceAreas, twin);
     edgeCotanWeights(e) = w;
   }
 }

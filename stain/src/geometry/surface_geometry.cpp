@@ -282,7 +282,7 @@ namespace {
 void lengthQuantities(const SurfaceTopology& topology, IntrinsicGeometry& in) {
   in.faceCornerAngles = faceCornerAngles(topology, in.edgeLengths);
   in.faceAreas = faceAreas(topology, in.edgeLengths);
-  in.edgeCotanWeights = edgeCotanWeights(topology, in.faceCornerAngles);
+  in.edgeCotanWeights = edgeCotanWeights(topology, in.edgeLengths, in.faceAreas);
   in.vertexDualAreas = vertexDualAreas(topology, in.faceAreas);
   in.polarMap = geodesicPolarMap(topology, in.faceCornerAngles);
   in.edgeTransportAngles = edgeTransportAngles(topology, in.polarMap);
@@ -465,7 +465,7 @@ bool SurfaceGeometry::refreshIntrinsicPartially(const RowVectors3& positions) {
   // function writes for those elements).
   const auto size = [](const std::vector<int>& list) { return static_cast<int>(list.size()); };
   updateFaceAnglesAndAreas(topology, in.edgeLengths, faces1_.data(), size(faces1_), in.faceCornerAngles, in.faceAreas);
-  updateEdgeCotanWeights(topology, in.faceCornerAngles, edges1_.data(), size(edges1_), in.edgeCotanWeights);
+  updateEdgeCotanWeights(topology, in.edgeLengths, in.faceAreas, edges1_.data(), size(edges1_), in.edgeCotanWeights);
   updateVertexDualAreas(topology, in.faceAreas, vertices1_.data(), size(vertices1_), in.vertexDualAreas);
   updateGeodesicPolarMap(topology, in.faceCornerAngles, vertices1_.data(), size(vertices1_), in.polarMap);
   updateEdgeTransportAngles(topology, in.polarMap, edges2_.data(), size(edges2_), in.edgeTransportAngles);

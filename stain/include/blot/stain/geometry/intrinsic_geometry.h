@@ -25,8 +25,10 @@ Vector faceAreas(const SurfaceTopology& topology, const Vector& edgeLengths);
 
 /// #E cotan weights w_ij = ½ (cot α_ij + cot β_ij), α, β the angles opposite the
 /// edge (one term on boundary edges). Positive for Delaunay edges; the paper's
-/// eq. (7) writes the Laplacian entry as −w_ij with this w.
-Vector edgeCotanWeights(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles);
+/// eq. (7) writes the Laplacian entry as −w_ij with this w. From the lengths
+/// and the faceAreas of those lengths: cot θ = (b² + c² − a²) / 4A, no
+/// trigonometric call (the angles' own atan2 takes the same two numbers).
+Vector edgeCotanWeights(const SurfaceTopology& topology, const Vector& edgeLengths, const Vector& faceAreas);
 
 /// #V lumped (barycentric) mass: one third of the one-ring area.
 Vector vertexDualAreas(const SurfaceTopology& topology, const Vector& faceAreas);
@@ -39,7 +41,7 @@ Vector vertexDualAreas(const SurfaceTopology& topology, const Vector& faceAreas)
 void updateFaceAnglesAndAreas(const SurfaceTopology& topology, const Vector& edgeLengths, const int* faces,
                               int count, Eigen::MatrixX3d& faceCornerAngles, Vector& faceAreas);
 /// Cotan weights of edges[0, count).
-void updateEdgeCotanWeights(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles,
+void updateEdgeCotanWeights(const SurfaceTopology& topology, const Vector& edgeLengths, const Vector& faceAreas,
                             const int* edges, int count, Vector& edgeCotanWeights);
 /// Dual areas of vertices[0, count).
 void updateVertexDualAreas(const SurfaceTopology& topology, const Vector& faceAreas, const int* vertices, int count,
