@@ -133,6 +133,25 @@ TEST(IntrinsicGeometry, CotanWeightsAreHalfTheCotOfTheCornerAngles) {
   }
 }
 
+// The one-pass function a rebuild calls gives bitwise the three whole-mesh
+// functions' values, on a closed sphere and on a sheet with boundary edges
+// (one cotan term), into arrays of another size (resized) and of the right
+// size (reused).
+TEST(IntrinsicGeometry, OnePassAnglesAreasAndCotansAreTheSeparateFunctionsBitwise) {
+  for (const TriangleMesh& mesh : {testing::jitteredIcosphere(3, 0.45, 7), gridMesh(7, 5, 1.0, 0.6)}) {
+    const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+    const Vector lengths = edgeLengths(topology, mesh.vertexPositions);
+    Eigen::MatrixX3d angles(2, 3);
+    Vector areas(1), weights;
+    for (int pass = 0; pass < 2; ++pass) {
+      faceAnglesAreasAndCotanWeights(topology, lengths, angles, areas, weights);
+      EXPECT_EQ(angles, faceCornerAngles(topology, lengths));
+      EXPECT_EQ(areas, faceAreas(topology, lengths));
+      EXPECT_EQ(weights, edgeCotanWeights(topology, lengths, faceAreas(topology, lengths)));
+    }
+  }
+}
+
 TEST(IntrinsicGeometry, AngleSumsOnFlatAndClosedMeshes) {
   // Flat grid: interior vertices sum to 2π, corners to π/2, edges to π.
   const Geometry grid(gridMesh(6, 4, 3.0, 2.0));

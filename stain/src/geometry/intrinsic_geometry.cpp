@@ -41,19 +41,22 @@ inline void faceAnglesAndArea(const Eigen::MatrixX3i& fe, const Vector& edgeLeng
   for (int k = 0; k < 3; ++k) angles(f, k) = std::atan2(fourArea, cornerCosineTerm(l, k));
 }
 
+// ½ cot θ of a corner from its b² + c² − a² and its face's 4A, without a
+// trigonometric call; a face of area 0 keeps the limit of the angle's cot:
+// +inf at θ = 0, its cos / sin at θ = π.
+inline double halfCotangent(double cosineTerm, double fourArea) {
+  if (fourArea > 0.0) return 0.5 * cosineTerm / fourArea;
+  const double angle = std::atan2(fourArea, cosineTerm);
+  return 0.5 * std::cos(angle) / std::sin(angle);
+}
+
 // Half of the cotangent of the angle opposite half-edge h (its face's corner
-// (h % 3 + 2) % 3): ½ (b² + c² − a²) / 4A, from the lengths and the area the
-// corner angles are built from, without a trigonometric call. A face of area
-// 0 keeps the limit of the angle's cot: +inf at θ = 0, its cos / sin at θ = π.
+// (h % 3 + 2) % 3), from the lengths and the area the corner angles are built from.
 inline double halfCotangentOpposite(const Eigen::MatrixX3i& fe, const Vector& edgeLengths, const Vector& faceAreas,
                                     int h) {
   const int f = h / 3;
   const double l[3] = {edgeLengths(fe(f, 0)), edgeLengths(fe(f, 1)), edgeLengths(fe(f, 2))};
-  const double cosineTerm = cornerCosineTerm(l, (h % 3 + 2) % 3);
-  const double fourArea = 4.0 * faceAreas(f);
-  if (fourArea > 0.0) return 0.5 * cosineTerm / fourArea;
-  const double angle = std::atan2(fourArea, cosineTerm);
-  return 0.5 * std::cos(angle) / std::sin(angle);
+  return halfCotangent(cornerCosineTerm(l, (h % 3 + 2) % 3), 4.0 * faceAreas(f));
 }
 
 }  // namespace
@@ -101,6 +104,29 @@ Vector vertexDualAreas(const SurfaceTopology& topology, const Vector& faceAreas)
     for (int k = 0; k < 3; ++k) dual(faces(f, k)) += third;
   }
   return dual;
+}
+
+void faceAnglesAreasAndCotanWeights(const SurfaceTopology& topology, const Vector& edgeLengths,
+                                    Eigen::MatrixX3d& faceCornerAngles, Vector& faceAreas,
+                                    Vector& edgeCotanWeights) {
+  const Eigen::MatrixX3i& fe = topology.faceEdges();
+  const int faceCount = topology.faceCount();
+  faceCornerAngles.resize(faceCount, 3);
+  faceAreas.resize(faceCount);
+  edgeCotanWeights.setZero(topology.edgeCount());
+  for (int f = 0; f < faceCount; ++f) {
+    const double l[3] = {edgeLengths(fe(f, 0)), edgeLengths(fe(f, 1)), edgeLengths(fe(f, 2))};
+    const double area = stableHeronArea(l[0], l[1], l[2]);
+    const double fourArea = 4.0 * area;
+    faceAreas(f) = area;
+    for (int k = 0; k < 3; ++k) {
+      const double cosineTerm = cornerCosineTerm(l, k);
+      faceCornerAngles(f, k) = std::atan2(fourArea, cosineTerm);
+      // Corner k is opposite edge faceEdges(f, k + 1). Faces ascending: an
+      // edge's lower-index face adds first, onto 0, as updateEdgeCotanWeights sums.
+      edgeCotanWeights(fe(f, (k + 1) % 3)) += halfCotangent(cosineTerm, fourArea);
+    }
+  }
 }
 
 void updateFaceAnglesAndAreas(const SurfaceTopology& topology, const Vector& edgeLengths, const int* faces,

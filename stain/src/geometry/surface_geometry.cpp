@@ -280,9 +280,7 @@ namespace {
 
 // Everything of the tier that follows from in.edgeLengths before the operators.
 void lengthQuantities(const SurfaceTopology& topology, IntrinsicGeometry& in) {
-  in.faceCornerAngles = faceCornerAngles(topology, in.edgeLengths);
-  in.faceAreas = faceAreas(topology, in.edgeLengths);
-  in.edgeCotanWeights = edgeCotanWeights(topology, in.edgeLengths, in.faceAreas);
+  faceAnglesAreasAndCotanWeights(topology, in.edgeLengths, in.faceCornerAngles, in.faceAreas, in.edgeCotanWeights);
   in.vertexDualAreas = vertexDualAreas(topology, in.faceAreas);
   in.polarMap = geodesicPolarMap(topology, in.faceCornerAngles);
   in.edgeTransportAngles = edgeTransportAngles(topology, in.polarMap);

@@ -30,6 +30,14 @@ Vector faceAreas(const SurfaceTopology& topology, const Vector& edgeLengths);
 /// trigonometric call (the angles' own atan2 takes the same two numbers).
 Vector edgeCotanWeights(const SurfaceTopology& topology, const Vector& edgeLengths, const Vector& faceAreas);
 
+/// faceCornerAngles, faceAreas and edgeCotanWeights above in one pass over
+/// the faces, bitwise the same values, into the given arrays (resized; no
+/// allocation when they already have the mesh's sizes). What a metric
+/// rebuild calls.
+void faceAnglesAreasAndCotanWeights(const SurfaceTopology& topology, const Vector& edgeLengths,
+                                    Eigen::MatrixX3d& faceCornerAngles, Vector& faceAreas,
+                                    Vector& edgeCotanWeights);
+
 /// #V lumped (barycentric) mass: one third of the one-ring area.
 Vector vertexDualAreas(const SurfaceTopology& topology, const Vector& faceAreas);
 
