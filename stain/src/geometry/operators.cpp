@@ -198,18 +198,37 @@ inline void addEntry(Eigen::SparseMatrix<Scalar>& L, int row, int col, const Sca
 
 }  // namespace
 
-Matrix3 triangleStiffness(const Vector2& p0, const Vector2& p1, const Vector2& p2,
-                          const Matrix2& tensor) {
+namespace {
+
+// A triangle's P1 hat-function gradients (columns) and its area: what its
+// stiffness needs besides the tensor, so one face's two operators share them.
+struct TriangleGradients {
+  Eigen::Matrix<double, 2, 3> gradients;
+  double area;
+};
+
+TriangleGradients triangleGradients(const Vector2& p0, const Vector2& p1, const Vector2& p2) {
   const Vector2 p[3] = {p0, p1, p2};
   const double twiceSignedArea =
       (p1.x() - p0.x()) * (p2.y() - p0.y()) - (p1.y() - p0.y()) * (p2.x() - p0.x());
-  Eigen::Matrix<double, 2, 3> gradients;
+  TriangleGradients g;
   for (int k = 0; k < 3; ++k) {
     const Vector2 edge = p[(k + 2) % 3] - p[(k + 1) % 3];
-    gradients.col(k) = Vector2(-edge.y(), edge.x()) / twiceSignedArea;
+    g.gradients.col(k) = Vector2(-edge.y(), edge.x()) / twiceSignedArea;
   }
-  const double area = 0.5 * std::abs(twiceSignedArea);
-  return area * gradients.transpose() * tensor * gradients;
+  g.area = 0.5 * std::abs(twiceSignedArea);
+  return g;
+}
+
+Matrix3 stiffnessFromGradients(const TriangleGradients& g, const Matrix2& tensor) {
+  return g.area * g.gradients.transpose() * tensor * g.gradients;
+}
+
+}  // namespace
+
+Matrix3 triangleStiffness(const Vector2& p0, const Vector2& p1, const Vector2& p2,
+                          const Matrix2& tensor) {
+  return stiffnessFromGradients(triangleGradients(p0, p1, p2), tensor);
 }
 
 Eigen::MatrixX3d identityFaceTensors(int faceCount) {
@@ -333,12 +352,11 @@ void refillStiffnessAndConnection(const SurfaceTopology& topology, const RowVect
   for (int f = 0; f < topology.faceCount(); ++f) {
     const FaceFrame frame = faceFrame(topology, vertexPositions, f);
     const int* at = entry + 9 * static_cast<size_t>(f);
-    const Matrix3 Kd = triangleStiffness(frame.corners[0], frame.corners[1], frame.corners[2],
-                                         tensorInFrame(frame, densityTensors, faceWeftDirections, f));
+    const TriangleGradients gradients = triangleGradients(frame.corners[0], frame.corners[1], frame.corners[2]);
+    const Matrix3 Kd = stiffnessFromGradients(gradients, tensorInFrame(frame, densityTensors, faceWeftDirections, f));
     for (int k = 0; k < 3; ++k)
       for (int l = 0; l < 3; ++l) stiffnessValues[at[3 * k + l]] += Kd(k, l);
-    const Matrix3 Kv = triangleStiffness(frame.corners[0], frame.corners[1], frame.corners[2],
-                                         tensorInFrame(frame, velocityTensors, faceWeftDirections, f));
+    const Matrix3 Kv = stiffnessFromGradients(gradients, tensorInFrame(frame, velocityTensors, faceWeftDirections, f));
     Complex r[3];
     for (int k = 0; k < 3; ++k) r[k] = std::polar(1.0, faceTransportAngles(f, k));
     for (int k = 0; k < 3; ++k)
