@@ -176,6 +176,9 @@ stain::StepReport CoupledSurface::step(double h) {
 stain::StepReport CoupledSurface::takeLiquidAtStart() {
   stain::StepReport report;
   report.stage = stain::Stage::Coupling;
+  // Free: the momentum reads each wet vertex's frame, which a write from
+  // outside may have put where no step prepared it.
+  if (relative_ == RelativeMomentum::Free) stain_->completeGeometryAfterOutsideWrite();
   gatherLiquid(startMasses_, &startRelative_);
   if (startMasses_ == liquidMasses_) return report;
   // Only a state given from outside (a drop, a write to the stain's state, a

@@ -211,6 +211,12 @@ void StainSolver::completeGeometry() {
   geometry_.prepareAllVertices();
 }
 
+void StainSolver::completeGeometryAfterOutsideWrite() {
+  if (!writtenSinceRefresh_) return;
+  completeGeometry();
+  writtenSinceRefresh_ = false;
+}
+
 void StainSolver::setThreadCount(int threads) {
   if (threads < 0 || threads > kMaxThreads)
     throw std::invalid_argument("StainSolver::setThreadCount: expected a count in [0, " + std::to_string(kMaxThreads) +
@@ -301,6 +307,7 @@ bool StainSolver::everHeldLiquid() const {
 }
 
 void StainSolver::stateWrittenOutside() {
+  writtenSinceRefresh_ = true;
   backup_.markStale();
   band_.scanAll = true;
   validateAll_ = true;
@@ -618,6 +625,7 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
   }
   const bool rebuild = rigidRotation != nullptr ? geometry_.refreshExtrinsicRigid(nextPositions, *rigidRotation, h)
                                                 : geometry_.refreshExtrinsic(nextPositions, h, everHeldLiquid());
+  writtenSinceRefresh_ = false;  // new frames: a vertex without them is one no stage reads
   profile_.maxEdgeStrain = geometry_.maxEdgeStrain();
   if (rebuild) {
     noteAllChanged();  // every density is rescaled

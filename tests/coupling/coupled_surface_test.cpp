@@ -111,6 +111,33 @@ TEST(CoupledSurface, MoreLiquidThanANodeTakesFailsTheStepAndChangesNothing) {
   EXPECT_TRUE(blot::testing::bulletClothOf(*twoWay).isHealthy());
 }
 
+// Liquid written from outside (mutableState) on a vertex that no step has
+// prepared since the cloth moved on: with RelativeMomentum::Free the next
+// step's start-of-step momentum reads that vertex's current frame, as on a
+// solver whose geometry is complete, so the two runs give the same bits
+// (before, the lazy one read the frame the drop had prepared 20 steps
+// earlier, and the impulse there differed in its third digit).
+TEST(CoupledSurface, LiquidWrittenFromOutsideIsReadInTheCurrentFrames) {
+  const test::CoupledFlag flag = test::makeCoupledFlag(16, true);
+  auto lazy = test::makeCoupledSurface(flag, CouplingMode::TwoWay, RelativeMomentum::Free);
+  auto complete = test::makeCoupledSurface(flag, CouplingMode::TwoWay, RelativeMomentum::Free);
+  for (auto* s : {lazy.get(), complete.get()}) s->stain().addDrop(heavyDrop({0.5, 0, 0.5}, 0.01));
+  for (int k = 0; k < 20; ++k)
+    for (auto* s : {lazy.get(), complete.get()}) ASSERT_EQ(s->step(kFrame).status, stain::StepStatus::Ok);
+  const int far = 0;  // a bottom corner, far from the drop
+  ASSERT_FALSE(lazy->stain().geometry().vertexPrepared(far));
+  for (auto* s : {lazy.get(), complete.get()}) {
+    stain::StainState& state = s->stain().mutableState();
+    state.solvent[far] = 0.5;
+    state.velocities[far] = stain::Complex(0.05, -0.02);
+  }
+  complete->stain().completeGeometry();
+  for (auto* s : {lazy.get(), complete.get()}) ASSERT_EQ(s->step(kFrame).status, stain::StepStatus::Ok);
+  EXPECT_GT(complete->pendingImpulses().row(far).norm(), 0.0);  // the written liquid moved the cloth
+  EXPECT_EQ(lazy->pendingImpulses(), complete->pendingImpulses());
+  EXPECT_EQ(lazy->motion().positions(), complete->motion().positions());
+}
+
 // After the first step, a step allocates nothing: two-way Bullet flag (no
 // colliders; Bullet's own per-substep scratch is recycled, see bullet_cloth.cpp)
 // and a rigid motion. The stain's intrinsic rebuild (when the cloth's strain

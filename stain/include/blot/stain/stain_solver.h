@@ -182,6 +182,13 @@ class StainSolver {
   /// completeGeometry() computes them on every vertex (for views and outputs).
   const SurfaceGeometry& geometry() const { return geometry_; }
   void completeGeometry();
+  /// completeGeometry() if the state was written from outside since the last
+  /// step's refresh (mutableState may have put liquid where no step prepared
+  /// the frame); otherwise nothing, since the last step prepared every vertex
+  /// holding free liquid. For a reader of the whole state between steps that
+  /// needs frames (the coupling's start-of-step momentum with
+  /// RelativeMomentum::Free).
+  void completeGeometryAfterOutsideWrite();
   const StepProfile& profile() const { return profile_; }
   const StainSolverDef& definition() const { return def_; }
   /// Threads the steps use (≥ 1; StainSolverDef::threads resolved), and a new
@@ -277,6 +284,9 @@ class StainSolver {
   StainState state_;
   StateBackup backup_;       // the rollback point: a mirror of the state and the vertices this step changed
   bool validateAll_ = true;  // written from outside since the last full validation passed
+  // The state was written from outside since the last refresh of the
+  // frames (completeGeometryAfterOutsideWrite).
+  bool writtenSinceRefresh_ = false;
   // mutableState was called (or a restored state holds something): liquid
   // may be on the surface though nothing was added (everHeldLiquid).
   bool writtenOutside_ = false;
