@@ -196,10 +196,6 @@ inline void addEntry(Eigen::SparseMatrix<Scalar>& L, int row, int col, const Sca
   L.valuePtr()[entryPosition(L.outerIndexPtr(), L.innerIndexPtr(), row, col)] += value;
 }
 
-}  // namespace
-
-namespace {
-
 // A triangle's P1 hat-function gradients (columns) and its area: what its
 // stiffness needs besides the tensor, so one face's two operators share them.
 struct TriangleGradients {
