@@ -19,10 +19,11 @@ namespace blot::engine {
 namespace {
 
 constexpr char kMagic[8] = {'B', 'L', 'O', 'T', 'S', 'T', 'A', 'T'};
-constexpr std::uint32_t kVersion = 5;  // 2: field lists; 3: drops carry relativeVelocity and velocityIsWorld;
+constexpr std::uint32_t kVersion = 6;  // 2: field lists; 3: drops carry relativeVelocity and velocityIsWorld;
                                        // 4: the run counters (drops applied, refreshes, term steps);
                                        // 5: geometry without previousRotations, with nextSlotKind,
-                                       //    Bullet pins moved at runtime (movedPins, pinTargets)
+                                       //    Bullet pins moved at runtime (movedPins, pinTargets);
+                                       // 6: the stain's writtenOutside (a write through mutableState)
 
 /// True for a type with a field list (a visit member).
 template <typename T, typename = void>

@@ -904,6 +904,7 @@ StainSolverSnapshot StainSolver::snapshot() const {
   s.time = time_;
   s.steps = steps_;
   s.started = started_;
+  s.writtenOutside = writtenOutside_;
   return s;
 }
 
@@ -943,9 +944,12 @@ void StainSolver::restore(const StainSolverSnapshot& s) {
   }
   state_ = s.state;
   stateWrittenOutside();
-  // A function of the state, so that a restored solver tests strain exactly
-  // where the one that saved it did (everHeldLiquid).
-  writtenOutside_ = false;
+  // As saved, so that a restored solver tests strain exactly where the one
+  // that saved it did (everHeldLiquid), also after a write from outside that
+  // was cleared again; and set by any liquid in the state, which a state put
+  // together elsewhere may hold without either flag (a saving solver with
+  // liquid always had a drop, a source or a write from outside).
+  writtenOutside_ = s.writtenOutside;
   for (const Vector* f : {&state_.solvent, &state_.solute, &state_.absorbedSolvent, &state_.absorbedSolute,
                           &state_.adsorbedSolute})
     writtenOutside_ = writtenOutside_ || (f->array() != 0.0).any();

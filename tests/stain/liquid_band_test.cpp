@@ -848,6 +848,43 @@ TEST(LiquidBand, TheStrainTestWaitsForTheFirstLiquid) {
   EXPECT_EQ(clean.profile().intrinsicRefreshes, 0) << "0.1 % since the rebuild";
 }
 
+// A write from outside that was cleared again still has the steps test
+// strain, and a solver restored from a snapshot taken then tests it too (the
+// flag is saved; it was derived from the densities, all zero here, so the
+// restored solver skipped the test and never rebuilt while the one that
+// saved it did). Both then hold the same tier and state to the bit.
+TEST(LiquidBand, ARestoredSolverTestsStrainWhereTheOneThatSavedItDid) {
+  const TriangleMesh mesh = gridMesh(20, 20, 1.0, 1.0);
+  const int n = static_cast<int>(mesh.vertexPositions.rows());
+  const SurfaceTopology topology(mesh.faces, n);
+  const FabricField fabric = isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 1e-4);
+  StainSolverDef def;
+  def.strainTolerance = 1e-2;
+  StainSolver saver(topology, mesh.vertexPositions, fabric, def);
+  saver.mutableState().solvent[n / 2] = 0.5;
+  const double h = 0.01;
+  ASSERT_EQ(saver.step(h, mesh.vertexPositions).status, StepStatus::Ok);
+  saver.mutableState().solvent.setZero();  // the caller takes its liquid back
+  saver.mutableState().solute.setZero();
+  saver.mutableState().absorbedSolvent.setZero();
+  saver.mutableState().absorbedSolute.setZero();
+  saver.mutableState().adsorbedSolute.setZero();
+  StainSolver restored(topology, mesh.vertexPositions, fabric, def);
+  restored.restore(saver.snapshot());
+  int saverRebuilds = 0, restoredRebuilds = 0;
+  for (int step = 1; step <= 8; ++step) {
+    const RowVectors3 next = (1.0 + 0.01 * step) * mesh.vertexPositions;
+    for (StainSolver* s : {&saver, &restored}) ASSERT_EQ(s->step(h, next).status, StepStatus::Ok);
+    saverRebuilds += saver.profile().intrinsicRefreshes;
+    restoredRebuilds += restored.profile().intrinsicRefreshes;
+  }
+  EXPECT_GE(saverRebuilds, 3) << "1 % a step against a 1 % tolerance";
+  EXPECT_EQ(restoredRebuilds, saverRebuilds);
+  EXPECT_EQ(restored.geometry().intrinsic().edgeLengths, saver.geometry().intrinsic().edgeLengths);
+  EXPECT_EQ(restored.geometry().intrinsic().rebuildCount, saver.geometry().intrinsic().rebuildCount);
+  EXPECT_TRUE(restored.snapshot().writtenOutside);
+}
+
 // The incremental wet set (LiquidBand::candidates): on a small stain on a
 // turning cloth, with an absorbed trace far from it and a drop landing on the
 // dry side later, each step's wet set, damp and absorbing lists equal a full

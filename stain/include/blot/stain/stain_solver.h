@@ -87,6 +87,11 @@ struct StainSolverSnapshot {
   double time = 0;
   int steps = 0;
   bool started = false;
+  /// The state was written through mutableState (liquid may have been on the
+  /// surface without a drop): the steps test strain from then on
+  /// (everHeldLiquid). Saved, not derived from the densities, which the
+  /// caller may have cleared again.
+  bool writtenOutside = false;
 
   /// Every field, once (save/load and the state hash are built on it).
   template <class Visitor> void visit(Visitor& v) { fields(*this, v); }
@@ -101,6 +106,7 @@ struct StainSolverSnapshot {
     v.field("time", s.time);
     v.field("steps", s.steps);
     v.field("started", s.started);
+    v.field("writtenOutside", s.writtenOutside);
   }
 };
 
