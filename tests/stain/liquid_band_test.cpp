@@ -809,25 +809,38 @@ TEST(LiquidBand, ASoakedPatchDriesTheSameBitsWithoutABand) {
   EXPECT_GT(apart.state().evaporatedSolvent, 0.0);
 }
 
+// A flat cells × cells grid and what a solver on it needs, with a 1 %
+// strain tolerance: the strain-test tests stretch it by 1 % a step.
+struct StrainTestGrid {
+  explicit StrainTestGrid(int cells)
+      : mesh(gridMesh(cells, cells, 1.0, 1.0)),
+        topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows())),
+        fabric(isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 1e-4)) {
+    def.strainTolerance = 1e-2;
+  }
+  int vertexCount() const { return static_cast<int>(mesh.vertexPositions.rows()); }
+  StainSolver solver() const { return StainSolver(topology, mesh.vertexPositions, fabric, def); }
+  RowVectors3 stretched(double factor) const { return factor * mesh.vertexPositions; }
+  TriangleMesh mesh;
+  SurfaceTopology topology;
+  FabricField fabric;
+  StainSolverDef def;
+};
+
 // A deforming cloth no liquid has been on skips the strain test (nothing
 // reads its metric): no rebuild however far it stretches. The step after
 // the first drop tests every edge and rebuilds from the positions then, and
 // the drop's mass is kept through the rescaling. A solver that had its
 // state written from outside tests every step, as before.
 TEST(LiquidBand, TheStrainTestWaitsForTheFirstLiquid) {
-  const TriangleMesh mesh = gridMesh(30, 30, 1.0, 1.0);
-  const int n = static_cast<int>(mesh.vertexPositions.rows());
-  const SurfaceTopology topology(mesh.faces, n);
-  const FabricField fabric = isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 1e-4);
-  StainSolverDef def;
-  def.strainTolerance = 1e-2;
-  StainSolver clean(topology, mesh.vertexPositions, fabric, def);
-  StainSolver written(topology, mesh.vertexPositions, fabric, def);
+  const StrainTestGrid grid(30);
+  StainSolver clean = grid.solver();
+  StainSolver written = grid.solver();
   written.mutableState();  // nothing written, but it could have been
   const double h = 0.01;
   int cleanRebuilds = 0, writtenRebuilds = 0;
   for (int step = 1; step <= 10; ++step) {
-    const RowVectors3 next = (1.0 + 0.01 * step) * mesh.vertexPositions;
+    const RowVectors3 next = grid.stretched(1.0 + 0.01 * step);
     for (StainSolver* s : {&clean, &written}) ASSERT_EQ(s->step(h, next).status, StepStatus::Ok);
     cleanRebuilds += clean.profile().intrinsicRefreshes;
     writtenRebuilds += written.profile().intrinsicRefreshes;
@@ -840,11 +853,11 @@ TEST(LiquidBand, TheStrainTestWaitsForTheFirstLiquid) {
   drop.radius = 0.1;
   drop.solventMass = 0.01;
   clean.addDrop(drop);
-  ASSERT_EQ(clean.step(h, 1.11 * mesh.vertexPositions).status, StepStatus::Ok);
+  ASSERT_EQ(clean.step(h, grid.stretched(1.11)).status, StepStatus::Ok);
   EXPECT_EQ(clean.profile().intrinsicRefreshes, 1);
   EXPECT_NEAR(clean.profile().maxEdgeStrain, 0.11, 1e-9);
   EXPECT_LT(clean.massBudget().solventError(), 1e-12);
-  ASSERT_EQ(clean.step(h, 1.111 * mesh.vertexPositions).status, StepStatus::Ok);
+  ASSERT_EQ(clean.step(h, grid.stretched(1.111)).status, StepStatus::Ok);
   EXPECT_EQ(clean.profile().intrinsicRefreshes, 0) << "0.1 % since the rebuild";
 }
 
@@ -852,28 +865,23 @@ TEST(LiquidBand, TheStrainTestWaitsForTheFirstLiquid) {
 // strain, and a solver restored from a snapshot taken then tests it too (the
 // flag is saved; it was derived from the densities, all zero here, so the
 // restored solver skipped the test and never rebuilt while the one that
-// saved it did). Both then hold the same tier and state to the bit.
+// saved it did). Both then hold the same metric.
 TEST(LiquidBand, ARestoredSolverTestsStrainWhereTheOneThatSavedItDid) {
-  const TriangleMesh mesh = gridMesh(20, 20, 1.0, 1.0);
-  const int n = static_cast<int>(mesh.vertexPositions.rows());
-  const SurfaceTopology topology(mesh.faces, n);
-  const FabricField fabric = isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 1e-4);
-  StainSolverDef def;
-  def.strainTolerance = 1e-2;
-  StainSolver saver(topology, mesh.vertexPositions, fabric, def);
-  saver.mutableState().solvent[n / 2] = 0.5;
+  const StrainTestGrid grid(20);
+  StainSolver saver = grid.solver();
+  saver.mutableState().solvent[grid.vertexCount() / 2] = 0.5;
   const double h = 0.01;
-  ASSERT_EQ(saver.step(h, mesh.vertexPositions).status, StepStatus::Ok);
+  ASSERT_EQ(saver.step(h, grid.stretched(1.0)).status, StepStatus::Ok);
   saver.mutableState().solvent.setZero();  // the caller takes its liquid back
   saver.mutableState().solute.setZero();
   saver.mutableState().absorbedSolvent.setZero();
   saver.mutableState().absorbedSolute.setZero();
   saver.mutableState().adsorbedSolute.setZero();
-  StainSolver restored(topology, mesh.vertexPositions, fabric, def);
+  StainSolver restored = grid.solver();
   restored.restore(saver.snapshot());
   int saverRebuilds = 0, restoredRebuilds = 0;
   for (int step = 1; step <= 8; ++step) {
-    const RowVectors3 next = (1.0 + 0.01 * step) * mesh.vertexPositions;
+    const RowVectors3 next = grid.stretched(1.0 + 0.01 * step);
     for (StainSolver* s : {&saver, &restored}) ASSERT_EQ(s->step(h, next).status, StepStatus::Ok);
     saverRebuilds += saver.profile().intrinsicRefreshes;
     restoredRebuilds += restored.profile().intrinsicRefreshes;
