@@ -255,7 +255,7 @@ SurfaceGeometry::SurfaceGeometry(const SurfaceTopology& topology, const RowVecto
   vertexMarks2_.assign(static_cast<size_t>(n), 0);
   for (std::vector<int>* list : {&chosenEdges_, &edges1_, &edges2_}) list->reserve(static_cast<size_t>(edgeCount));
   for (std::vector<int>* list : {&faces1_, &faces2_, &faces3_}) list->reserve(static_cast<size_t>(faceCount));
-  for (std::vector<int>* list : {&vertices1_, &vertices2_}) list->reserve(static_cast<size_t>(n));
+  for (std::vector<int>* list : {&vertices1_, &vertices2_, &prepareOrder_}) list->reserve(static_cast<size_t>(n));
   refreshIntrinsic();
 }
 
@@ -781,7 +781,15 @@ void SurfaceGeometry::prepareVertices(const int* vertices, int count) {
   // Repeated ids would race: the parallel loop is for lists without repeats
   // (the band), which is what large lists are.
   FitCounts total;
-  preparedCount_ += prepareEach(count, [&](int k) { return vertices[k]; }, staleVertexPreparer(), total);
+  const int* order = vertices;
+  if (static_cast<size_t>(count) <= prepareOrder_.capacity()) {
+    prepareOrder_.assign(vertices, vertices + count);
+    std::sort(prepareOrder_.begin(), prepareOrder_.end());
+    prepareOrder_.erase(std::unique(prepareOrder_.begin(), prepareOrder_.end()), prepareOrder_.end());
+    order = prepareOrder_.data();
+    count = static_cast<int>(prepareOrder_.size());
+  }
+  preparedCount_ += prepareEach(count, [&](int k) { return order[k]; }, staleVertexPreparer(), total);
   addCounts(total);
 }
 

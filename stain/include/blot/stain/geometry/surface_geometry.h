@@ -460,6 +460,7 @@ class SurfaceGeometry {
   Eigen::MatrixX2d faceWeftCoefficients_;
   std::vector<char> edgeMarks_, faceMarks_, vertexMarks_, vertexMarks2_;
   std::vector<int> chosenEdges_, faces1_, vertices1_, edges1_, faces2_, edges2_, vertices2_, faces3_;
+  std::vector<int> prepareOrder_;
   int refreshedEdges_ = 0, refreshedFaces_ = 0;
   // The tier the last refreshIntrinsic replaced (undoIntrinsicRefresh). A
   // whole rebuild assigns every field, so it swaps the tier away (no copy) and
