@@ -140,6 +140,46 @@ TEST(SparseSolver, ComplexHermitianResidualEveryKind) {
   }
 }
 
+// Two right-hand sides in one pass over the factor give each the bits of its
+// own solve (the direct density diffusion solves solvent and solute so).
+template <typename Scalar, typename Matrix>
+void expectPairEqualsTwoSolves(const Matrix& A, FactorKind kind) {
+  const int n = static_cast<int>(A.rows());
+  using VectorType = Eigen::Matrix<Scalar, Eigen::Dynamic, 1>;
+  CholeskySolver<Scalar> solver(kind);
+  ASSERT_EQ(solver.compute(A), SolverStatus::Ok);
+  VectorType a = randomVector<Scalar>(n, 3), b = randomVector<Scalar>(n, 4);
+  VectorType xa, xb;
+  ASSERT_EQ(solver.solve(a, xa), SolverStatus::Ok);
+  ASSERT_EQ(solver.solve(b, xb), SolverStatus::Ok);
+  ASSERT_EQ(solver.solveInPlacePair(a, b), SolverStatus::Ok);
+  for (int i = 0; i < n; ++i) {
+    ASSERT_EQ(a[i], xa[i]) << "kind " << static_cast<int>(kind) << ", row " << i;
+    ASSERT_EQ(b[i], xb[i]) << "kind " << static_cast<int>(kind) << ", row " << i;
+  }
+  EXPECT_LT(relativeResidual(A, a, randomVector<Scalar>(n, 3)), 1e-12);
+}
+
+TEST(SparseSolver, PairOfRightHandSidesGivesTheBitsOfTwoSolves) {
+  for (FactorKind kind : kAllKinds) {
+    expectPairEqualsTwoSolves<double>(gridLaplacianPlusShift(40, 0.5), kind);
+    expectPairEqualsTwoSolves<Complex>(randomHermitianPositiveDefinite(800, 4, 7), kind);
+  }
+  // Refused like solve: wrong size, a non-finite entry (nothing written), no factor.
+  RealCholeskySolver solver;
+  const SparseMatrix A = gridLaplacianPlusShift(10, 0.5);
+  Vector a = Vector::Ones(100), b = Vector::Ones(99);
+  EXPECT_EQ(solver.solveInPlacePair(a, a), SolverStatus::NotAnalyzed);
+  ASSERT_EQ(solver.analyzePattern(A), SolverStatus::Ok);
+  EXPECT_EQ(solver.solveInPlacePair(a, a), SolverStatus::NotFactorized);
+  ASSERT_EQ(solver.factorize(A), SolverStatus::Ok);
+  EXPECT_EQ(solver.solveInPlacePair(a, b), SolverStatus::SizeMismatch);
+  b = Vector::Ones(100);
+  b[50] = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(solver.solveInPlacePair(a, b), SolverStatus::NonFinite);
+  EXPECT_TRUE((a.array() == 1.0).all());
+}
+
 TEST(SparseSolver, RefactorizationReusesTheAnalysis) {
   RealCholeskySolver solver;
   const SparseMatrix A1 = gridLaplacianPlusShift(30, 0.5);

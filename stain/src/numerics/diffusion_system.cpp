@@ -193,6 +193,11 @@ SolverStatus DiffusionSystems::solveScalar(const Vector& rhs, Vector& x) {
   return status != SolverStatus::Ok ? status : scalar_.solve(rhs, x);
 }
 
+SolverStatus DiffusionSystems::solveScalarPair(Vector& a, Vector& b) {
+  const SolverStatus status = factorScalar();
+  return status != SolverStatus::Ok ? status : scalar_.solveInPlacePair(a, b);
+}
+
 SolverStatus DiffusionSystems::solveVector(const ComplexVector& rhs, ComplexVector& x) {
   const SolverStatus status = factorVector();
   return status != SolverStatus::Ok ? status : vector_.solve(rhs, x);

@@ -283,12 +283,57 @@ void simplicialSolve(const cholmod_factor& L, const Scalar* b, Scalar* x, Scalar
   for (int k = 0; k < n; ++k) x[perm[k]] = work[k];
 }
 
+// simplicialSolve for two right-hand sides at once, a and b in place,
+// through `work` (2n entries, the two interleaved). Each one's arithmetic is
+// simplicialSolve's, operation for operation, so the results are bitwise the
+// same as two calls; the factor is read once.
+template <typename Scalar>
+void simplicialSolvePair(const cholmod_factor& L, Scalar* a, Scalar* b, Scalar* work) {
+  const int n = static_cast<int>(L.n);
+  const int* perm = static_cast<const int*>(L.Perm);
+  const int* columnStarts = static_cast<const int*>(L.p);
+  const int* columnCounts = static_cast<const int*>(L.nz);
+  const int* rows = static_cast<const int*>(L.i);
+  const Scalar* values = static_cast<const Scalar*>(L.x);
+  for (int k = 0; k < n; ++k) {
+    work[2 * k] = a[perm[k]];
+    work[2 * k + 1] = b[perm[k]];
+  }
+  for (int j = 0; j < n; ++j) {
+    const int begin = columnStarts[j], end = begin + columnCounts[j];
+    const Scalar za = divideByDiagonal(work[2 * j], values[begin]);
+    const Scalar zb = divideByDiagonal(work[2 * j + 1], values[begin]);
+    work[2 * j] = za;
+    work[2 * j + 1] = zb;
+    for (int q = begin + 1; q < end; ++q) {
+      Scalar* w = work + 2 * static_cast<size_t>(rows[q]);
+      w[0] = minusProduct(w[0], values[q], za);
+      w[1] = minusProduct(w[1], values[q], zb);
+    }
+  }
+  for (int j = n - 1; j >= 0; --j) {
+    const int begin = columnStarts[j], end = begin + columnCounts[j];
+    Scalar sa = work[2 * j], sb = work[2 * j + 1];
+    for (int q = begin + 1; q < end; ++q) {
+      const Scalar* w = work + 2 * static_cast<size_t>(rows[q]);
+      sa = minusConjugateProduct(sa, values[q], w[0]);
+      sb = minusConjugateProduct(sb, values[q], w[1]);
+    }
+    work[2 * j] = divideByDiagonal(sa, values[begin]);
+    work[2 * j + 1] = divideByDiagonal(sb, values[begin]);
+  }
+  for (int k = 0; k < n; ++k) {
+    a[perm[k]] = work[2 * k];
+    b[perm[k]] = work[2 * k + 1];
+  }
+}
+
 }  // namespace cholmod_detail
 
 template <typename Scalar>
 struct CholeskySolver<Scalar>::Impl : cholmod_detail::SolverCore {
   using SolverCore::SolverCore;
-  std::vector<Scalar> solveWork;  // n, for simplicialSolve (sized at factorize)
+  std::vector<Scalar> solveWork;  // 2n, for simplicialSolve(Pair) (sized at factorize)
 };
 
 template <typename Scalar>
@@ -351,7 +396,7 @@ SolverStatus CholeskySolver<Scalar>::factorize(const Matrix& A) {
     s.freeNumeric();
     return SolverStatus::NotPositiveDefinite;
   }
-  if (s.solveWork.size() != static_cast<size_t>(s.n)) s.solveWork.resize(static_cast<size_t>(s.n));
+  if (s.solveWork.size() != 2 * static_cast<size_t>(s.n)) s.solveWork.resize(2 * static_cast<size_t>(s.n));
   s.factorized = true;
   return SolverStatus::Ok;
 }
@@ -404,6 +449,25 @@ SolverStatus CholeskySolver<Scalar>::solve(const VectorType& rhs, VectorType& x)
   x.resize(s.n);
   std::memcpy(static_cast<void*>(x.data()), s.solution->x, sizeof(Scalar) * static_cast<size_t>(s.n));
   return SolverStatus::Ok;
+}
+
+template <typename Scalar>
+SolverStatus CholeskySolver<Scalar>::solveInPlacePair(VectorType& a, VectorType& b) const {
+  if (!impl_ || impl_->symbolic == nullptr) return SolverStatus::NotAnalyzed;
+  Impl& s = *impl_;
+  if (!s.factorized) return SolverStatus::NotFactorized;
+  if (a.size() != s.n || b.size() != s.n) return SolverStatus::SizeMismatch;
+  for (const VectorType* v : {&a, &b})
+    for (Eigen::Index i = 0; i < v->size(); ++i)
+      if (!cholmod_detail::ScalarTraits<Scalar>::isFinite((*v)[i])) return SolverStatus::NonFinite;
+  const cholmod_factor& L = *s.factor;
+  if (!L.is_super && L.is_ll && L.itype == CHOLMOD_INT && L.xtype == cholmod_detail::ScalarTraits<Scalar>::xtype &&
+      L.Perm != nullptr && L.nz != nullptr) {
+    cholmod_detail::simplicialSolvePair<Scalar>(L, a.data(), b.data(), s.solveWork.data());
+    return SolverStatus::Ok;
+  }
+  const SolverStatus status = solve(a, a);
+  return status != SolverStatus::Ok ? status : solve(b, b);
 }
 
 template <typename Scalar>

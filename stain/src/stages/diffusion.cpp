@@ -251,7 +251,18 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
   const int factorizationsBefore = systems.factorizationCount();
   if (!densityOnSupport && (solvent || solute)) {
     report.densityMethod = DiffusionMethod::Direct;
-    if (solvent) {
+    if (solvent && solute) {  // both in one pass over the factor (the same bits as two solves)
+      massTimes(areas, state.solvent, scratch.solution);
+      massTimes(areas, state.solute, scratch.rhs);
+      const double solventMass = massOf(scratch.solution), soluteMass = massOf(scratch.rhs);
+      report.status = systems.solveScalarPair(scratch.solution, scratch.rhs);
+      report.factorizations = systems.factorizationCount() - factorizationsBefore;
+      if (report.status != SolverStatus::Ok) return report;
+      flushTail(scratch.solution);
+      restoreMass(areas, solventMass, scratch.solution);
+      flushTail(scratch.rhs);
+      restoreMass(areas, soluteMass, scratch.rhs);
+    } else if (solvent) {
       massTimes(areas, state.solvent, scratch.rhs);
       const double mass = massOf(scratch.rhs);
       report.status = systems.solveScalar(scratch.rhs, scratch.solution);
@@ -259,8 +270,7 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
       if (report.status != SolverStatus::Ok) return report;
       flushTail(scratch.solution);
       restoreMass(areas, mass, scratch.solution);
-    }
-    if (solute) {
+    } else if (solute) {
       massTimes(areas, state.solute, scratch.rhs);
       const double mass = massOf(scratch.rhs);
       report.status = systems.solveScalar(scratch.rhs, scratch.rhs);

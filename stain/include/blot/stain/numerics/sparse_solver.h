@@ -69,6 +69,11 @@ class CholeskySolver {
   SolverStatus compute(const Matrix& A);
   /// x = A⁻¹ rhs. x is resized only if its size differs.
   SolverStatus solve(const VectorType& rhs, VectorType& x) const;
+  /// a = A⁻¹ a and b = A⁻¹ b (in place, both of A's size), bitwise what two
+  /// solve calls give: one pass over the factor serves both (a simplicial
+  /// solve is bound by reading L, so two right-hand sides cost little more
+  /// than one). Other factor kinds run two solves.
+  SolverStatus solveInPlacePair(VectorType& a, VectorType& b) const;
 
   bool isAnalyzed() const;
   bool isFactorized() const;

@@ -99,6 +99,9 @@ class DiffusionSystems {
   /// factorization is reported here (NotPositiveDefinite, NonFinite, ...) and
   /// retried at the next call.
   SolverStatus solveScalar(const Vector& rhs, Vector& x);
+  /// a = A⁻¹ a, b = A⁻¹ b on the scalar system: bitwise two solveScalar
+  /// calls, one pass over the factor (CholeskySolver::solveInPlacePair).
+  SolverStatus solveScalarPair(Vector& a, Vector& b);
   SolverStatus solveVector(const ComplexVector& rhs, ComplexVector& x);
   /// Frees both numeric factors (keeping the symbolic analysis and the
   /// systems) until the next assemble(): call before an intrinsic rebuild, so
