@@ -344,6 +344,53 @@ TEST(SurfaceGeometry, BitIdenticalForOneAndTwoThreads) {
   for (size_t k = 0; k < one.frames.size(); ++k) ASSERT_EQ(one.nextFrames[k], two.nextFrames[k]);
 }
 
+// On demand, the vertices passed to prepareVertices get bitwise what every
+// vertex gets in AllVertices mode, whatever the list's order and repeats
+// (sorted and deduplicated first; a list longer than #V goes in windows),
+// on two threads, and the others stay unprepared.
+TEST(SurfaceGeometry, PreparedVerticesGetTheAllVerticesBitsInAnyOrderWithRepeats) {
+  const TriangleMesh mesh = jitteredIcosphere(4, 0.2, 8);  // 2562 vertices: above the parallel threshold
+  const int n = static_cast<int>(mesh.vertexPositions.rows());
+  const SurfaceTopology topology(mesh.faces, n);
+  RigidScene scene;
+  scene.rest = mesh.vertexPositions;
+  const FabricField fabric = isotropicFabricField(topology.faceCount(), 1.0, 1.0);
+  SurfaceGeometry all(topology, scene.rest, fabric), lazy(topology, scene.rest, fabric);
+  lazy.setVertexRefresh(VertexRefresh::OnDemand);
+  std::mt19937 rng(17);
+  std::uniform_int_distribution<int> pick(0, n - 1);
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(2);
+  for (int step = 1; step <= 6; ++step) {
+    RowVectors3 p = scene.at(step * 0.01);
+    p *= 1.0 + 0.002 * step;  // deforming: fits, not rigid frames
+    all.refreshExtrinsic(p, 0.01);
+    lazy.refreshExtrinsic(p, 0.01);
+    // Step 1: a short shuffled list with repeats; later ones longer than #V.
+    std::vector<int> list(step == 1 ? 700 : static_cast<size_t>(n) + 900);
+    for (int& v : list) v = pick(rng);
+    std::vector<char> listed(static_cast<size_t>(n), 0);
+    for (const int v : list) listed[static_cast<size_t>(v)] = 1;
+    const int distinct = static_cast<int>(std::count(listed.begin(), listed.end(), 1));
+    lazy.prepareVertices(list);
+    EXPECT_EQ(lazy.preparedVertexCount(), distinct) << "step " << step;
+    const ExtrinsicGeometry& a = all.extrinsic();
+    const ExtrinsicGeometry& b = lazy.extrinsic();
+    for (int i = 0; i < n; ++i) {
+      ASSERT_EQ(lazy.vertexPrepared(i), listed[static_cast<size_t>(i)] != 0) << "step " << step << ", vertex " << i;
+      if (!listed[static_cast<size_t>(i)]) continue;
+      const size_t k = static_cast<size_t>(i);
+      ASSERT_EQ(a.nextFrames[k], b.nextFrames[k]) << "step " << step << ", vertex " << i;
+      ASSERT_EQ(a.kabschRotations[k], b.kabschRotations[k]) << "step " << step << ", vertex " << i;
+      ASSERT_EQ(a.vertexAngularVelocities.row(i), b.vertexAngularVelocities.row(i)) << "step " << step;
+      ASSERT_EQ(a.vertexAccelerations.row(i), b.vertexAccelerations.row(i)) << "step " << step;
+      ASSERT_EQ(a.vertexNormals.row(i), b.vertexNormals.row(i)) << "step " << step;
+    }
+  }
+  omp_set_num_threads(saved);
+  EXPECT_THROW(lazy.prepareVertices(std::vector<int>{0, n}), std::invalid_argument);
+}
+
 // After the first refresh (OpenMP starts its threads there), refreshExtrinsic
 // allocates nothing on any path: fitted, rigid, unchanged, fully static.
 TEST(SurfaceGeometry, RefreshExtrinsicAllocatesNothing) {

@@ -778,18 +778,22 @@ void SurfaceGeometry::prepareVertices(const int* vertices, int count) {
     if (vertices[k] < 0 || vertices[k] >= n)
       throw std::invalid_argument("SurfaceGeometry::prepareVertices: vertex " + std::to_string(vertices[k]) +
                                   " out of range [0, " + std::to_string(n) + ")");
-  // Repeated ids would race: the parallel loop is for lists without repeats
-  // (the band), which is what large lists are.
+  // In index order, each id once: a vertex's values depend on its own slot
+  // only, so the order changes no bit, but neighbouring vertices then read
+  // neighbouring memory in turn (the band lists its vertices ring by ring),
+  // and the parallel loop never sees a repeat (two threads would write one
+  // vertex). A list longer than #V has repeats: it goes in windows of #V ids,
+  // one after the other.
   FitCounts total;
-  const int* order = vertices;
-  if (static_cast<size_t>(count) <= prepareOrder_.capacity()) {
-    prepareOrder_.assign(vertices, vertices + count);
+  for (int start = 0; start < count; start += n) {
+    const int window = std::min(n, count - start);
+    prepareOrder_.assign(vertices + start, vertices + start + window);  // capacity #V: no allocation
     std::sort(prepareOrder_.begin(), prepareOrder_.end());
     prepareOrder_.erase(std::unique(prepareOrder_.begin(), prepareOrder_.end()), prepareOrder_.end());
-    order = prepareOrder_.data();
-    count = static_cast<int>(prepareOrder_.size());
+    const int* order = prepareOrder_.data();
+    preparedCount_ += prepareEach(static_cast<int>(prepareOrder_.size()), [&](int k) { return order[k]; },
+                                  staleVertexPreparer(), total);
   }
-  preparedCount_ += prepareEach(count, [&](int k) { return order[k]; }, staleVertexPreparer(), total);
   addCounts(total);
 }
 

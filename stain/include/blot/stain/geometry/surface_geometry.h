@@ -280,8 +280,9 @@ class SurfaceGeometry {
   void setVertexRefresh(VertexRefresh mode);
   VertexRefresh vertexRefresh() const { return vertexRefresh_; }
   /// Computes this refresh's per-vertex values on vertices[0, count) (ids in
-  /// [0, #V), repeats allowed; already prepared ones cost a compare). Uses
-  /// OpenMP threads from kMinParallelVertices; allocates nothing.
+  /// [0, #V), any order, repeats allowed; already prepared ones cost a
+  /// compare), visiting them in index order. Uses OpenMP threads from
+  /// kMinParallelVertices; allocates nothing.
   void prepareVertices(const int* vertices, int count);
   void prepareVertices(const std::vector<int>& vertices) {
     prepareVertices(vertices.data(), static_cast<int>(vertices.size()));
@@ -460,7 +461,7 @@ class SurfaceGeometry {
   Eigen::MatrixX2d faceWeftCoefficients_;
   std::vector<char> edgeMarks_, faceMarks_, vertexMarks_, vertexMarks2_;
   std::vector<int> chosenEdges_, faces1_, vertices1_, edges1_, faces2_, edges2_, vertices2_, faces3_;
-  std::vector<int> prepareOrder_;
+  std::vector<int> prepareOrder_;  // prepareVertices' sorted ids (capacity #V)
   int refreshedEdges_ = 0, refreshedFaces_ = 0;
   // The tier the last refreshIntrinsic replaced (undoIntrinsicRefresh). A
   // whole rebuild assigns every field, so it swaps the tier away (no copy) and
