@@ -256,76 +256,47 @@ inline Complex divideByDiagonal(const Complex& value, const Complex& diagonal) {
 
 // x = A⁻¹ b = Pᵀ L⁻ᴴ L⁻¹ P b over a simplicial LLᴴ factor (CHOLMOD's layout:
 // column j in i/x[p[j], p[j] + nz[j]), diagonal entry first, real for LLᴴ),
-// through `work` (n entries). Column-oriented forward substitution (a scatter
-// per column) and row-oriented back substitution (a gather), each one pass
-// over L in a fixed order: deterministic and allocation-free.
-template <typename Scalar>
-void simplicialSolve(const cholmod_factor& L, const Scalar* b, Scalar* x, Scalar* work) {
+// for K right-hand sides b[c] into x[c] (x[c] may be b[c]: work holds P b
+// first), through `work` (K n entries, the K interleaved). Column-oriented
+// forward substitution (a scatter per column) and row-oriented back
+// substitution (a gather), each one pass over L in a fixed order:
+// deterministic and allocation-free. Each right-hand side gets the same
+// operations in the same order whatever K is, so K = 2 gives bitwise two
+// K = 1 solves, and reads L once.
+template <int K, typename Scalar>
+void simplicialSolve(const cholmod_factor& L, const Scalar* const b[K], Scalar* const x[K], Scalar* work) {
   const int n = static_cast<int>(L.n);
   const int* perm = static_cast<const int*>(L.Perm);
   const int* columnStarts = static_cast<const int*>(L.p);
   const int* columnCounts = static_cast<const int*>(L.nz);
   const int* rows = static_cast<const int*>(L.i);
   const Scalar* values = static_cast<const Scalar*>(L.x);
-  for (int k = 0; k < n; ++k) work[k] = b[perm[k]];
+  for (int k = 0; k < n; ++k)
+    for (int c = 0; c < K; ++c) work[K * k + c] = b[c][perm[k]];
   for (int j = 0; j < n; ++j) {
     const int begin = columnStarts[j], end = begin + columnCounts[j];
-    const Scalar z = divideByDiagonal(work[j], values[begin]);
-    work[j] = z;
-    for (int q = begin + 1; q < end; ++q) work[rows[q]] = minusProduct(work[rows[q]], values[q], z);
-  }
-  for (int j = n - 1; j >= 0; --j) {
-    const int begin = columnStarts[j], end = begin + columnCounts[j];
-    Scalar sum = work[j];
-    for (int q = begin + 1; q < end; ++q) sum = minusConjugateProduct(sum, values[q], work[rows[q]]);
-    work[j] = divideByDiagonal(sum, values[begin]);
-  }
-  for (int k = 0; k < n; ++k) x[perm[k]] = work[k];
-}
-
-// simplicialSolve for two right-hand sides at once, a and b in place,
-// through `work` (2n entries, the two interleaved). Each one's arithmetic is
-// simplicialSolve's, operation for operation, so the results are bitwise the
-// same as two calls; the factor is read once.
-template <typename Scalar>
-void simplicialSolvePair(const cholmod_factor& L, Scalar* a, Scalar* b, Scalar* work) {
-  const int n = static_cast<int>(L.n);
-  const int* perm = static_cast<const int*>(L.Perm);
-  const int* columnStarts = static_cast<const int*>(L.p);
-  const int* columnCounts = static_cast<const int*>(L.nz);
-  const int* rows = static_cast<const int*>(L.i);
-  const Scalar* values = static_cast<const Scalar*>(L.x);
-  for (int k = 0; k < n; ++k) {
-    work[2 * k] = a[perm[k]];
-    work[2 * k + 1] = b[perm[k]];
-  }
-  for (int j = 0; j < n; ++j) {
-    const int begin = columnStarts[j], end = begin + columnCounts[j];
-    const Scalar za = divideByDiagonal(work[2 * j], values[begin]);
-    const Scalar zb = divideByDiagonal(work[2 * j + 1], values[begin]);
-    work[2 * j] = za;
-    work[2 * j + 1] = zb;
+    Scalar z[K];
+    for (int c = 0; c < K; ++c) {
+      z[c] = divideByDiagonal(work[K * j + c], values[begin]);
+      work[K * j + c] = z[c];
+    }
     for (int q = begin + 1; q < end; ++q) {
-      Scalar* w = work + 2 * static_cast<size_t>(rows[q]);
-      w[0] = minusProduct(w[0], values[q], za);
-      w[1] = minusProduct(w[1], values[q], zb);
+      Scalar* w = work + K * static_cast<size_t>(rows[q]);
+      for (int c = 0; c < K; ++c) w[c] = minusProduct(w[c], values[q], z[c]);
     }
   }
   for (int j = n - 1; j >= 0; --j) {
     const int begin = columnStarts[j], end = begin + columnCounts[j];
-    Scalar sa = work[2 * j], sb = work[2 * j + 1];
+    Scalar sum[K];
+    for (int c = 0; c < K; ++c) sum[c] = work[K * j + c];
     for (int q = begin + 1; q < end; ++q) {
-      const Scalar* w = work + 2 * static_cast<size_t>(rows[q]);
-      sa = minusConjugateProduct(sa, values[q], w[0]);
-      sb = minusConjugateProduct(sb, values[q], w[1]);
+      const Scalar* w = work + K * static_cast<size_t>(rows[q]);
+      for (int c = 0; c < K; ++c) sum[c] = minusConjugateProduct(sum[c], values[q], w[c]);
     }
-    work[2 * j] = divideByDiagonal(sa, values[begin]);
-    work[2 * j + 1] = divideByDiagonal(sb, values[begin]);
+    for (int c = 0; c < K; ++c) work[K * j + c] = divideByDiagonal(sum[c], values[begin]);
   }
-  for (int k = 0; k < n; ++k) {
-    a[perm[k]] = work[2 * k];
-    b[perm[k]] = work[2 * k + 1];
-  }
+  for (int k = 0; k < n; ++k)
+    for (int c = 0; c < K; ++c) x[c][perm[k]] = work[K * k + c];
 }
 
 }  // namespace cholmod_detail
@@ -333,7 +304,7 @@ void simplicialSolvePair(const cholmod_factor& L, Scalar* a, Scalar* b, Scalar* 
 template <typename Scalar>
 struct CholeskySolver<Scalar>::Impl : cholmod_detail::SolverCore {
   using SolverCore::SolverCore;
-  std::vector<Scalar> solveWork;  // 2n, for simplicialSolve(Pair) (sized at factorize)
+  std::vector<Scalar> solveWork;  // 2n: simplicialSolve for up to two right-hand sides (sized at factorize)
 };
 
 template <typename Scalar>
@@ -430,7 +401,9 @@ SolverStatus CholeskySolver<Scalar>::solve(const VectorType& rhs, VectorType& x)
     // call; this does not, and it writes x directly (work holds P b first, so
     // rhs and x may be the same vector).
     x.resize(s.n);
-    cholmod_detail::simplicialSolve<Scalar>(L, rhs.data(), x.data(), s.solveWork.data());
+    const Scalar* in[1] = {rhs.data()};
+    Scalar* out[1] = {x.data()};
+    cholmod_detail::simplicialSolve<1, Scalar>(L, in, out, s.solveWork.data());
     return SolverStatus::Ok;
   }
   cholmod_dense b{};
@@ -463,7 +436,9 @@ SolverStatus CholeskySolver<Scalar>::solveInPlacePair(VectorType& a, VectorType&
   const cholmod_factor& L = *s.factor;
   if (!L.is_super && L.is_ll && L.itype == CHOLMOD_INT && L.xtype == cholmod_detail::ScalarTraits<Scalar>::xtype &&
       L.Perm != nullptr && L.nz != nullptr) {
-    cholmod_detail::simplicialSolvePair<Scalar>(L, a.data(), b.data(), s.solveWork.data());
+    const Scalar* in[2] = {a.data(), b.data()};
+    Scalar* out[2] = {a.data(), b.data()};
+    cholmod_detail::simplicialSolve<2, Scalar>(L, in, out, s.solveWork.data());
     return SolverStatus::Ok;
   }
   const SolverStatus status = solve(a, a);
