@@ -880,6 +880,8 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
   const double defaultStrainTolerance = def.source == MotionSource::Bullet ? kBulletStrainTolerance
                                                                           : def.stain.strainTolerance;
   def.stain.strainTolerance = r.number("strain_tolerance", defaultStrainTolerance, positive());
+  def.stain.strainTest = static_cast<stain::StrainTest>(
+      r.choice("strain_test", static_cast<int>(def.stain.strainTest), {"whole-mesh", "around-liquid"}));
   def.stain.threads = r.integer("threads", def.stain.threads, closed(0, stain::kMaxThreads));
   def.stain.adaptiveThreads = r.boolean("adaptive_threads", def.stain.adaptiveThreads);
   def.coupling = static_cast<coupling::CouplingMode>(r.choice("coupling", 0, {"one-way", "two-way"}));

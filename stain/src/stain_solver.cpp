@@ -196,6 +196,8 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   densityScratch_.resize(n, topology.edgeCount(), topology.faceCount());
   band_.resize(n);
   interactionScratch_.reserve(static_cast<size_t>(n));
+  strainTestVertices_.reserve(static_cast<size_t>(n));
+  strainTestMarks_.assign(static_cast<size_t>(n), 0);
   surfaceVelocityScratch_ = RowVectors3::Zero(n, 3);
   initialVelocities_ = RowVectors3::Zero(n, 3);
   evaporatedMass_ = Vector::Zero(n);
@@ -304,6 +306,38 @@ StainState& StainSolver::mutableState() {
 
 bool StainSolver::everHeldLiquid() const {
   return state_.addedSolvent > 0 || state_.addedSolute > 0 || writtenOutside_;
+}
+
+bool StainSolver::strainExceededAroundLiquid() {
+  // The vertices holding free liquid, by the test that files a vertex wet or
+  // damp (liquid_band.cpp, classify), so that the candidates of the
+  // incremental wet set hold every one of them when the set is not stale:
+  // the same list whichever way it was found.
+  const double threshold = def_.liquid.wetThreshold;
+  const Vector& solvent = state_.solvent;
+  const Vector& solute = state_.solute;
+  const auto holdsFreeLiquid = [&](int i) {
+    return solvent[i] + solute[i] > 0 || solvent[i] > threshold || solute[i] > threshold;
+  };
+  const auto add = [&](int i) {
+    if (strainTestMarks_[static_cast<size_t>(i)]) return;
+    strainTestMarks_[static_cast<size_t>(i)] = 1;
+    strainTestVertices_.push_back(i);
+  };
+  strainTestVertices_.clear();
+  if (band_.scanAll) {
+    for (int i = 0; i < state_.vertexCount(); ++i)
+      if (holdsFreeLiquid(i)) add(i);
+  } else {
+    for (const int i : band_.candidates)
+      if (holdsFreeLiquid(i)) add(i);
+  }
+  // Sources add liquid on their regions this step.
+  if (def_.switches.sources)
+    for (const HeldRegion& region : heldRegions_)
+      for (const int v : region.vertices) add(v);
+  for (const int i : strainTestVertices_) strainTestMarks_[static_cast<size_t>(i)] = 0;
+  return geometry_.strainExceededAround(strainTestVertices_.data(), static_cast<int>(strainTestVertices_.size()));
 }
 
 void StainSolver::stateWrittenOutside() {
@@ -623,8 +657,11 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
     geometry_.setPreviousPositions(geometry_.extrinsic().nextPositions - h * initialVelocities_);
     started_ = true;
   }
-  const bool rebuild = rigidRotation != nullptr ? geometry_.refreshExtrinsicRigid(nextPositions, *rigidRotation, h)
-                                                : geometry_.refreshExtrinsic(nextPositions, h, everHeldLiquid());
+  const bool aroundLiquid = def_.strainTest == StrainTest::AroundLiquid;
+  bool rebuild = rigidRotation != nullptr
+                     ? geometry_.refreshExtrinsicRigid(nextPositions, *rigidRotation, h)
+                     : geometry_.refreshExtrinsic(nextPositions, h, everHeldLiquid() && !aroundLiquid);
+  if (rigidRotation == nullptr && aroundLiquid && everHeldLiquid()) rebuild = strainExceededAroundLiquid();
   writtenSinceRefresh_ = false;  // new frames: a vertex without them is one no stage reads
   profile_.maxEdgeStrain = geometry_.maxEdgeStrain();
   if (rebuild) {

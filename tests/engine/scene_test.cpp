@@ -52,6 +52,7 @@ TEST(SceneTest, MinimalSceneGetsDocumentedDefaults) {
   EXPECT_DOUBLE_EQ(scene.engine.diffusivity, 0.01);
   EXPECT_EQ(scene.engine.stain.threads, 0);
   EXPECT_TRUE(scene.engine.stain.adaptiveThreads);
+  EXPECT_EQ(scene.engine.stain.strainTest, stain::StrainTest::WholeMesh);
   EXPECT_EQ(scene.outputs.frames, 10);
   EXPECT_EQ(scene.outputs.directory, "out/scene");
   // The patch is centred on the origin in the xy plane.
@@ -73,6 +74,7 @@ TEST(SceneTest, EveryCommonKeyReachesItsField) {
     "physics": {"coriolis": false, "film_pressure": true, "coriolis_scheme": "explicit", "boundary_wall": false},
     "gravity": [0, 0, -9.81],
     "coupling": "two-way", "time_step": 0.005, "max_steps_per_call": 4, "threads": 3, "adaptive_threads": false,
+    "strain_test": "around-liquid",
     "drops": [{"vertex": 5, "radius": 0.1, "solvent_mass": 0.01, "solute_mass": 0.002, "time": 0.5},
               {"point": [0, 0, 1], "velocity": [0, 1, 0], "relative_velocity": [0.5, 0, 0]}],
     "held_regions": [{"vertices": [1, 2, 3], "solvent_density": 2}],
@@ -111,6 +113,7 @@ TEST(SceneTest, EveryCommonKeyReachesItsField) {
   EXPECT_DOUBLE_EQ(d.timeStep, 0.005);
   EXPECT_EQ(d.stain.threads, 3);
   EXPECT_FALSE(d.stain.adaptiveThreads);
+  EXPECT_EQ(d.stain.strainTest, stain::StrainTest::AroundLiquid);
   ASSERT_EQ(d.drops.size(), 2u);
   EXPECT_EQ(d.drops[0].drop.centerVertex, 5);
   EXPECT_DOUBLE_EQ(d.drops[0].time, 0.5);

@@ -810,13 +810,15 @@ TEST(LiquidBand, ASoakedPatchDriesTheSameBitsWithoutABand) {
 }
 
 // A flat cells × cells grid and what a solver on it needs, with a 1 %
-// strain tolerance: the strain-test tests stretch it by 1 % a step.
+// strain tolerance: the strain-test tests stretch it by 1 % a step. The
+// test measures every edge unless `where` says otherwise.
 struct StrainTestGrid {
-  explicit StrainTestGrid(int cells)
+  explicit StrainTestGrid(int cells, StrainTest where = StrainTest::WholeMesh)
       : mesh(gridMesh(cells, cells, 1.0, 1.0)),
         topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows())),
         fabric(isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 1e-4)) {
     def.strainTolerance = 1e-2;
+    def.strainTest = where;
   }
   int vertexCount() const { return static_cast<int>(mesh.vertexPositions.rows()); }
   StainSolver solver() const { return StainSolver(topology, mesh.vertexPositions, fabric, def); }
@@ -859,6 +861,62 @@ TEST(LiquidBand, TheStrainTestWaitsForTheFirstLiquid) {
   EXPECT_LT(clean.massBudget().solventError(), 1e-12);
   ASSERT_EQ(clean.step(h, grid.stretched(1.111)).status, StepStatus::Ok);
   EXPECT_EQ(clean.profile().intrinsicRefreshes, 0) << "0.1 % since the rebuild";
+}
+
+// StrainTest::AroundLiquid measures around the free liquid only: a drop on
+// the left of the sheet while its right part stretches 1 % a step past a
+// 1 % tolerance. The whole-mesh test (the default) rebuilds every other
+// step; AroundLiquid never, and its maximum strain stays at rounding. The liquid's fields come
+// out the same to rounding: the rebuilds change no length under the liquid,
+// so its areas and operator entries are the same numbers. Once the
+// stretch reaches the liquid, AroundLiquid rebuilds too, keeping the mass.
+TEST(LiquidBand, TheStrainTestAroundTheLiquidMeasuresWhereTheFreeLiquidIs) {
+  const StrainTestGrid grid(30, StrainTest::AroundLiquid);
+  const StrainTestGrid wholeGrid(30);
+  ASSERT_EQ(StainSolverDef().strainTest, StrainTest::WholeMesh);
+  StainSolver around = grid.solver();
+  StainSolver whole = wholeGrid.solver();
+  DropDef drop;
+  drop.centerPoint = Vector3(0.25, 0.5, 0.0);
+  drop.radius = 0.1;
+  drop.solventMass = 0.01;
+  drop.soluteMass = 0.001;
+  around.addDrop(drop);
+  whole.addDrop(drop);
+  // x past 0.6 stretched by `k` along x: the drop (x < 0.35 and the few
+  // rings its liquid reaches) never sees it.
+  const auto stretchedRight = [&](double k) {
+    RowVectors3 p = grid.mesh.vertexPositions;
+    for (Eigen::Index v = 0; v < p.rows(); ++v) p(v, 0) += k * std::max(0.0, p(v, 0) - 0.6);
+    return p;
+  };
+  const double h = 0.01;
+  int aroundRebuilds = 0, wholeRebuilds = 0;
+  for (int step = 1; step <= 10; ++step) {
+    const RowVectors3 next = stretchedRight(0.01 * step);
+    for (StainSolver* s : {&around, &whole}) ASSERT_EQ(s->step(h, next).status, StepStatus::Ok) << step;
+    aroundRebuilds += around.profile().intrinsicRefreshes;
+    wholeRebuilds += whole.profile().intrinsicRefreshes;
+    EXPECT_LT(around.profile().maxEdgeStrain, 1e-14) << "step " << step;
+  }
+  EXPECT_EQ(aroundRebuilds, 0);
+  EXPECT_GE(wholeRebuilds, 4) << "1 % a step against a 1 % tolerance";
+  const auto expectSameToRounding = [](const Vector& a, const Vector& b, const char* name) {
+    ASSERT_GT(b.cwiseAbs().maxCoeff(), 0.0) << name;
+    EXPECT_LE((a - b).cwiseAbs().maxCoeff(), 1e-12 * b.cwiseAbs().maxCoeff()) << name;
+  };
+  expectSameToRounding(around.state().solvent, whole.state().solvent, "solvent");
+  expectSameToRounding(around.state().solute, whole.state().solute, "solute");
+  expectSameToRounding(around.state().absorbedSolvent, whole.state().absorbedSolvent, "absorbed solvent");
+
+  // The whole sheet 2 % longer: the liquid's edges strain past 1 %.
+  ASSERT_EQ(around.step(h, 1.02 * stretchedRight(0.1)).status, StepStatus::Ok);
+  EXPECT_EQ(around.profile().intrinsicRefreshes, 1);
+  EXPECT_NEAR(around.profile().maxEdgeStrain, 0.02, 1e-9) << "measured around the liquid only";
+  EXPECT_LT(around.massBudget().solventError(), 1e-12);
+  EXPECT_LT(around.massBudget().soluteError(), 1e-12);
+  ASSERT_EQ(around.step(h, 1.02 * stretchedRight(0.1)).status, StepStatus::Ok);
+  EXPECT_EQ(around.profile().intrinsicRefreshes, 0) << "no strain since the rebuild";
 }
 
 // A write from outside that was cleared again still has the steps test

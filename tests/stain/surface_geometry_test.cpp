@@ -229,6 +229,78 @@ TEST(SurfaceGeometry, SkippedStrainTestIsMeasuredByTheNextOne) {
   EXPECT_LT(geometry.maxEdgeStrain(), 1e-12);
 }
 
+// The strain test around a set of vertices measures exactly the edges of
+// their faces: on the grid, one vertex's faces include edges that do not
+// touch it (the far side of each face), and a stretch of one of those alone
+// trips it; a vertex two rings out, whose edges are at none of its faces,
+// may move as it likes. Given every vertex (in any order, with repeats) it
+// finds the whole test's value, bit for bit; given none, strain 0. It
+// allocates nothing.
+TEST(SurfaceGeometry, StrainTestAroundVerticesMeasuresTheEdgesOfTheirFaces) {
+  const int cells = 12;
+  const TriangleMesh mesh = gridMesh(cells, cells, 1.0, 1.0);
+  const int n = static_cast<int>(mesh.vertexPositions.rows());
+  const SurfaceTopology topology(mesh.faces, n);
+  const RowVectors3 rest = mesh.vertexPositions;
+  const double tolerance = 1e-2, h = 0.01, spacing = 1.0 / cells;
+  const int centre = 6 * (cells + 1) + 6, twoRingsOut = centre + 2;  // interior vertices, two columns apart
+  ASSERT_NEAR((rest.row(twoRingsOut) - rest.row(centre)).norm(), 2 * spacing, 1e-12);
+  // An edge of a face at `centre` that does not touch it.
+  const std::vector<int>& offsets = topology.ringOffsets();
+  int farSide = -1;
+  for (int m = offsets[centre]; m < offsets[centre + 1] && farSide < 0; ++m) {
+    const int f = topology.ringFaces()[static_cast<size_t>(m)];
+    for (int c = 0; c < 3; ++c) {
+      const int e = topology.faceEdges()(f, c);
+      if (topology.edgeVertices()(e, 0) != centre && topology.edgeVertices()(e, 1) != centre) farSide = e;
+    }
+  }
+  ASSERT_GE(farSide, 0);
+  SurfaceGeometry geometry(topology, rest, anisotropicFabric(topology.faceCount(), 4), tolerance);
+  const int one[] = {centre};
+  // That edge 5 % longer, its second vertex moved along it.
+  RowVectors3 p = rest;
+  const int a = topology.edgeVertices()(farSide, 0), b = topology.edgeVertices()(farSide, 1);
+  p.row(b) = rest.row(a) + 1.05 * (rest.row(b) - rest.row(a));
+  geometry.refreshExtrinsic(p, h, false);
+  EXPECT_TRUE(geometry.strainExceededAround(one, 1));
+  EXPECT_GT(geometry.maxEdgeStrain(), tolerance);
+  // A vertex two rings out moved by 20 % of an edge: its edges strain, none
+  // of them at centre's faces.
+  p = rest;
+  p(twoRingsOut, 0) += 0.2 * spacing;
+  EXPECT_TRUE(SurfaceGeometry(topology, rest, anisotropicFabric(topology.faceCount(), 4), tolerance)
+                  .refreshExtrinsic(p, h, true));
+  geometry.refreshExtrinsic(p, h, false);
+  EXPECT_FALSE(geometry.strainExceededAround(one, 1));
+  EXPECT_EQ(geometry.maxEdgeStrain(), 0.0);
+
+  // Every vertex, reversed and twice: the whole test's bits.
+  std::mt19937 rng(3);
+  RowVectors3 wobbly = rest;
+  std::uniform_real_distribution<double> jitter(-4e-3, 4e-3);
+  for (Eigen::Index v = 0; v < wobbly.rows(); ++v)
+    for (int c = 0; c < 3; ++c) wobbly(v, c) += jitter(rng);
+  std::vector<int> all;
+  for (int k = 0; k < 2; ++k)
+    for (int v = n - 1; v >= 0; --v) all.push_back(v);
+  SurfaceGeometry whole(topology, rest, anisotropicFabric(topology.faceCount(), 4), tolerance);
+  const bool wholeTripped = whole.refreshExtrinsic(wobbly, h, true);
+  geometry.refreshExtrinsic(wobbly, h, false);
+  gAllocations = 0;
+  gCountAllocations = true;
+  const bool aroundTripped = geometry.strainExceededAround(all.data(), static_cast<int>(all.size()));
+  gCountAllocations = false;
+  if (kCountsAllocations) {
+    EXPECT_EQ(gAllocations.load(), 0);
+  }
+  EXPECT_EQ(aroundTripped, wholeTripped);
+  EXPECT_GT(whole.maxEdgeStrain(), 0.0);
+  EXPECT_EQ(geometry.maxEdgeStrain(), whole.maxEdgeStrain());
+  EXPECT_FALSE(geometry.strainExceededAround(all.data(), 0));
+  EXPECT_EQ(geometry.maxEdgeStrain(), 0.0);
+}
+
 TEST(SurfaceGeometry, StaticMeshHasExactlyZeroRatesAndSkipsFits) {
   const TriangleMesh mesh = jitteredIcosphere(2, 0.2, 6);
   const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));

@@ -587,6 +587,47 @@ bool SurfaceGeometry::refreshExtrinsicWith(const RowVectors3& nextPositions, dou
   return dynamic_.maxEdgeStrain > strainTolerance_;
 }
 
+bool SurfaceGeometry::strainExceededAround(const int* vertices, int count) {
+  const SurfaceTopology& topology = *topology_;
+  const int n = topology.vertexCount();
+  const std::vector<int>& offsets = topology.ringOffsets();
+  const std::vector<int>& ringFaces = topology.ringFaces();
+  const Eigen::MatrixX3i& faceEdges = topology.faceEdges();
+  // Each edge once: marked, listed, then measured and unmarked (the list
+  // holds at most #E ids, its reserved capacity).
+  chosenEdges_.clear();
+  for (int k = 0; k < count; ++k) {
+    const int v = vertices[k];
+    for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m) {
+      const int f = ringFaces[static_cast<size_t>(m)];
+      if (f < 0) continue;
+      for (int c = 0; c < 3; ++c) {
+        const int e = faceEdges(f, c);
+        if (edgeMarks_[static_cast<size_t>(e)]) continue;
+        edgeMarks_[static_cast<size_t>(e)] = 1;
+        chosenEdges_.push_back(e);
+      }
+    }
+  }
+  const Eigen::Matrix<int, Eigen::Dynamic, 2>& edges = topology.edgeVertices();
+  const double* x = dynamic_.extrinsic.nextPositions.data();
+  const double* y = x + n;
+  const double* z = y + n;
+  const double* inverseBuilt = dynamic_.inverseBuiltSquaredLengths.data();
+  double maxRatio = 1.0, minRatio = 1.0;
+  for (const int e : chosenEdges_) {
+    edgeMarks_[static_cast<size_t>(e)] = 0;
+    const int a = edges(e, 0), b = edges(e, 1);
+    const double dx = x[b] - x[a], dy = y[b] - y[a], dz = z[b] - z[a];
+    const double ratio = (dx * dx + dy * dy + dz * dz) * inverseBuilt[e];
+    maxRatio = std::max(maxRatio, ratio);
+    minRatio = std::min(minRatio, ratio);
+  }
+  dynamic_.maxEdgeStrain = std::max(std::sqrt(maxRatio) - 1.0, 1.0 - std::sqrt(minRatio));
+  strainMeasured_ = false;  // not the whole surface's
+  return dynamic_.maxEdgeStrain > strainTolerance_;
+}
+
 void SurfaceGeometry::measureStrain() {
   const SurfaceTopology& topology = *topology_;
   const int n = topology.vertexCount();

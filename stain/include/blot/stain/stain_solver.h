@@ -23,6 +23,25 @@
 
 namespace blot::stain {
 
+/// Which edges the strain test of a deforming step measures (the intrinsic
+/// tier is rebuilt, whole, when one of them is strained past the tolerance).
+enum class StrainTest {
+  /// default: every edge.
+  WholeMesh,
+  /// The edges of the faces at the vertices holding free liquid
+  /// (σ_f + σ_s > 0) and at the held regions' vertices: the part of the
+  /// metric the liquid's mass and fluxes are computed on. A dry part of the
+  /// cloth may stretch past the tolerance unrebuilt; it is tested from the
+  /// step after liquid reaches it. For a cloth whose liquid sits where it
+  /// deforms little: no rebuild for the rest of it, and none once the free
+  /// liquid has gone. Not the default: where the liquid's part deforms as
+  /// much as the rest, the same tolerance lets its metric drift further
+  /// between rebuilds (the whole-mesh test's other trips refresh it too), so
+  /// it needs about a fifth of the tolerance for the same error
+  /// (docs/accuracy.md, "Strain tolerance").
+  AroundLiquid
+};
+
 struct StainSolverDef {
   PhysicsSwitches switches;
   LiquidParameters liquid;
@@ -32,6 +51,9 @@ struct StainSolverDef {
   /// Full (default) or Partial (only the edges past half the tolerance; measured
   /// less accurate, docs/accuracy.md "Strain tolerance").
   IntrinsicRefresh intrinsicRefresh = IntrinsicRefresh::Full;
+  /// Where the strain test measures (StrainTest): every edge (default) or
+  /// around the liquid.
+  StrainTest strainTest = StrainTest::WholeMesh;
   /// OpenMP threads this solver's steps use (≥ 0). 0: the calling thread's
   /// OpenMP default when the solver is built (OMP_NUM_THREADS, else the
   /// cores). Each step sets it for its own parallel regions and restores the
@@ -271,6 +293,8 @@ class StainSolver {
   // Liquid was ever on the surface (a drop, a source, a write from outside):
   // until then nothing reads the metric, and the strain test is skipped.
   bool everHeldLiquid() const;
+  /// The strain test of StrainTest::AroundLiquid after refreshExtrinsic.
+  bool strainExceededAroundLiquid();
   /// Marks each term whose condition is true as run this step.
   void markTerms(std::initializer_list<std::pair<StepTerm, bool>> terms);
   /// The profile's record of a density advection and of a diffusion.
@@ -316,6 +340,10 @@ class StainSolver {
   RowVectors3 surfaceVelocityScratch_;  // addDrop: surfaceVelocity of every vertex
   bool surfaceMoved_ = false;           // this step's surface moved (refreshGeometry)
   Vector areaScratch_;
+  // The vertices the strain test measures around (StrainTest::AroundLiquid),
+  // reserved #V, and their marks (#V).
+  std::vector<int> strainTestVertices_;
+  std::vector<char> strainTestMarks_;
   Vector evaporatedMass_;  // #V kg, the last step's per-vertex evaporation
   bool evaporationWritten_ = false;  // evaporatedMass_ holds nonzero values
   RowVectors3 initialVelocities_;

@@ -261,6 +261,15 @@ class SurfaceGeometry {
   /// surface whose metric nothing reads (no liquid has ever been on it);
   /// maxEdgeStrain() is then 0 and the next test measures every edge.
   bool refreshExtrinsic(const RowVectors3& nextPositions, double h, bool strainTest = true);
+  /// The strain test on part of the surface: the edges of the faces at
+  /// vertices[0, count) (ids in [0, #V), any order, repeats allowed), at the
+  /// t + h positions of the last refresh. Returns whether max over those edges
+  /// of |ℓ_e/ℓ̂_e − 1| exceeds the tolerance, and makes that max (0 for no
+  /// vertex) maxEdgeStrain(). For a caller that reads the metric only around
+  /// those vertices (StainSolverDef::strainTest, StrainTest::AroundLiquid),
+  /// after a refreshExtrinsic without its own test. O(edges tested) with no
+  /// allocation, whatever the mesh's size.
+  bool strainExceededAround(const int* vertices, int count);
   /// The same for a surface known to move rigidly, nextPositions = R x̄ + c
   /// (x̄ the rest shape, R the rotation at t + h, any translation c): U_i = R
   /// for every vertex, normals R n̄, no rotation fits and no strain test
@@ -320,7 +329,8 @@ class SurfaceGeometry {
   int refreshedFaceCount() const { return refreshedFaces_; }
   /// #F by 2, the rest wefts as combinations of the rest faces' edges (operators.h).
   const Eigen::MatrixX2d& faceWeftCoefficients() const { return faceWeftCoefficients_; }
-  /// max_e |ℓ_e(t+h)/ℓ_e,built − 1| from the last refreshExtrinsic.
+  /// max_e |ℓ_e(t+h)/ℓ_e,built − 1| from the last refreshExtrinsic (over the
+  /// edges strainExceededAround tested, when it ran after it).
   double maxEdgeStrain() const { return dynamic_.maxEdgeStrain; }
 
   const SurfaceTopology& topology() const { return *topology_; }
