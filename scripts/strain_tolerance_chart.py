@@ -16,7 +16,9 @@ One chart per scene, two panels: the relative L2 error of the whole solute
 stage's ms per step (the cost the tolerance controls; one thread, wall clock,
 the CSV's first line records the load average), points labelled with their
 tolerance; and the same errors against the tolerance, with the rebuilds per
-step in black. Solid: whole rebuilds; dashed: partial ones. The "floor" (the
+step in black. Solid: whole rebuilds; dashed: partial ones (both with every
+edge tested); dash-dotted: whole rebuilds with the strain tested around the
+free liquid only (the default). The "floor" (the
 reference with the drops' radii changed by 1e-8) is drawn dotted.
 """
 import csv
@@ -52,7 +54,8 @@ def main():
     load, rows = read(path)
     out = os.path.join(ROOT, "docs", "charts")
     os.makedirs(out, exist_ok=True)
-    styles = {"full": ("o-", "whole rebuild"), "partial": ("s--", "partial rebuild")}
+    styles = {"full": ("o-", "whole rebuild"), "partial": ("s--", "partial rebuild"),
+              "around-liquid": ("^-.", "whole rebuild, strain tested around the liquid")}
     errors = [("error_stain", 2.0, "whole solute (stain), 2 s", "C0"),
               ("error_solvent", 0.5, "free solvent, 0.5 s", "C1")]
     for scene in dict.fromkeys(r["scene"] for r in rows):

@@ -11,7 +11,10 @@
 // at the end with a reference run that rebuilds the intrinsic tier at every
 // step that strains any edge (tolerance: the smallest positive double), each
 // with the whole rebuild (IntrinsicRefresh::Full) and the partial one
-// (Partial: only the edges past half the tolerance re-measured).
+// (Partial: only the edges past half the tolerance re-measured), both with
+// every edge tested (StrainTest::WholeMesh, as the reference), and with the
+// whole rebuild and the default test, which measures only the edges around
+// the free liquid (StrainTest::AroundLiquid).
 //
 // Errors at 0.25, 0.5, 1 and 2 s, against the reference (the cloth moves differently too:
 // the stain's weight and momentum feed back into it, so the error is that of
@@ -80,11 +83,12 @@ struct RunResult {
 };
 
 // radiusScale: multiplies the drops' radii (the floor run perturbs them by 1e-8).
-RunResult run(const std::string& scene, double tolerance, stain::IntrinsicRefresh refresh, Eigen::VectorXd& restAreas,
-              double radiusScale = 1.0) {
+RunResult run(const std::string& scene, double tolerance, stain::IntrinsicRefresh refresh, stain::StrainTest where,
+              Eigen::VectorXd& restAreas, double radiusScale = 1.0) {
   EngineDef def = loadScene(std::string(BLOT_ASSETS_DIR) + "/scenes/" + scene + ".json").engine;
   def.stain.strainTolerance = tolerance;
   def.stain.intrinsicRefresh = refresh;
+  def.stain.strainTest = where;
   def.stain.threads = 1;
   for (TimedDrop& d : def.drops) d.drop.radius *= radiusScale;
   Engine engine(def);
@@ -143,7 +147,8 @@ TEST(StrainToleranceStudy, ErrorAgainstCostOnTheTwoWayFlagAndTheTablecloth) {
                       "error_solvent,error_solute,error_stain,centroid_error_mm");
   for (const std::string scene : {"two_way_flag", "tablecloth"}) {
     Eigen::VectorXd restAreas;
-    const RunResult reference = run(scene, kReference.value, stain::IntrinsicRefresh::Full, restAreas);
+    const RunResult reference =
+        run(scene, kReference.value, stain::IntrinsicRefresh::Full, stain::StrainTest::WholeMesh, restAreas);
     ASSERT_EQ(reference.snapshots.size(), std::size(kCheckpoints));
     EXPECT_GE(reference.rebuildsPerStep, 0.95) << scene;
     const auto write = [&](const char* refresh, const char* label, double value, const RunResult& r) {
@@ -170,14 +175,22 @@ TEST(StrainToleranceStudy, ErrorAgainstCostOnTheTwoWayFlagAndTheTablecloth) {
     // The floor: the reference with the drops' radii changed by 1e-8, what a
     // tiny change of the stain's shape grows into by then in the coupled run.
     write("full", "floor", kReference.value,
-          run(scene, kReference.value, stain::IntrinsicRefresh::Full, restAreas, 1.0 + 1e-8));
-    for (const stain::IntrinsicRefresh refresh : {stain::IntrinsicRefresh::Full, stain::IntrinsicRefresh::Partial}) {
-      const char* name = refresh == stain::IntrinsicRefresh::Full ? "full" : "partial";
+          run(scene, kReference.value, stain::IntrinsicRefresh::Full, stain::StrainTest::WholeMesh, restAreas,
+              1.0 + 1e-8));
+    struct Variant {
+      const char* name;
+      stain::IntrinsicRefresh refresh;
+      stain::StrainTest where;
+    };
+    const Variant variants[] = {{"full", stain::IntrinsicRefresh::Full, stain::StrainTest::WholeMesh},
+                                {"partial", stain::IntrinsicRefresh::Partial, stain::StrainTest::WholeMesh},
+                                {"around-liquid", stain::IntrinsicRefresh::Full, stain::StrainTest::AroundLiquid}};
+    for (const Variant& variant : variants) {
       double previousRebuilds = 2;
       for (const Tolerance& t : kTolerances) {
-        const RunResult r = run(scene, t.value, refresh, restAreas);
-        write(name, t.label, t.value, r);
-        if (refresh == stain::IntrinsicRefresh::Full) {
+        const RunResult r = run(scene, t.value, variant.refresh, variant.where, restAreas);
+        write(variant.name, t.label, t.value, r);
+        if (variant.refresh == stain::IntrinsicRefresh::Full) {
           // Coarser tolerances rebuild less (not strictly: the runs diverge; 10 % slack).
           EXPECT_LE(r.rebuildsPerStep, 1.1 * previousRebuilds + 1.0 / kSteps) << scene << " " << t.label;
         }
