@@ -191,12 +191,15 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
     return (a - a.dot(z) * z).norm();
   };
 
-  double speed = 0.0, acceleration = 0.0;
+  // U = max |u| as √(max |u|²): one root per decision instead of a hypot
+  // per vertex (glibc's hypot, with its rounding-mode guard, was a tenth of
+  // this function's time on a 10K cloth).
+  double speedSquared = 0.0, acceleration = 0.0;
   for (int k = 0; k < wetCount; ++k) {
     const int i = band.vertices[static_cast<size_t>(k)];
     const size_t ii = static_cast<size_t>(i);
     band.weights[i] = areas[i] * (std::max(state.solvent[i], 0.0) + std::max(state.solute[i], 0.0));
-    speed = std::max(speed, std::abs(state.velocities[i]));
+    speedSquared = std::max(speedSquared, std::norm(state.velocities[i]));
     acceleration = std::max(acceleration, kick(i));
     fillVertexTables(i);
     LiquidBand::Distances& labels = band.distances[ii];
@@ -217,7 +220,7 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
   bool everything = inputs.coverComponent;
   double distance = 0.0;
   for (int attempt = 0;; ++attempt) {
-    distance = distanceFor(speed + inputs.h * acceleration);
+    distance = distanceFor(std::sqrt(speedSquared) + inputs.h * acceleration);
     // The least label a "no" compared against d: the answer changes only if
     // the final d exceeds it.
     double rejected = std::numeric_limits<double>::infinity();
@@ -306,12 +309,12 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
         labels.fromReach = inReach ? 0.0 : fromReach;
         labels.nearestWet = nearestWet;
         labels.nearestReach = nearestReach;
-        speed = std::max(speed, std::abs(state.velocities[i]));
+        speedSquared = std::max(speedSquared, std::norm(state.velocities[i]));
         acceleration = std::max(acceleration, kick(i));
       }
       band.ringEnds.push_back(ringEnd);
       band.rings = level;
-      distance = distanceFor(speed + inputs.h * acceleration);
+      distance = distanceFor(std::sqrt(speedSquared) + inputs.h * acceleration);
     }
     // Every "no" holds with the final d: the band is complete. Otherwise grow
     // it again with the final d (the speed bound is kept); after two tries,
@@ -322,7 +325,7 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
     if (attempt == 1) everything = true;
   }
 
-  band.speedBound = speed + inputs.h * acceleration;
+  band.speedBound = std::sqrt(speedSquared) + inputs.h * acceleration;
   band.reachRings = 0;
   band.interiorCount = wetCount;  // wet vertices are rows of the velocity solve
   int deepestCentre = 0;  // deepest level of a reach centre so far (marking again)
