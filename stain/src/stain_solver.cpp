@@ -167,6 +167,11 @@ const StainSolverDef& checkedDefinition(const StainSolverDef& def) {
   for (int k = 0; k < 3; ++k)
     require(std::isfinite(def.gravity[k]), "gravity", def.gravity[k], "finite in every component");
   positive("strainTolerance", def.strainTolerance);
+  // A Region refresh re-measures around the vertices the test measured: with
+  // the whole-mesh test, a strain outside them would trip every step.
+  if (def.intrinsicRefresh == IntrinsicRefresh::Region && def.strainTest != StrainTest::AroundLiquid)
+    throw std::invalid_argument(
+        "StainSolverDef::intrinsicRefresh Region needs strainTest AroundLiquid, got WholeMesh");
   return def;
 }
 
@@ -670,6 +675,8 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
     // each vertex keeps its mass (A_old σ_old = A_new σ_new).
     areaScratch_ = geometry_.intrinsic().vertexDualAreas;
     systems_.releaseFactors();  // the stale factors are not kept while new operators are assembled
+    if (def_.intrinsicRefresh == IntrinsicRefresh::Region)
+      geometry_.setRefreshRegion(strainTestVertices_.data(), static_cast<int>(strainTestVertices_.size()));
     geometry_.refreshIntrinsic();
     rebuiltInStep_ = true;
     if (const StepReport collapsed = checkRebuiltAreas(); !collapsed.ok()) {

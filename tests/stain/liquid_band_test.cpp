@@ -919,6 +919,53 @@ TEST(LiquidBand, TheStrainTestAroundTheLiquidMeasuresWhereTheFreeLiquidIs) {
   EXPECT_EQ(around.profile().intrinsicRefreshes, 0) << "no strain since the rebuild";
 }
 
+// IntrinsicRefresh::Region with the test around the liquid: when the
+// liquid's edges strain past the tolerance, the lengths near the liquid are
+// re-measured and the far ones kept; the mass is kept through the rescaling,
+// and the next step, with no new strain, does not rebuild. Region without
+// that test is refused.
+TEST(LiquidBand, ARegionRefreshRemeasuresAroundTheLiquidOnly) {
+  StrainTestGrid grid(30, StrainTest::AroundLiquid);
+  grid.def.intrinsicRefresh = IntrinsicRefresh::Region;
+  StainSolver solver = grid.solver();
+  DropDef drop;
+  drop.centerPoint = Vector3(0.25, 0.5, 0.0);
+  drop.radius = 0.1;
+  drop.solventMass = 0.01;
+  drop.soluteMass = 0.001;
+  solver.addDrop(drop);
+  const double h = 0.01;
+  const Vector built = solver.geometry().intrinsic().edgeLengths;
+  const RowVectors3 stretched = grid.stretched(1.02);
+  ASSERT_EQ(solver.step(h, stretched).status, StepStatus::Ok);
+  EXPECT_EQ(solver.profile().intrinsicRefreshes, 1);
+  const Vector now = edgeLengths(grid.topology, stretched);
+  const Vector& lengths = solver.geometry().intrinsic().edgeLengths;
+  int remeasured = 0, kept = 0;
+  for (int e = 0; e < grid.topology.edgeCount(); ++e) {
+    const Vector3 middle = 0.5 * (grid.mesh.vertexPositions.row(grid.topology.edgeVertices()(e, 0)) +
+                                  grid.mesh.vertexPositions.row(grid.topology.edgeVertices()(e, 1)))
+                                     .transpose();
+    if ((middle - drop.centerPoint).norm() < drop.radius) {
+      EXPECT_EQ(lengths(e), now(e)) << "edge " << e << " under the drop";
+      ++remeasured;
+    } else if (middle.x() > 0.7) {
+      EXPECT_EQ(lengths(e), built(e)) << "edge " << e << " far from the drop";
+      ++kept;
+    }
+  }
+  EXPECT_GT(remeasured, 50);
+  EXPECT_GT(kept, 500);
+  EXPECT_LT(solver.massBudget().solventError(), 1e-12);
+  EXPECT_LT(solver.massBudget().soluteError(), 1e-12);
+  ASSERT_EQ(solver.step(h, stretched).status, StepStatus::Ok);
+  EXPECT_EQ(solver.profile().intrinsicRefreshes, 0) << "no strain near the liquid since the refresh";
+
+  StrainTestGrid whole(10);
+  whole.def.intrinsicRefresh = IntrinsicRefresh::Region;
+  EXPECT_THROW(whole.solver(), std::invalid_argument);
+}
+
 // A write from outside that was cleared again still has the steps test
 // strain, and a solver restored from a snapshot taken then tests it too (the
 // flag is saved; it was derived from the densities, all zero here, so the

@@ -673,6 +673,93 @@ TEST(SurfaceGeometry, PartialRefreshAllocatesNothingAndIsThreadCountIndependent)
   expectSameIntrinsic(one, two);
 }
 
+// A region refresh re-measures exactly the edges of the faces within
+// kRegionRefreshRings rings of the region's vertices, whatever their strain,
+// and keeps every other edge's built length however strained; the tier is
+// bitwise the one built from those per-edge lengths, and the refresh
+// allocates nothing. Out-of-range regions are refused.
+TEST(SurfaceGeometry, RegionRefreshRemeasuresTheRegionWholeAndIsTheTierOfThoseLengths) {
+  const TriangleMesh mesh = gridMesh(40, 40, 1.0, 1.0);
+  const int n = static_cast<int>(mesh.vertexPositions.rows());
+  const SurfaceTopology topology(mesh.faces, n);
+  const FabricField fabric = anisotropicFabric(topology.faceCount(), 8);
+  const RowVectors3& rest = mesh.vertexPositions;
+  SurfaceGeometry geometry(topology, rest, fabric, 1e-3);
+  geometry.setIntrinsicRefresh(IntrinsicRefresh::Region);
+  // The region: the vertices within 0.06 of (0.3, 0.4).
+  std::vector<int> region;
+  for (int v = 0; v < n; ++v)
+    if ((rest.row(v) - Eigen::RowVector3d(0.3, 0.4, 0)).norm() < 0.06) region.push_back(v);
+  ASSERT_GT(region.size(), 5u);
+  region.push_back(region.front());  // a repeat
+  // Its faces' edges, kRegionRefreshRings rings out (breadth-first here).
+  std::vector<int> level(static_cast<size_t>(n), -1);
+  std::vector<int> queue;
+  for (const int v : region)
+    if (level[static_cast<size_t>(v)] < 0) {
+      level[static_cast<size_t>(v)] = 0;
+      queue.push_back(v);
+    }
+  for (size_t k = 0; k < queue.size(); ++k) {
+    const int v = queue[k];
+    if (level[static_cast<size_t>(v)] == kRegionRefreshRings) continue;
+    for (int m = topology.ringOffsets()[static_cast<size_t>(v)]; m < topology.ringOffsets()[static_cast<size_t>(v) + 1]; ++m) {
+      const int j = topology.ringNeighbors()[static_cast<size_t>(m)];
+      if (level[static_cast<size_t>(j)] >= 0) continue;
+      level[static_cast<size_t>(j)] = level[static_cast<size_t>(v)] + 1;
+      queue.push_back(j);
+    }
+  }
+  std::vector<char> inRegion(static_cast<size_t>(topology.edgeCount()), 0);
+  for (int f = 0; f < topology.faceCount(); ++f) {
+    bool near = false;
+    for (int c = 0; c < 3; ++c) near = near || level[static_cast<size_t>(mesh.faces(f, c))] >= 0;
+    if (near)
+      for (int c = 0; c < 3; ++c) inRegion[static_cast<size_t>(topology.faceEdges()(f, c))] = 1;
+  }
+  // Every edge strained: the whole sheet 2 % longer and a bump far from the region.
+  RowVectors3 p = 1.02 * rest;
+  for (int v = 0; v < n; ++v)
+    p(v, 2) += 0.02 * std::exp(-(rest.row(v) - Eigen::RowVector3d(0.8, 0.7, 0)).squaredNorm() / 0.005);
+  // A first region refresh sizes the tier kept for an undo (the one
+  // allocation, as for Partial).
+  geometry.setRefreshRegion(region.data(), static_cast<int>(region.size()));
+  ASSERT_TRUE(geometry.refreshExtrinsic(1.01 * rest, 0.01));
+  geometry.refreshIntrinsic();
+  const Vector built = geometry.intrinsic().edgeLengths;
+  ASSERT_TRUE(geometry.refreshExtrinsic(p, 0.01));
+  gAllocations = 0;
+  gCountAllocations = true;
+  geometry.refreshIntrinsic();
+  gCountAllocations = false;
+  if (kCountsAllocations) {
+    EXPECT_EQ(gAllocations.load(), 0);
+  }
+  const IntrinsicGeometry& in = geometry.intrinsic();
+  const Vector now = edgeLengths(topology, p);
+  int remeasured = 0;
+  for (int e = 0; e < topology.edgeCount(); ++e) {
+    if (inRegion[static_cast<size_t>(e)]) {
+      EXPECT_EQ(in.edgeLengths(e), now(e)) << "edge " << e;
+      ++remeasured;
+    } else {
+      EXPECT_EQ(in.edgeLengths(e), built(e)) << "edge " << e;
+    }
+  }
+  EXPECT_EQ(geometry.refreshedEdgeCount(), remeasured);
+  EXPECT_LT(remeasured, topology.edgeCount() / 4);
+  EXPECT_GT(geometry.maxEdgeStrain(), 0.019) << "the edges kept are strained";
+  IntrinsicGeometry whole;
+  intrinsicGeometryFromLengths(topology, in.edgeLengths, fabric.densityTensors, fabric.velocityTensors,
+                               geometry.faceWeftCoefficients(), whole);
+  expectSameIntrinsic(in, whole);
+
+  const int bad[] = {0, n};
+  EXPECT_THROW(geometry.setRefreshRegion(bad, 2), std::invalid_argument);
+  std::vector<int> tooMany(static_cast<size_t>(n) + 1, 0);
+  EXPECT_THROW(geometry.setRefreshRegion(tooMany.data(), n + 1), std::invalid_argument);
+}
+
 // ---- Rotation fits ----------------------------------------------------------
 
 Matrix3 randomRotation(std::mt19937& rng, double maxAngle) {

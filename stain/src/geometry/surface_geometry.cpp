@@ -255,7 +255,8 @@ SurfaceGeometry::SurfaceGeometry(const SurfaceTopology& topology, const RowVecto
   vertexMarks2_.assign(static_cast<size_t>(n), 0);
   for (std::vector<int>* list : {&chosenEdges_, &edges1_, &edges2_}) list->reserve(static_cast<size_t>(edgeCount));
   for (std::vector<int>* list : {&faces1_, &faces2_, &faces3_}) list->reserve(static_cast<size_t>(faceCount));
-  for (std::vector<int>* list : {&vertices1_, &vertices2_, &prepareOrder_}) list->reserve(static_cast<size_t>(n));
+  for (std::vector<int>* list : {&vertices1_, &vertices2_, &prepareOrder_, &regionVertices_})
+    list->reserve(static_cast<size_t>(n));
   refreshIntrinsic();
 }
 
@@ -300,7 +301,7 @@ void intrinsicGeometryFromLengths(const SurfaceTopology& topology, const Vector&
 }
 
 void SurfaceGeometry::setIntrinsicRefresh(IntrinsicRefresh mode) {
-  if (mode == IntrinsicRefresh::Partial && intrinsicRefresh_ != mode && dynamic_.intrinsic.rebuildCount > 0) {
+  if (mode != IntrinsicRefresh::Full && intrinsicRefresh_ == IntrinsicRefresh::Full && dynamic_.intrinsic.rebuildCount > 0) {
     IntrinsicGeometry& in = dynamic_.intrinsic;
     const Vector built = in.edgeLengths;
     intrinsicGeometryFromLengths(*topology_, built, fabric_.densityTensors, fabric_.velocityTensors,
@@ -308,6 +309,17 @@ void SurfaceGeometry::setIntrinsicRefresh(IntrinsicRefresh mode) {
     kept_.valid = false;
   }
   intrinsicRefresh_ = mode;
+}
+
+void SurfaceGeometry::setRefreshRegion(const int* vertices, int count) {
+  if (count < 0 || count > topology_->vertexCount())
+    throw std::invalid_argument("SurfaceGeometry::setRefreshRegion: " + std::to_string(count) +
+                                " vertices, expected at most " + std::to_string(topology_->vertexCount()));
+  for (int k = 0; k < count; ++k)
+    if (vertices[k] < 0 || vertices[k] >= topology_->vertexCount())
+      throw std::invalid_argument("SurfaceGeometry::setRefreshRegion: vertex " + std::to_string(vertices[k]) +
+                                  " out of range");
+  regionVertices_.assign(vertices, vertices + count);
 }
 
 void SurfaceGeometry::refreshIntrinsic() {
@@ -396,18 +408,54 @@ bool SurfaceGeometry::refreshIntrinsicPartially(const RowVectors3& positions) {
   const double t = kPartialRefreshFraction * strainTolerance_;
   const double high = (1 + t) * (1 + t), low = t < 1 ? (1 - t) * (1 - t) : 0.0;
   chosenEdges_.clear();
+  const bool region = intrinsicRefresh_ == IntrinsicRefresh::Region;
+  if (region) {
+    // The region's vertices and kRegionRefreshRings rings around them, then
+    // the edges of their faces.
+    vertices1_.clear();
+    for (const int v : regionVertices_)
+      if (!vertexMarks_[static_cast<size_t>(v)]) {
+        vertexMarks_[static_cast<size_t>(v)] = 1;
+        vertices1_.push_back(v);
+      }
+    size_t ringBegin = 0;
+    for (int ring = 0; ring < kRegionRefreshRings; ++ring) {
+      const size_t ringEnd = vertices1_.size();
+      for (size_t k = ringBegin; k < ringEnd; ++k) {
+        const int v = vertices1_[k];
+        for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m) {
+          const int j = topology.ringNeighbors()[static_cast<size_t>(m)];
+          if (vertexMarks_[static_cast<size_t>(j)]) continue;
+          vertexMarks_[static_cast<size_t>(j)] = 1;
+          vertices1_.push_back(j);
+        }
+      }
+      ringBegin = ringEnd;
+    }
+    for (const int v : vertices1_) {
+      vertexMarks_[static_cast<size_t>(v)] = 0;
+      for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m) {
+        const int f = ringFaces[static_cast<size_t>(m)];
+        if (f < 0) continue;
+        for (int c = 0; c < 3; ++c) edgeMarks_[static_cast<size_t>(faceEdges(f, c))] = 1;
+      }
+    }
+  }
   double maxRatio = 1.0, minRatio = 1.0;
   for (int e = 0; e < edgeCount; ++e) {
     const Vector3 d = (positions.row(edges(e, 1)) - positions.row(edges(e, 0))).transpose();
     const double ratio = d.squaredNorm() * inverseBuilt[e];
-    if (ratio > high || ratio < low) {
+    if (region ? edgeMarks_[static_cast<size_t>(e)] != 0 : (ratio > high || ratio < low)) {
       chosenEdges_.push_back(e);
     } else {
       maxRatio = std::max(maxRatio, ratio);
       minRatio = std::min(minRatio, ratio);
     }
   }
-  if (static_cast<double>(chosenEdges_.size()) > kPartialRefreshMaxShare * edgeCount) return false;
+  if (static_cast<double>(chosenEdges_.size()) > kPartialRefreshMaxShare * edgeCount) {
+    for (const int e : chosenEdges_) edgeMarks_[static_cast<size_t>(e)] = 0;
+    return false;
+  }
   for (const int e : chosenEdges_) {
     // What edgeLengths() computes for this edge, and 1 / ℓ̂² as the whole path does.
     in.edgeLengths(e) = (positions.row(edges(e, 1)) - positions.row(edges(e, 0))).norm();

@@ -48,8 +48,10 @@ struct StainSolverDef {
   Vector3 gravity = Vector3(0, 0, -9.8);  ///< world gravity (m/s²)
   double strainTolerance = 1e-3;          ///< intrinsic rebuild threshold (relative edge strain)
   /// How a rebuild refreshes the intrinsic tier (SurfaceGeometry::setIntrinsicRefresh):
-  /// Full (default) or Partial (only the edges past half the tolerance; measured
-  /// less accurate, docs/accuracy.md "Strain tolerance").
+  /// Full (default), Partial (only the edges past half the tolerance; measured
+  /// less accurate, docs/accuracy.md "Strain tolerance") or Region (every
+  /// edge near the vertices the strain test measured; needs strainTest
+  /// AroundLiquid, std::invalid_argument otherwise).
   IntrinsicRefresh intrinsicRefresh = IntrinsicRefresh::Full;
   /// Where the strain test measures (StrainTest): every edge (default) or
   /// around the liquid.

@@ -199,8 +199,22 @@ enum class IntrinsicRefresh {
   /// edges chosen rebuilds it from all current lengths. Not the default:
   /// the metric of mixed-age lengths costs far more accuracy than it saves
   /// time (docs/accuracy.md, "Strain tolerance").
-  Partial
+  Partial,
+  /// Every edge of the faces within kRegionRefreshRings rings of the
+  /// vertices given to setRefreshRegion (StainSolver: those its strain test
+  /// measured around, the free liquid) takes its current length, the rest
+  /// keep theirs; the dependent values as in Partial (the same machinery and
+  /// result: bitwise the tier from those per-edge lengths). Unlike Partial,
+  /// the region is whole: the liquid's part of the metric is one surface's,
+  /// and the lengths of different ages meet rings away from the liquid. As
+  /// accurate as the whole rebuild at the same trigger, at about 0.7 of its
+  /// cost on the two-way flag (docs/accuracy.md, "Strain tolerance"). More
+  /// than kPartialRefreshMaxShare of the edges: the whole tier, as Partial.
+  Region
 };
+/// Rings around the refresh region's vertices whose faces a Region refresh
+/// re-measures too.
+inline constexpr int kRegionRefreshRings = 3;
 /// Share of the tolerance past which an edge is re-measured by a partial
 /// refresh: the refreshed edges then start again from strain 0, the others
 /// sit below half the tolerance, so the next trip needs a real change.
@@ -322,6 +336,10 @@ class SurfaceGeometry {
   /// (intrinsicGeometryFromLengths), so that every later partial refresh
   /// starts from a tier it is bitwise consistent with; allocates.
   void setIntrinsicRefresh(IntrinsicRefresh mode);
+  /// The vertices a Region refresh re-measures around (ids in [0, #V),
+  /// repeats allowed, at most #V of them; copied without allocation). Kept
+  /// until the next call.
+  void setRefreshRegion(const int* vertices, int count);
   IntrinsicRefresh intrinsicRefresh() const { return intrinsicRefresh_; }
   /// Edges re-measured and faces whose stiffness block was recomputed by the
   /// last refreshIntrinsic (#E and #F after a whole rebuild).
@@ -467,6 +485,8 @@ class SurfaceGeometry {
   // their ring faces (F3).
   void refreshIntrinsicFromPositions(const RowVectors3& positions);
   bool refreshIntrinsicPartially(const RowVectors3& positions);
+  // Region mode: the chosen edges are those of the faces near the region.
+  std::vector<int> regionVertices_;
   IntrinsicRefresh intrinsicRefresh_ = IntrinsicRefresh::Full;
   Eigen::MatrixX2d faceWeftCoefficients_;
   std::vector<char> edgeMarks_, faceMarks_, vertexMarks_, vertexMarks2_;
