@@ -18,7 +18,8 @@ the CSV's first line records the load average), points labelled with their
 tolerance; and the same errors against the tolerance, with the rebuilds per
 step in black. Solid: whole rebuilds; dashed: partial ones (both with every
 edge tested); dash-dotted: whole rebuilds with the strain tested around the
-free liquid only (the default). The "floor" (the
+free liquid only; dotted with triangles: the region around the liquid
+rebuilt (IntrinsicRefresh::Region) on that test. The "floor" (the
 reference with the drops' radii changed by 1e-8) is drawn dotted.
 """
 import csv
@@ -55,7 +56,8 @@ def main():
     out = os.path.join(ROOT, "docs", "charts")
     os.makedirs(out, exist_ok=True)
     styles = {"full": ("o-", "whole rebuild"), "partial": ("s--", "partial rebuild"),
-              "around-liquid": ("^-.", "whole rebuild, strain tested around the liquid")}
+              "around-liquid": ("^-.", "whole rebuild, strain tested around the liquid"),
+              "region": ("v:", "region rebuild around the liquid, strain tested there")}
     errors = [("error_stain", 2.0, "whole solute (stain), 2 s", "C0"),
               ("error_solvent", 0.5, "free solvent, 0.5 s", "C1")]
     for scene in dict.fromkeys(r["scene"] for r in rows):

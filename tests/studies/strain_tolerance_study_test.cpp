@@ -13,8 +13,12 @@
 // with the whole rebuild (IntrinsicRefresh::Full) and the partial one
 // (Partial: only the edges past half the tolerance re-measured), both with
 // every edge tested (StrainTest::WholeMesh, as the reference), and with the
-// whole rebuild and the default test, which measures only the edges around
-// the free liquid (StrainTest::AroundLiquid).
+// whole rebuild and the test that measures only the edges around the free
+// liquid (StrainTest::AroundLiquid), and with that test and the region
+// around the liquid rebuilt (IntrinsicRefresh::Region). BLOT_STUDY_SCENE
+// (two_way_flag or tablecloth) and BLOT_STUDY_VARIANT (full, partial,
+// around-liquid or region) restrict a run to one scene or variant (the
+// reference and floor always run).
 //
 // Errors at 0.25, 0.5, 1 and 2 s, against the reference (the cloth moves differently too:
 // the stain's weight and momentum feed back into it, so the error is that of
@@ -47,6 +51,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <iterator>
 #include <limits>
 #include <string>
@@ -146,6 +151,7 @@ TEST(StrainToleranceStudy, ErrorAgainstCostOnTheTwoWayFlagAndTheTablecloth) {
                       "scene,refresh,tolerance,tolerance_value,rebuilds_per_step,direct_steps,stain_ms,geometry_ms,total_ms,time_s,"
                       "error_solvent,error_solute,error_stain,centroid_error_mm");
   for (const std::string scene : {"two_way_flag", "tablecloth"}) {
+    if (std::getenv("BLOT_STUDY_SCENE") && scene != std::getenv("BLOT_STUDY_SCENE")) continue;
     Eigen::VectorXd restAreas;
     const RunResult reference =
         run(scene, kReference.value, stain::IntrinsicRefresh::Full, stain::StrainTest::WholeMesh, restAreas);
@@ -184,8 +190,10 @@ TEST(StrainToleranceStudy, ErrorAgainstCostOnTheTwoWayFlagAndTheTablecloth) {
     };
     const Variant variants[] = {{"full", stain::IntrinsicRefresh::Full, stain::StrainTest::WholeMesh},
                                 {"partial", stain::IntrinsicRefresh::Partial, stain::StrainTest::WholeMesh},
-                                {"around-liquid", stain::IntrinsicRefresh::Full, stain::StrainTest::AroundLiquid}};
+                                {"around-liquid", stain::IntrinsicRefresh::Full, stain::StrainTest::AroundLiquid},
+                                {"region", stain::IntrinsicRefresh::Region, stain::StrainTest::AroundLiquid}};
     for (const Variant& variant : variants) {
+      if (std::getenv("BLOT_STUDY_VARIANT") && std::string(variant.name) != std::getenv("BLOT_STUDY_VARIANT")) continue;
       double previousRebuilds = 2;
       for (const Tolerance& t : kTolerances) {
         const RunResult r = run(scene, t.value, variant.refresh, variant.where, restAreas);
