@@ -882,6 +882,13 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
   def.stain.strainTolerance = r.number("strain_tolerance", defaultStrainTolerance, positive());
   def.stain.strainTest = static_cast<stain::StrainTest>(
       r.choice("strain_test", static_cast<int>(def.stain.strainTest), {"whole-mesh", "around-liquid"}));
+  // "partial" (IntrinsicRefresh::Partial) stays API-only: measured less
+  // accurate than either of these (docs/accuracy.md, "Strain tolerance").
+  if (r.choice("intrinsic_refresh", 0, {"whole", "region"}) == 1) {
+    if (def.stain.strainTest != stain::StrainTest::AroundLiquid)
+      ctx.fail("intrinsic_refresh", "\"region\" needs strain_test \"around-liquid\", got \"whole-mesh\"");
+    def.stain.intrinsicRefresh = stain::IntrinsicRefresh::Region;
+  }
   def.stain.threads = r.integer("threads", def.stain.threads, closed(0, stain::kMaxThreads));
   def.stain.adaptiveThreads = r.boolean("adaptive_threads", def.stain.adaptiveThreads);
   def.coupling = static_cast<coupling::CouplingMode>(r.choice("coupling", 0, {"one-way", "two-way"}));

@@ -53,6 +53,7 @@ TEST(SceneTest, MinimalSceneGetsDocumentedDefaults) {
   EXPECT_EQ(scene.engine.stain.threads, 0);
   EXPECT_TRUE(scene.engine.stain.adaptiveThreads);
   EXPECT_EQ(scene.engine.stain.strainTest, stain::StrainTest::WholeMesh);
+  EXPECT_EQ(scene.engine.stain.intrinsicRefresh, stain::IntrinsicRefresh::Full);
   EXPECT_EQ(scene.outputs.frames, 10);
   EXPECT_EQ(scene.outputs.directory, "out/scene");
   // The patch is centred on the origin in the xy plane.
@@ -74,7 +75,7 @@ TEST(SceneTest, EveryCommonKeyReachesItsField) {
     "physics": {"coriolis": false, "film_pressure": true, "coriolis_scheme": "explicit", "boundary_wall": false},
     "gravity": [0, 0, -9.81],
     "coupling": "two-way", "time_step": 0.005, "max_steps_per_call": 4, "threads": 3, "adaptive_threads": false,
-    "strain_test": "around-liquid",
+    "strain_test": "around-liquid", "intrinsic_refresh": "region",
     "drops": [{"vertex": 5, "radius": 0.1, "solvent_mass": 0.01, "solute_mass": 0.002, "time": 0.5},
               {"point": [0, 0, 1], "velocity": [0, 1, 0], "relative_velocity": [0.5, 0, 0]}],
     "held_regions": [{"vertices": [1, 2, 3], "solvent_density": 2}],
@@ -114,6 +115,7 @@ TEST(SceneTest, EveryCommonKeyReachesItsField) {
   EXPECT_EQ(d.stain.threads, 3);
   EXPECT_FALSE(d.stain.adaptiveThreads);
   EXPECT_EQ(d.stain.strainTest, stain::StrainTest::AroundLiquid);
+  EXPECT_EQ(d.stain.intrinsicRefresh, stain::IntrinsicRefresh::Region);
   ASSERT_EQ(d.drops.size(), 2u);
   EXPECT_EQ(d.drops[0].drop.centerVertex, 5);
   EXPECT_DOUBLE_EQ(d.drops[0].time, 0.5);
@@ -222,6 +224,8 @@ INSTANTIATE_TEST_SUITE_P(
         BadScene{"wrong type", withExtra(R"("time_step": "fast")"), "time_step", "expected a number in [1e-06, 1], got a string"},
         BadScene{"negative time step", withExtra(R"("time_step": -0.01)"), "time_step", "got -0.01"},
         BadScene{"bad enum", withExtra(R"("coupling": "both")"), "coupling", "expected one of \"one-way\", \"two-way\""},
+        BadScene{"region refresh without the test around the liquid", withExtra(R"("intrinsic_refresh": "region")"),
+                 "intrinsic_refresh", "needs strain_test \"around-liquid\""},
         BadScene{"two-way without bullet", withExtra(R"("coupling": "two-way")"), "coupling", "needs cloth.source \"bullet\""},
         BadScene{"unknown source", withCloth(R"({"source": "cloth"})"), "cloth.source", "expected one of \"static\""},
         BadScene{"missing cloth", R"({"mesh": {"patch": {}}})", "cloth", "required key is missing"},
