@@ -38,7 +38,10 @@ enum class StrainTest {
   /// much as the rest, the same tolerance lets its metric drift further
   /// between rebuilds (the whole-mesh test's other trips refresh it too), so
   /// it needs about a fifth of the tolerance for the same error
-  /// (docs/accuracy.md, "Strain tolerance").
+  /// (docs/accuracy.md, "Strain tolerance"). A stain left where no free
+  /// liquid is keeps its densities per the areas of the last rebuild: its
+  /// mass is exact, its density per area of the stretched cloth is off by
+  /// the stretch since then, however large.
   AroundLiquid
 };
 
