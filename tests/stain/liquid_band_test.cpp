@@ -822,6 +822,15 @@ struct StrainTestGrid {
   }
   int vertexCount() const { return static_cast<int>(mesh.vertexPositions.rows()); }
   StainSolver solver() const { return StainSolver(topology, mesh.vertexPositions, fabric, def); }
+  // A drop on the left of the sheet (x < 0.35).
+  static DropDef leftDrop() {
+    DropDef drop;
+    drop.centerPoint = Vector3(0.25, 0.5, 0.0);
+    drop.radius = 0.1;
+    drop.solventMass = 0.01;
+    drop.soluteMass = 0.001;
+    return drop;
+  }
   RowVectors3 stretched(double factor) const { return factor * mesh.vertexPositions; }
   TriangleMesh mesh;
   SurfaceTopology topology;
@@ -876,13 +885,8 @@ TEST(LiquidBand, TheStrainTestAroundTheLiquidMeasuresWhereTheFreeLiquidIs) {
   ASSERT_EQ(StainSolverDef().strainTest, StrainTest::WholeMesh);
   StainSolver around = grid.solver();
   StainSolver whole = wholeGrid.solver();
-  DropDef drop;
-  drop.centerPoint = Vector3(0.25, 0.5, 0.0);
-  drop.radius = 0.1;
-  drop.solventMass = 0.01;
-  drop.soluteMass = 0.001;
-  around.addDrop(drop);
-  whole.addDrop(drop);
+  around.addDrop(StrainTestGrid::leftDrop());
+  whole.addDrop(StrainTestGrid::leftDrop());
   // x past 0.6 stretched by `k` along x: the drop (x < 0.35 and the few
   // rings its liquid reaches) never sees it.
   const auto stretchedRight = [&](double k) {
@@ -928,11 +932,7 @@ TEST(LiquidBand, ARegionRefreshRemeasuresAroundTheLiquidOnly) {
   StrainTestGrid grid(30, StrainTest::AroundLiquid);
   grid.def.intrinsicRefresh = IntrinsicRefresh::Region;
   StainSolver solver = grid.solver();
-  DropDef drop;
-  drop.centerPoint = Vector3(0.25, 0.5, 0.0);
-  drop.radius = 0.1;
-  drop.solventMass = 0.01;
-  drop.soluteMass = 0.001;
+  const DropDef drop = StrainTestGrid::leftDrop();
   solver.addDrop(drop);
   const double h = 0.01;
   const Vector built = solver.geometry().intrinsic().edgeLengths;
