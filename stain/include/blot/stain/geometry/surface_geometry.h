@@ -209,7 +209,9 @@ enum class IntrinsicRefresh {
   /// and the lengths of different ages meet rings away from the liquid. As
   /// accurate as the whole rebuild at the same trigger, at about 0.7 of its
   /// cost on the two-way flag (docs/accuracy.md, "Strain tolerance"). More
-  /// than kPartialRefreshMaxShare of the edges: the whole tier, as Partial.
+  /// than kPartialRefreshMaxShare of the edges: the whole tier from the
+  /// current lengths, as Partial (intrinsicGeometryFromLengths, which
+  /// allocates: the whole rebuild of Full refills in place).
   Region
 };
 /// Rings around the refresh region's vertices whose faces a Region refresh
