@@ -58,6 +58,12 @@ bool solveSymmetricPositive(const Matrix3& H, const Vector3& b, double scale, Ve
   return true;
 }
 
+// max_e |ℓ_e/ℓ̂_e − 1| from the extremes of the squared ratios ℓ_e²/ℓ̂_e²
+// over the measured edges (1 and 1 for none): the strain tests' one root each.
+double strainFromSquaredRatios(double maxRatio, double minRatio) {
+  return std::max(std::sqrt(maxRatio) - 1.0, 1.0 - std::sqrt(minRatio));
+}
+
 // Rotation vector (axis × angle, angle in [0, π]) of a unit quaternion
 // q = (cos θ/2, sin θ/2 a): θ a = v · 2 atan(x)/(x w), x = |v|/w (w ≥ 0). For
 // x² < 1e-3 (θ < 0.063 rad, the usual per-step rotation) atan(x)/x is its
@@ -527,7 +533,7 @@ bool SurfaceGeometry::refreshIntrinsicPartially(const RowVectors3& positions) {
                                   faces3_.data(), size(faces3_), in.velocityStiffness);
   for (const int v : vertices1_) vertexMarks_[static_cast<size_t>(v)] = 0;
   for (const int v : vertices2_) vertexMarks2_[static_cast<size_t>(v)] = 0;
-  dynamic_.maxEdgeStrain = std::max(std::sqrt(maxRatio) - 1.0, 1.0 - std::sqrt(minRatio));
+  dynamic_.maxEdgeStrain = strainFromSquaredRatios(maxRatio, minRatio);
   strainMeasured_ = true;
   refreshedEdges_ = size(chosenEdges_);
   refreshedFaces_ = size(faces3_);
@@ -671,7 +677,7 @@ bool SurfaceGeometry::strainExceededAround(const int* vertices, int count) {
     maxRatio = std::max(maxRatio, ratio);
     minRatio = std::min(minRatio, ratio);
   }
-  dynamic_.maxEdgeStrain = std::max(std::sqrt(maxRatio) - 1.0, 1.0 - std::sqrt(minRatio));
+  dynamic_.maxEdgeStrain = strainFromSquaredRatios(maxRatio, minRatio);
   strainMeasured_ = false;  // not the whole surface's
   return dynamic_.maxEdgeStrain > strainTolerance_;
 }
@@ -703,7 +709,7 @@ void SurfaceGeometry::measureStrain() {
       minRatio = std::min(minRatio, minRatioHere);
     }
   });
-  dynamic_.maxEdgeStrain = std::max(std::sqrt(maxRatio) - 1.0, 1.0 - std::sqrt(minRatio));
+  dynamic_.maxEdgeStrain = strainFromSquaredRatios(maxRatio, minRatio);
   strainMeasured_ = true;
 }
 
