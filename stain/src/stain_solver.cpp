@@ -314,16 +314,10 @@ bool StainSolver::everHeldLiquid() const {
 }
 
 bool StainSolver::strainExceededAroundLiquid() {
-  // The vertices holding free liquid, by the test that files a vertex wet or
-  // damp (liquid_band.cpp, classify), so that the candidates of the
-  // incremental wet set hold every one of them when the set is not stale:
-  // the same list whichever way it was found.
+  // The vertices holding free liquid (holdsFreeLiquid): the candidates of the
+  // incremental wet set hold every one of them when the set is not stale, so
+  // the list is the same whichever way it was found.
   const double threshold = def_.liquid.wetThreshold;
-  const Vector& solvent = state_.solvent;
-  const Vector& solute = state_.solute;
-  const auto holdsFreeLiquid = [&](int i) {
-    return solvent[i] + solute[i] > 0 || solvent[i] > threshold || solute[i] > threshold;
-  };
   const auto add = [&](int i) {
     if (strainTestMarks_[static_cast<size_t>(i)]) return;
     strainTestMarks_[static_cast<size_t>(i)] = 1;
@@ -332,10 +326,10 @@ bool StainSolver::strainExceededAroundLiquid() {
   strainTestVertices_.clear();
   if (band_.scanAll) {
     for (int i = 0; i < state_.vertexCount(); ++i)
-      if (holdsFreeLiquid(i)) add(i);
+      if (holdsFreeLiquid(state_, i, threshold)) add(i);
   } else {
     for (const int i : band_.candidates)
-      if (holdsFreeLiquid(i)) add(i);
+      if (holdsFreeLiquid(state_, i, threshold)) add(i);
   }
   // Sources add liquid on their regions this step.
   if (def_.switches.sources)

@@ -397,6 +397,41 @@ void SurfaceGeometry::refreshIntrinsicFromPositions(const RowVectors3& positions
   refreshedFaces_ = topology.faceCount();
 }
 
+void SurfaceGeometry::markRegionEdges() {
+  const SurfaceTopology& topology = *topology_;
+  const std::vector<int>& offsets = topology.ringOffsets();
+  const std::vector<int>& neighbors = topology.ringNeighbors();
+  const std::vector<int>& ringFaces = topology.ringFaces();
+  const Eigen::MatrixX3i& faceEdges = topology.faceEdges();
+  // The region's vertices, then kRegionRefreshRings rings around them, ring
+  // by ring (vertices1_ as the list, vertexMarks_ as its marks).
+  vertices1_.clear();
+  const auto add = [&](int v) {
+    if (vertexMarks_[static_cast<size_t>(v)]) return;
+    vertexMarks_[static_cast<size_t>(v)] = 1;
+    vertices1_.push_back(v);
+  };
+  for (const int v : regionVertices_) add(v);
+  size_t ringBegin = 0;
+  for (int ring = 0; ring < kRegionRefreshRings; ++ring) {
+    const size_t ringEnd = vertices1_.size();
+    for (size_t k = ringBegin; k < ringEnd; ++k) {
+      const size_t v = static_cast<size_t>(vertices1_[k]);
+      for (int m = offsets[v]; m < offsets[v + 1]; ++m) add(neighbors[static_cast<size_t>(m)]);
+    }
+    ringBegin = ringEnd;
+  }
+  // Their faces' edges; the vertex marks cleared.
+  for (const int v : vertices1_) {
+    vertexMarks_[static_cast<size_t>(v)] = 0;
+    for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m) {
+      const int f = ringFaces[static_cast<size_t>(m)];
+      if (f < 0) continue;
+      for (int c = 0; c < 3; ++c) edgeMarks_[static_cast<size_t>(faceEdges(f, c))] = 1;
+    }
+  }
+}
+
 bool SurfaceGeometry::refreshIntrinsicPartially(const RowVectors3& positions) {
   const SurfaceTopology& topology = *topology_;
   const int n = topology.vertexCount(), edgeCount = topology.edgeCount(), faceCount = topology.faceCount();
@@ -415,38 +450,7 @@ bool SurfaceGeometry::refreshIntrinsicPartially(const RowVectors3& positions) {
   const double high = (1 + t) * (1 + t), low = t < 1 ? (1 - t) * (1 - t) : 0.0;
   chosenEdges_.clear();
   const bool region = intrinsicRefresh_ == IntrinsicRefresh::Region;
-  if (region) {
-    // The region's vertices and kRegionRefreshRings rings around them, then
-    // the edges of their faces.
-    vertices1_.clear();
-    for (const int v : regionVertices_)
-      if (!vertexMarks_[static_cast<size_t>(v)]) {
-        vertexMarks_[static_cast<size_t>(v)] = 1;
-        vertices1_.push_back(v);
-      }
-    size_t ringBegin = 0;
-    for (int ring = 0; ring < kRegionRefreshRings; ++ring) {
-      const size_t ringEnd = vertices1_.size();
-      for (size_t k = ringBegin; k < ringEnd; ++k) {
-        const int v = vertices1_[k];
-        for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m) {
-          const int j = topology.ringNeighbors()[static_cast<size_t>(m)];
-          if (vertexMarks_[static_cast<size_t>(j)]) continue;
-          vertexMarks_[static_cast<size_t>(j)] = 1;
-          vertices1_.push_back(j);
-        }
-      }
-      ringBegin = ringEnd;
-    }
-    for (const int v : vertices1_) {
-      vertexMarks_[static_cast<size_t>(v)] = 0;
-      for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m) {
-        const int f = ringFaces[static_cast<size_t>(m)];
-        if (f < 0) continue;
-        for (int c = 0; c < 3; ++c) edgeMarks_[static_cast<size_t>(faceEdges(f, c))] = 1;
-      }
-    }
-  }
+  if (region) markRegionEdges();
   double maxRatio = 1.0, minRatio = 1.0;
   for (int e = 0; e < edgeCount; ++e) {
     const Vector3 d = (positions.row(edges(e, 1)) - positions.row(edges(e, 0))).transpose();

@@ -487,7 +487,9 @@ class SurfaceGeometry {
   // their ring faces (F3).
   void refreshIntrinsicFromPositions(const RowVectors3& positions);
   bool refreshIntrinsicPartially(const RowVectors3& positions);
-  // Region mode: the chosen edges are those of the faces near the region.
+  // Region mode: marks (edgeMarks_) the edges of the faces within
+  // kRegionRefreshRings rings of regionVertices_, the chosen edges.
+  void markRegionEdges();
   std::vector<int> regionVertices_;
   IntrinsicRefresh intrinsicRefresh_ = IntrinsicRefresh::Full;
   Eigen::MatrixX2d faceWeftCoefficients_;

@@ -134,6 +134,14 @@ struct LiquidBandInputs {
   bool coverComponent = false;
 };
 
+/// Whether vertex i holds free liquid: σ_f or σ_s above wetThreshold, or
+/// σ_f + σ_s > 0 (a trace). Exactly the vertices updateWetVertices files as
+/// wet by their free liquid or as damp, so a vertex outside the incremental
+/// wet set's candidates (when not scanAll) holds none.
+inline bool holdsFreeLiquid(const StainState& state, int i, double wetThreshold) {
+  return state.solvent[i] + state.solute[i] > 0 || state.solvent[i] > wetThreshold || state.solute[i] > wetThreshold;
+}
+
 /// Level 0 of the band: the vertices holding liquid (σ_f, σ_s or σ_p above
 /// wetThreshold), in index order. Resets the previous band (O(previous band)
 /// for the masks, O(#V) for the scan). Call after the sources of the step.
