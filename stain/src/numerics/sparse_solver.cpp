@@ -276,10 +276,16 @@ void simplicialSolve(const cholmod_factor& L, const Scalar* const b[K], Scalar* 
   for (int j = 0; j < n; ++j) {
     const int begin = columnStarts[j], end = begin + columnCounts[j];
     Scalar z[K];
+    bool zero = true;
     for (int c = 0; c < K; ++c) {
       z[c] = divideByDiagonal(work[K * j + c], values[begin]);
       work[K * j + c] = z[c];
+      zero = zero && z[c] == Scalar(0);
     }
+    // A zero changes nothing below it (w − l·0 = w; only −0 − (−0) would
+    // have turned a −0 into +0): a right-hand side held by a few vertices
+    // costs the columns its entries reach in the elimination tree.
+    if (zero) continue;
     for (int q = begin + 1; q < end; ++q) {
       Scalar* w = work + K * static_cast<size_t>(rows[q]);
       for (int c = 0; c < K; ++c) w[c] = minusProduct(w[c], values[q], z[c]);
