@@ -193,9 +193,10 @@ SolverStatus DiffusionSystems::solveScalar(const Vector& rhs, Vector& x) {
   return status != SolverStatus::Ok ? status : scalar_.solve(rhs, x);
 }
 
-SolverStatus DiffusionSystems::solveScalarPair(Vector& a, Vector& b) {
+SolverStatus DiffusionSystems::solveScalarInPlace(Vector& a, Vector* b) {
   const SolverStatus status = factorScalar();
-  return status != SolverStatus::Ok ? status : scalar_.solveInPlacePair(a, b);
+  if (status != SolverStatus::Ok) return status;
+  return b != nullptr ? scalar_.solveInPlacePair(a, *b) : scalar_.solve(a, a);
 }
 
 SolverStatus DiffusionSystems::solveVector(const ComplexVector& rhs, ComplexVector& x) {

@@ -250,34 +250,25 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
   // Direct solves into scratch: σ_f -> solution, σ_s -> rhs (in place).
   const int factorizationsBefore = systems.factorizationCount();
   if (!densityOnSupport && (solvent || solute)) {
+    // σ_f into scratch.solution and σ_s into scratch.rhs, solved in place;
+    // both in one pass over the factor when both are held (the same bits as
+    // two solves).
     report.densityMethod = DiffusionMethod::Direct;
-    if (solvent && solute) {  // both in one pass over the factor (the same bits as two solves)
-      massTimes(areas, state.solvent, scratch.solution);
-      massTimes(areas, state.solute, scratch.rhs);
-      const double solventMass = massOf(scratch.solution), soluteMass = massOf(scratch.rhs);
-      report.status = systems.solveScalarPair(scratch.solution, scratch.rhs);
-      report.factorizations = systems.factorizationCount() - factorizationsBefore;
-      if (report.status != SolverStatus::Ok) return report;
+    if (solvent) massTimes(areas, state.solvent, scratch.solution);
+    if (solute) massTimes(areas, state.solute, scratch.rhs);
+    const double solventMass = solvent ? massOf(scratch.solution) : 0.0;
+    const double soluteMass = solute ? massOf(scratch.rhs) : 0.0;
+    report.status = systems.solveScalarInPlace(solvent ? scratch.solution : scratch.rhs,
+                                               solvent && solute ? &scratch.rhs : nullptr);
+    report.factorizations = systems.factorizationCount() - factorizationsBefore;
+    if (report.status != SolverStatus::Ok) return report;
+    if (solvent) {
       flushTail(scratch.solution);
       restoreMass(areas, solventMass, scratch.solution);
+    }
+    if (solute) {
       flushTail(scratch.rhs);
       restoreMass(areas, soluteMass, scratch.rhs);
-    } else if (solvent) {
-      massTimes(areas, state.solvent, scratch.rhs);
-      const double mass = massOf(scratch.rhs);
-      report.status = systems.solveScalar(scratch.rhs, scratch.solution);
-      report.factorizations = systems.factorizationCount() - factorizationsBefore;
-      if (report.status != SolverStatus::Ok) return report;
-      flushTail(scratch.solution);
-      restoreMass(areas, mass, scratch.solution);
-    } else if (solute) {
-      massTimes(areas, state.solute, scratch.rhs);
-      const double mass = massOf(scratch.rhs);
-      report.status = systems.solveScalar(scratch.rhs, scratch.rhs);
-      report.factorizations = systems.factorizationCount() - factorizationsBefore;
-      if (report.status != SolverStatus::Ok) return report;
-      flushTail(scratch.rhs);
-      restoreMass(areas, mass, scratch.rhs);
     }
   }
   // A failed velocity solve must leave the densities as they were: undo the

@@ -99,9 +99,10 @@ class DiffusionSystems {
   /// factorization is reported here (NotPositiveDefinite, NonFinite, ...) and
   /// retried at the next call.
   SolverStatus solveScalar(const Vector& rhs, Vector& x);
-  /// a = A⁻¹ a, b = A⁻¹ b on the scalar system: bitwise two solveScalar
-  /// calls, one pass over the factor (CholeskySolver::solveInPlacePair).
-  SolverStatus solveScalarPair(Vector& a, Vector& b);
+  /// a = A⁻¹ a, and b = A⁻¹ b when b is given, on the scalar system:
+  /// bitwise what solveScalar gives each, with one pass over the factor for
+  /// both (CholeskySolver::solveInPlacePair).
+  SolverStatus solveScalarInPlace(Vector& a, Vector* b = nullptr);
   SolverStatus solveVector(const ComplexVector& rhs, ComplexVector& x);
   /// Frees both numeric factors (keeping the symbolic analysis and the
   /// systems) until the next assemble(): call before an intrinsic rebuild, so
