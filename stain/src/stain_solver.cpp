@@ -195,7 +195,7 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   state_.resize(n);
   backup_.resize(n);
   validateAll_ = true;
-  diffusionScratch_.resize(n);
+  diffusionScratch_.resize(n, topology.edgeCount());
   systems_.setSolverChoice(def_.diffusionSolver);
   velocityScratch_.resize(n);
   densityScratch_.resize(n, topology.edgeCount(), topology.faceCount());

@@ -1,5 +1,6 @@
-// The chunked-sum Jacobi-PCG on vertex pairs (design note: stages/diffusion.cpp):
-// the active set, the deterministic chunked sums, the solver and its preconditioner.
+// The conjugate gradients on vertex pairs (design note: stages/diffusion.cpp):
+// the active set, the deterministic chunked sums, the Jacobi-PCG on a growing
+// support, and the band's symmetric Gauss–Seidel PCG.
 #pragma once
 
 #include <blot/stain/stages/diffusion.h>
@@ -339,6 +340,26 @@ KrylovOutcome pairConjugateGradients(const int* outer, const int* inner, const d
   outcome.converged = done[0] && done[1];
   return outcome;
 }
+
+// Symmetric Gauss–Seidel–preconditioned CG on one Hermitian system (the
+// connection system of the velocity) over a fixed domain `domain` (the band
+// less its outer ring), the values u0 of the vertices outside it fixed
+// (Dirichlet): A δ = M u0 − A u0 on the domain, x = u0 + δ written on its
+// rows (pairs, vertex-indexed). The domain's rows are copied in its order
+// and split at the diagonal (DomainRows), A = C + Cᴴ − D with C = D + L, and
+// CG runs on C⁻¹ A C⁻ᴴ with z = D r̂ as its preconditioning: Eisenstat's form,
+// whose product t + C⁻¹(p − D t), t = C⁻ᴴ p, costs one sweep over each
+// triangle, about one pass over A, as the Jacobi-PCG's product does, in
+// about half the iterations (design note). It stops when the true residual
+// ‖r‖₂ = ‖C r̂‖₂ ≤ kIterativeTolerance ‖M u0‖₂, tested from the iteration on
+// which the transformed one first says so. Serial: the sweeps have an order,
+// and one order for any thread count keeps the bits. r, p, t, y: pair
+// vectors of 2 × the domain's size, used by place in the domain and zero
+// there on return; `rows.position` is −1 again on return.
+KrylovOutcome bandConjugateGradients(const int* outer, const int* inner, const double* values,
+                                     const double* inverseDiagonal, const double* area, const double* u0,
+                                     const ActiveSet& domain, double* x, double* r, double* p, double* t,
+                                     double* y, DomainRows& rows);
 
 // Zeroes pair vectors (two numbers per vertex) on the active rows, their
 // invariant between calls, and removes the marks.

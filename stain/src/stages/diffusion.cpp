@@ -62,7 +62,15 @@ void restoreMass(const Vector& dualAreas, double mass, Vector& solution) {
 
 }  // namespace
 
-void DiffusionScratch::resize(int vertexCount) {
+void DomainRows::resize(int vertexCount, int nonZeros) {
+  position.assign(static_cast<size_t>(vertexCount), -1);
+  starts.assign(static_cast<size_t>(vertexCount) + 1, 0);
+  splits.assign(static_cast<size_t>(vertexCount), 0);
+  columns.resize(static_cast<size_t>(std::max(nonZeros, 0)));
+  values.resize(2 * static_cast<size_t>(std::max(nonZeros, 0)));
+}
+
+void DiffusionScratch::resize(int vertexCount, int edgeCount) {
   rhs.setZero(vertexCount);
   solution.setZero(vertexCount);
   complexRhs.setZero(vertexCount);
@@ -76,6 +84,8 @@ void DiffusionScratch::resize(int vertexCount) {
   densityActiveCount = velocityActiveCount = 0;
   const int chunks = (vertexCount + kKrylovChunkRows - 1) / kKrylovChunkRows;
   krylovPartials.assign(static_cast<size_t>(chunks) * kKrylovPartialsPerChunk, 0.0);
+  velocityRows.resize(vertexCount, vertexCount + 2 * edgeCount);
+  velocityT.setZero(2 * static_cast<Eigen::Index>(vertexCount));
 }
 
 namespace {
@@ -85,12 +95,15 @@ namespace {
 struct RestrictedCosts {
   double rkl, cg;
 };
+// On the band (a fixed domain) CG runs with the symmetric Gauss–Seidel
+// preconditioner, on a growing support with Jacobi's.
 RestrictedCosts velocityCosts(const DiffusionSystems& systems, int rows, int ring, bool cgAllowed,
-                              double entriesPerRow) {
+                              double entriesPerRow, bool onBand) {
   const int stages = systems.vectorStages();
+  const double ratio = systems.vectorStiffnessRatio();
+  const int iterations = onBand ? predictedBandCgIterations(ratio) : predictedCgIterations(ratio);
   return {stages > 0 ? rklCost(stages, rows, ring, entriesPerRow) : kNever,
-          cgAllowed ? cgCost(predictedCgIterations(systems.vectorStiffnessRatio()), rows, ring, entriesPerRow)
-                    : kNever};
+          cgAllowed ? cgCost(iterations, rows, ring, entriesPerRow) : kNever};
 }
 
 }  // namespace
@@ -99,7 +112,7 @@ double velocityCostOnBand(const DiffusionSystems& systems, int rows) {
   const SparseMatrix& scalarSystem = systems.scalarSystem();
   const Eigen::Index n = scalarSystem.rows();
   const double entriesPerRow = n > 0 ? static_cast<double>(scalarSystem.nonZeros()) / static_cast<double>(n) : 0.0;
-  const RestrictedCosts costs = velocityCosts(systems, rows, 0, systems.vectorCgAllowed(), entriesPerRow);
+  const RestrictedCosts costs = velocityCosts(systems, rows, 0, systems.vectorCgAllowed(), entriesPerRow, true);
   return std::min(costs.rkl, costs.cg);
 }
 
@@ -309,7 +322,7 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
     const bool cgHere = systems.vectorCgAllowed() &&
                         (wet != nullptr || systems.solverChoice() != DiffusionSolverChoice::Auto ||
                          systems.vectorStiffnessRatio() <= kIterativeStiffnessRatio);
-    const auto [rkl, cg] = velocityCosts(systems, rows, ring, cgHere, entriesPerRow);
+    const auto [rkl, cg] = velocityCosts(systems, rows, ring, cgHere, entriesPerRow, wet != nullptr);
     report.velocityPredictedCost = std::min(rkl, cg);
     if (rkl >= kNever && cg >= kNever) {
       releaseActive(velocityActive, {ux, scratch.velocityR.data(), scratch.velocityP.data()});
@@ -329,11 +342,21 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
       velocityOnBand = true;
       report.velocityMethod = DiffusionMethod::SuperTimeStepping;
     } else {
-      const KrylovOutcome outcome = pairConjugateGradients<true>(
-          vectorSystem.outerIndexPtr(), vectorSystem.innerIndexPtr(),
-          reinterpret_cast<const double*>(vectorSystem.valuePtr()), systems.vectorInverseDiagonal().data(),
-          areas.data(), x0, 2, ux, scratch.velocityR.data(), scratch.velocityP.data(), scratch.velocityQ.data(),
-          velocityActive, wet == nullptr, mass, scratch.krylovPartials.data());
+      // On the band (a fixed domain) with the symmetric Gauss–Seidel
+      // preconditioner; a support that grows with the solve keeps Jacobi's,
+      // which reaches one ring per iteration.
+      const int* vo = vectorSystem.outerIndexPtr();
+      const int* vi = vectorSystem.innerIndexPtr();
+      const double* values = reinterpret_cast<const double*>(vectorSystem.valuePtr());
+      const KrylovOutcome outcome =
+          wet != nullptr
+              ? bandConjugateGradients(vo, vi, values, systems.vectorInverseDiagonal().data(), areas.data(), u0Pairs,
+                                       velocityActive, ux, scratch.velocityR.data(), scratch.velocityP.data(),
+                                       scratch.velocityT.data(), scratch.velocityQ.data(), scratch.velocityRows)
+              : pairConjugateGradients<true>(vo, vi, values, systems.vectorInverseDiagonal().data(), areas.data(), x0,
+                                             2, ux, scratch.velocityR.data(), scratch.velocityP.data(),
+                                             scratch.velocityQ.data(), velocityActive, true, mass,
+                                             scratch.krylovPartials.data());
       report.velocityIterations = outcome.iterations;
       report.velocityActiveVertices = velocityActive.size();
       if (!outcome.finite) {

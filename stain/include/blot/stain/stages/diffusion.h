@@ -18,7 +18,8 @@ namespace blot::stain {
 /// Jacobi-preconditioned conjugate gradients on the liquid's support (only
 /// while max_i h L_ii / A_i ≤ kIterativeStiffnessRatio, where the
 /// Jacobi-scaled system has a condition number below ~2(1 + ratio); for the
-/// velocity on the band, kBandIterativeStiffnessRatio), the
+/// velocity on the band, a fixed domain, preconditioned by symmetric
+/// Gauss–Seidel, kBandIterativeStiffnessRatio), the
 /// explicit RKL2 super-time-stepping on the liquid's rows (only while its
 /// stage count is at most kMaxRklStages, and for Auto while h λ ≤
 /// kRklAutoStepStiffness, where it is the more accurate) and the whole-mesh factorization
@@ -40,7 +41,8 @@ inline constexpr double kIterativeStiffnessRatio = 4.0;
 /// The same for the velocity on the liquid band, a fixed domain whose rows
 /// the cost model knows before the solve: CG competes there with the factor
 /// (charged for the whole-mesh band it needs) by predicted cost while the
-/// predicted Jacobi-PCG count (94 at this ratio) stays within kMaxIterations.
+/// predicted Jacobi-PCG count (94 at this ratio; the band's Gauss–Seidel PCG
+/// takes about half) stays within kMaxIterations.
 /// The densities keep kIterativeStiffnessRatio: on a stiff system their
 /// support grows with the iterations further than the model predicts (a 2 %
 /// stain on 66K vertices at h λ = 57 grew to the whole mesh in 69
@@ -176,6 +178,20 @@ class DiffusionSystems {
   int factorizations_ = 0, assemblies_ = 0;
 };
 
+/// The rows of the connection system on a fixed domain (the velocity's band),
+/// copied in the domain's order and split at the diagonal: the two triangles
+/// of the symmetric Gauss–Seidel preconditioner (stages/diffusion.cpp,
+/// design note). Sized by DiffusionScratch::resize.
+struct DomainRows {
+  std::vector<int> position;      ///< #V: a vertex's place in the domain (−1 outside, between calls)
+  std::vector<int> starts;        ///< #V + 1: place k's entries begin at starts[k]
+  std::vector<int> splits;        ///< #V: place k's entries below the diagonal are [starts[k], splits[k]),
+                                  ///< those above [splits[k], starts[k + 1])
+  std::vector<int> columns;       ///< the neighbour's place, per entry (capacity #V + 2 #E)
+  std::vector<double> values;     ///< row k's entry A(k, j) as (re, im), per entry
+  void resize(int vertexCount, int nonZeros);
+};
+
 /// Work arrays, sized once by resize() (no allocation per step). The CG
 /// vectors are zero outside the solve's active set between calls.
 struct DiffusionScratch {
@@ -194,7 +210,14 @@ struct DiffusionScratch {
   /// per kKrylovChunkRows rows of #V).
   std::vector<double> krylovPartials;
   int densityActiveCount = 0, velocityActiveCount = 0;
-  void resize(int vertexCount);
+  /// The velocity's band for its preconditioned CG, and one more pair
+  /// vector (2 #V) for it.
+  DomainRows velocityRows;
+  Vector velocityT;
+  /// Sizes everything for a mesh of vertexCount vertices and edgeCount edges
+  /// (the systems' one-ring pattern has #V + 2 #E entries; an edgeCount
+  /// below the mesh's makes the first banded velocity solve size them).
+  void resize(int vertexCount, int edgeCount = 0);
 };
 
 struct DiffusionReport {
