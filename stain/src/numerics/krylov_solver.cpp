@@ -7,6 +7,22 @@
 
 namespace blot::stain::diffusion_internal {
 
+namespace {
+
+// Adds Σ A(k, j) v_j over entries [begin, end) of a place's row in
+// DomainRows (complex on pairs: entry (re, im), v_j at 2j, 2j + 1).
+inline void addRow(const int* columns, const double* entry, int begin, int end, const double* v, double& s0,
+                   double& s1) {
+  for (int q = begin; q < end; ++q) {
+    const int j = columns[q];
+    const double re = entry[2 * q], im = entry[2 * q + 1];
+    s0 += re * v[2 * j] - im * v[2 * j + 1];
+    s1 += re * v[2 * j + 1] + im * v[2 * j];
+  }
+}
+
+}  // namespace
+
 KrylovOutcome bandConjugateGradients(const int* outer, const int* inner, const double* values,
                                      const double* inverseDiagonal, const double* area, const double* u0,
                                      const ActiveSet& domain, double* x, double* r, double* p, double* t,
@@ -67,16 +83,11 @@ KrylovOutcome bandConjugateGradients(const int* outer, const int* inner, const d
   // out = C⁻¹ f, in place allowed (a place reads only earlier places).
   const auto forward = [&](const double* f, double* out) {
     for (int k = 0; k < count; ++k) {
-      double s0 = f[2 * k], s1 = f[2 * k + 1];
-      for (int q = starts[k]; q < splits[k]; ++q) {
-        const int j = columns[q];
-        const double re = entry[2 * q], im = entry[2 * q + 1];
-        s0 -= re * out[2 * j] - im * out[2 * j + 1];
-        s1 -= re * out[2 * j + 1] + im * out[2 * j];
-      }
+      double s0 = 0.0, s1 = 0.0;
+      addRow(columns, entry, starts[k], splits[k], out, s0, s1);
       const double invD = inverseDiagonal[list[k]];
-      out[2 * k] = invD * s0;
-      out[2 * k + 1] = invD * s1;
+      out[2 * k] = invD * (f[2 * k] - s0);
+      out[2 * k + 1] = invD * (f[2 * k + 1] - s1);
     }
   };
   // D (0 where the system has no positive diagonal, as its inverse is).
@@ -114,35 +125,25 @@ KrylovOutcome bandConjugateGradients(const int* outer, const int* inner, const d
   for (int iteration = 1; iteration <= kMaxIterations && !done; ++iteration) {
     // t = C⁻ᴴ p (the upper triangle, last place first).
     for (int k = count - 1; k >= 0; --k) {
-      double s0 = p[2 * k], s1 = p[2 * k + 1];
-      for (int q = splits[k]; q < starts[k + 1]; ++q) {
-        const int j = columns[q];
-        const double re = entry[2 * q], im = entry[2 * q + 1];
-        s0 -= re * t[2 * j] - im * t[2 * j + 1];
-        s1 -= re * t[2 * j + 1] + im * t[2 * j];
-      }
+      double s0 = 0.0, s1 = 0.0;
+      addRow(columns, entry, splits[k], starts[k + 1], t, s0, s1);
       const double invD = inverseDiagonal[list[k]];
-      t[2 * k] = invD * s0;
-      t[2 * k + 1] = invD * s1;
+      t[2 * k] = invD * (p[2 * k] - s0);
+      t[2 * k + 1] = invD * (p[2 * k + 1] - s1);
     }
     // y = C⁻¹ (p − D t), so the product is t + y, and pᴴ(t + y).
     double pq = 0.0;
     for (int k = 0; k < count; ++k) {
-      double s0 = p[2 * k], s1 = p[2 * k + 1];
-      for (int q = starts[k]; q < splits[k]; ++q) {
-        const int j = columns[q];
-        const double re = entry[2 * q], im = entry[2 * q + 1];
-        s0 -= re * y[2 * j] - im * y[2 * j + 1];
-        s1 -= re * y[2 * j + 1] + im * y[2 * j];
-      }
+      double s0 = 0.0, s1 = 0.0;
+      addRow(columns, entry, starts[k], splits[k], y, s0, s1);
       const double invD = inverseDiagonal[list[k]];
-      y[2 * k] = invD * s0 - t[2 * k];
-      y[2 * k + 1] = invD * s1 - t[2 * k + 1];
+      y[2 * k] = invD * (p[2 * k] - s0) - t[2 * k];
+      y[2 * k + 1] = invD * (p[2 * k + 1] - s1) - t[2 * k + 1];
       pq += p[2 * k] * (t[2 * k] + y[2 * k]) + p[2 * k + 1] * (t[2 * k + 1] + y[2 * k + 1]);
     }
     const double alpha = rz / pq;
     if (!(pq > 0.0) || !std::isfinite(alpha)) break;  // breakdown: not converged
-    // x += α C⁻ᴴ p = α t; r̂ −= α (t + y); the new r̂ᴴ D⁻¹ r̂.
+    // x += α C⁻ᴴ p = α t; r̂ −= α (t + y); the new r̂ᴴ D r̂.
     double next = 0.0;
     for (int k = 0; k < count; ++k) {
       const int i = list[k];
@@ -168,12 +169,7 @@ KrylovOutcome bandConjugateGradients(const int* outer, const int* inner, const d
     for (int k = 0; k < count; ++k) {
       const double d = diagonal(k);
       double s0 = d * r[2 * k], s1 = d * r[2 * k + 1];
-      for (int q = starts[k]; q < splits[k]; ++q) {
-        const int j = columns[q];
-        const double re = entry[2 * q], im = entry[2 * q + 1];
-        s0 += re * r[2 * j] - im * r[2 * j + 1];
-        s1 += re * r[2 * j + 1] + im * r[2 * j];
-      }
+      addRow(columns, entry, starts[k], splits[k], r, s0, s1);
       rr += s0 * s0 + s1 * s1;
     }
     done = rr <= tolerance2 * bb;
