@@ -66,19 +66,6 @@ struct KrylovOutcome {
   bool finite = true;  ///< false: a non-finite right-hand side (the caller reports NonFinite)
 };
 
-// Jacobi-PCG on pairs: every vector holds two numbers per vertex (v[2i],
-// v[2i + 1]). kComplex = false: two independent real systems A x_c = M x0_c
-// (solvent and solute) sharing each pass over A, each with its own α, β and
-// stopping test. kComplex = true: one Hermitian system on (Re, Im); column i
-// holds A(j, i) = conj(A(i, j)), so row i of A p is Σ conj(a) p_j over column
-// i, and α, β use the sums over both components (Re pᴴq = p·q on pairs).
-// Runs on the active set `active` (seeded by the caller with every row whose
-// residual can be non-zero); with `grow`, each iteration first adds the next
-// ring (the support of A p), otherwise the active rows are a fixed domain.
-// x0 (component c of vertex j at x0[c][j * x0Stride]) is read at every
-// neighbour of the active rows: zeros or fixed (Dirichlet) values outside.
-// x, r, p must be zero outside `active` on entry; x is written on the active
-// rows only. mass[c] = compensated Σ_{active} A_i x0_c,i.
 // Runs body(begin, end, sums) over the active rows [0, count) in fixed chunks
 // of kKrylovChunkRows, on OpenMP threads from kKrylovParallelRows rows on;
 // each chunk's kSums partial sums go to partials[chunk * kSums + s] and are
@@ -109,10 +96,11 @@ void chunkedSums(int count, double* partials, double total[kSums], const Body& b
 // holds A(j, i) = conj(A(i, j)), so row i of A p is Σ conj(a) p_j over column
 // i, and α, β use the sums over both components (Re pᴴq = p·q on pairs).
 // Runs on the active set `active` (seeded by the caller with every row whose
-// residual can be non-zero); with `grow`, each iteration first adds the next
-// ring (the support of A p), otherwise the active rows are a fixed domain.
+// residual can be non-zero); each iteration first adds the next ring (the
+// support of A p) while the outermost ring's correction matters (a fixed
+// domain, the velocity's band, runs bandConjugateGradients instead).
 // x0 (component c of vertex j at x0[c][j * x0Stride]) is read at every
-// neighbour of the active rows: zeros or fixed (Dirichlet) values outside.
+// neighbour of the active rows: zeros outside.
 // x, r, p must be zero outside `active` on entry; x is written on the active
 // rows only. mass[c] = compensated Σ_{active} A_i x0_c,i. `partials`: room
 // for kKrylovPartialsPerChunk numbers per chunk of the largest active set
@@ -122,7 +110,7 @@ template <bool kComplex>
 KrylovOutcome pairConjugateGradients(const int* outer, const int* inner, const double* values,
                                      const double* inverseDiagonal, const double* area, const double* const x0[2],
                                      int x0Stride, double* __restrict x, double* __restrict r,
-                                     double* __restrict p, double* __restrict q, ActiveSet& active, bool grow,
+                                     double* __restrict p, double* __restrict q, ActiveSet& active,
                                      double mass[2], double* partials) {
   KrylovOutcome outcome;
   double rz[2] = {0, 0}, rr[2] = {0, 0}, bb[2] = {0, 0}, largest[2] = {0, 0};
@@ -214,15 +202,13 @@ KrylovOutcome pairConjugateGradients(const int* outer, const int* inner, const d
       outcome.converged = true;
       return outcome;
     }
-    if (grow) {
-      bool reaches = false;
-      for (int k = active.layerBegin(); k < active.size() && !reaches; ++k) {
-        const int i = active.list()[k];
-        reaches = std::abs(inverseDiagonal[i] * r[2 * i]) >= growthFloor[0] ||
-                  std::abs(inverseDiagonal[i] * r[2 * i + 1]) >= growthFloor[1];
-      }
-      if (reaches) active.grow(outer, inner);
+    bool reaches = false;
+    for (int k = active.layerBegin(); k < active.size() && !reaches; ++k) {
+      const int i = active.list()[k];
+      reaches = std::abs(inverseDiagonal[i] * r[2 * i]) >= growthFloor[0] ||
+                std::abs(inverseDiagonal[i] * r[2 * i + 1]) >= growthFloor[1];
     }
+    if (reaches) active.grow(outer, inner);
     const int* list = active.list();
     const int count = active.size();
     // q = A p on the active rows, and pᵀq per component.

@@ -194,7 +194,7 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
       const KrylovOutcome outcome = pairConjugateGradients<false>(
           scalarSystem.outerIndexPtr(), scalarSystem.innerIndexPtr(), scalarSystem.valuePtr(),
           systems.scalarInverseDiagonal().data(), areas.data(), x0, 1, dx, scratch.densityR.data(),
-          scratch.densityP.data(), scratch.densityQ.data(), densityActive, true, mass, scratch.krylovPartials.data());
+          scratch.densityP.data(), scratch.densityQ.data(), densityActive, mass, scratch.krylovPartials.data());
       report.densityIterations = outcome.iterations;
       report.densityActiveVertices = densityActive.size();
       if (!outcome.finite) {
@@ -260,12 +260,11 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
       }
     }
   }
-  // Direct solves into scratch: σ_f -> solution, σ_s -> rhs (in place).
+  // Direct solves in place: σ_f into scratch.solution, σ_s into scratch.rhs,
+  // both in one pass over the factor when both are held (the same bits as
+  // two solves).
   const int factorizationsBefore = systems.factorizationCount();
   if (!densityOnSupport && (solvent || solute)) {
-    // σ_f into scratch.solution and σ_s into scratch.rhs, solved in place;
-    // both in one pass over the factor when both are held (the same bits as
-    // two solves).
     report.densityMethod = DiffusionMethod::Direct;
     if (solvent) massTimes(areas, state.solvent, scratch.solution);
     if (solute) massTimes(areas, state.solute, scratch.rhs);
@@ -355,7 +354,7 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
                                        scratch.velocityT.data(), scratch.velocityQ.data(), scratch.velocityRows)
               : pairConjugateGradients<true>(vo, vi, values, systems.vectorInverseDiagonal().data(), areas.data(), x0,
                                              2, ux, scratch.velocityR.data(), scratch.velocityP.data(),
-                                             scratch.velocityQ.data(), velocityActive, true, mass,
+                                             scratch.velocityQ.data(), velocityActive, mass,
                                              scratch.krylovPartials.data());
       report.velocityIterations = outcome.iterations;
       report.velocityActiveVertices = velocityActive.size();
