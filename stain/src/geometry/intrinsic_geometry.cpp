@@ -64,12 +64,17 @@ inline double halfCotangentOpposite(const Eigen::MatrixX3i& fe, const Vector& ed
 double triangleArea(double a, double b, double c) { return stableHeronArea(a, b, c); }
 
 Vector edgeLengths(const SurfaceTopology& topology, const RowVectors3& vertexPositions) {
+  Vector lengths;
+  edgeLengths(topology, vertexPositions, lengths);
+  return lengths;
+}
+
+void edgeLengths(const SurfaceTopology& topology, const RowVectors3& vertexPositions, Vector& lengths) {
   const Eigen::MatrixX2i& ev = topology.edgeVertices();
-  Vector lengths(topology.edgeCount());
+  lengths.resize(topology.edgeCount());
   for (int e = 0; e < topology.edgeCount(); ++e) {
     lengths(e) = (vertexPositions.row(ev(e, 1)) - vertexPositions.row(ev(e, 0))).norm();
   }
-  return lengths;
 }
 
 Eigen::MatrixX3d faceCornerAngles(const SurfaceTopology& topology, const Vector& edgeLengths) {
@@ -97,13 +102,18 @@ Vector edgeCotanWeights(const SurfaceTopology& topology, const Vector& edgeLengt
 }
 
 Vector vertexDualAreas(const SurfaceTopology& topology, const Vector& faceAreas) {
+  Vector dual;
+  vertexDualAreas(topology, faceAreas, dual);
+  return dual;
+}
+
+void vertexDualAreas(const SurfaceTopology& topology, const Vector& faceAreas, Vector& dual) {
   const Triangles& faces = topology.faces();
-  Vector dual = Vector::Zero(topology.vertexCount());
+  dual.setZero(topology.vertexCount());
   for (int f = 0; f < topology.faceCount(); ++f) {
     const double third = faceAreas(f) / 3.0;
     for (int k = 0; k < 3; ++k) dual(faces(f, k)) += third;
   }
-  return dual;
 }
 
 void faceAnglesAreasAndCotanWeights(const SurfaceTopology& topology, const Vector& edgeLengths,

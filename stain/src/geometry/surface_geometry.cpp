@@ -149,10 +149,10 @@ void checkRows(Eigen::Index rows, Eigen::Index expected, const char* what) {
 // Weft directions of the rest shape carried to `positions` as material lines
 // (see the design note): w = a c₁ + b c₂ with (a, b) the rest weft's
 // coefficients (faceWeftCoefficients). Zero wefts stay zero.
-RowVectors3 currentWeftDirections(const SurfaceTopology& topology, const RowVectors3& positions,
-                                  const Eigen::MatrixX2d& coefficients, const RowVectors3& restWefts) {
+void currentWeftDirections(const SurfaceTopology& topology, const RowVectors3& positions,
+                           const Eigen::MatrixX2d& coefficients, const RowVectors3& restWefts, RowVectors3& wefts) {
   const Triangles& faces = topology.faces();
-  RowVectors3 wefts(topology.faceCount(), 3);
+  wefts.resize(topology.faceCount(), 3);
   for (int f = 0; f < topology.faceCount(); ++f) {
     if (restWefts.row(f).isZero(0)) {
       wefts.row(f).setZero();
@@ -163,7 +163,6 @@ RowVectors3 currentWeftDirections(const SurfaceTopology& topology, const RowVect
     const Vector3 c2 = positions.row(faces(f, 2)).transpose() - c0;
     wefts.row(f) = (coefficients(f, 0) * c1 + coefficients(f, 1) * c2).transpose();
   }
-  return wefts;
 }
 
 }  // namespace
@@ -287,11 +286,12 @@ namespace {
 
 // Everything of the tier that follows from in.edgeLengths before the operators.
 void lengthQuantities(const SurfaceTopology& topology, IntrinsicGeometry& in) {
+  // Into the tier's arrays: no allocation once they have the mesh's sizes.
   faceAnglesAreasAndCotanWeights(topology, in.edgeLengths, in.faceCornerAngles, in.faceAreas, in.edgeCotanWeights);
-  in.vertexDualAreas = vertexDualAreas(topology, in.faceAreas);
-  in.polarMap = geodesicPolarMap(topology, in.faceCornerAngles);
-  in.edgeTransportAngles = edgeTransportAngles(topology, in.polarMap);
-  in.faceTransportAngles = faceTransportAngles(topology, in.faceCornerAngles, in.polarMap);
+  vertexDualAreas(topology, in.faceAreas, in.vertexDualAreas);
+  geodesicPolarMap(topology, in.faceCornerAngles, in.polarMap);
+  edgeTransportAngles(topology, in.polarMap, in.edgeTransportAngles);
+  faceTransportAngles(topology, in.faceCornerAngles, in.polarMap, in.faceTransportAngles);
 }
 
 }  // namespace
@@ -370,13 +370,12 @@ void SurfaceGeometry::undoIntrinsicRefresh() {
 void SurfaceGeometry::refreshIntrinsicFromPositions(const RowVectors3& positions) {
   const SurfaceTopology& topology = *topology_;
   IntrinsicGeometry& in = dynamic_.intrinsic;
-  in.edgeLengths = edgeLengths(topology, positions);
+  edgeLengths(topology, positions, in.edgeLengths);
   lengthQuantities(topology, in);
   // The first build is on the rest shape, where the given wefts apply as they are.
-  const RowVectors3 wefts =
-      in.rebuildCount == 0
-          ? fabric_.weftDirections
-          : currentWeftDirections(topology, positions, faceWeftCoefficients_, fabric_.weftDirections);
+  if (in.rebuildCount > 0)
+    currentWeftDirections(topology, positions, faceWeftCoefficients_, fabric_.weftDirections, currentWefts_);
+  const RowVectors3& wefts = in.rebuildCount == 0 ? fabric_.weftDirections : currentWefts_;
   if (in.rebuildCount > 0 && faceEntries_.index.empty()) faceEntries_ = oneRingFaceEntries(topology);
   if (in.rebuildCount == 0 || !faceEntries_.fits(topology, in.densityStiffness) ||
       !faceEntries_.fits(topology, in.velocityStiffness)) {

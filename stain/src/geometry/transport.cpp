@@ -32,10 +32,14 @@ double wrapAngle(double angle) {
 
 PolarMap geodesicPolarMap(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles) {
   PolarMap map;
+  geodesicPolarMap(topology, faceCornerAngles, map);
+  return map;
+}
+
+void geodesicPolarMap(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles, PolarMap& map) {
   map.ringAngles.resize(static_cast<Eigen::Index>(topology.ringNeighbors().size()));
   map.vertexAngleScales.resize(topology.vertexCount());
   for (int v = 0; v < topology.vertexCount(); ++v) updateGeodesicPolarMap(topology, faceCornerAngles, &v, 1, map);
-  return map;
 }
 
 void updateGeodesicPolarMap(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles,
@@ -61,9 +65,14 @@ void updateGeodesicPolarMap(const SurfaceTopology& topology, const Eigen::Matrix
 }
 
 Vector edgeTransportAngles(const SurfaceTopology& topology, const PolarMap& polarMap) {
-  Vector theta(topology.edgeCount());
-  for (int e = 0; e < topology.edgeCount(); ++e) updateEdgeTransportAngles(topology, polarMap, &e, 1, theta);
+  Vector theta;
+  edgeTransportAngles(topology, polarMap, theta);
   return theta;
+}
+
+void edgeTransportAngles(const SurfaceTopology& topology, const PolarMap& polarMap, Vector& theta) {
+  theta.resize(topology.edgeCount());
+  for (int e = 0; e < topology.edgeCount(); ++e) updateEdgeTransportAngles(topology, polarMap, &e, 1, theta);
 }
 
 void updateEdgeTransportAngles(const SurfaceTopology& topology, const PolarMap& polarMap, const int* edges, int count,
@@ -87,10 +96,16 @@ void updateEdgeTransportAngles(const SurfaceTopology& topology, const PolarMap& 
 Eigen::MatrixX3d faceTransportAngles(const SurfaceTopology& topology,
                                      const Eigen::MatrixX3d& faceCornerAngles,
                                      const PolarMap& polarMap) {
-  Eigen::MatrixX3d phi(topology.faceCount(), 3);
+  Eigen::MatrixX3d phi;
+  faceTransportAngles(topology, faceCornerAngles, polarMap, phi);
+  return phi;
+}
+
+void faceTransportAngles(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles,
+                         const PolarMap& polarMap, Eigen::MatrixX3d& phi) {
+  phi.resize(topology.faceCount(), 3);
   for (int v = 0; v < topology.vertexCount(); ++v)
     updateFaceTransportAngles(topology, faceCornerAngles, polarMap, &v, 1, phi);
-  return phi;
 }
 
 void updateFaceTransportAngles(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles,

@@ -13,6 +13,10 @@ double triangleArea(double a, double b, double c);
 
 /// #E edge lengths from positions (#V by 3).
 Vector edgeLengths(const SurfaceTopology& topology, const RowVectors3& vertexPositions);
+/// The same into `lengths` (resized; no allocation when it already has #E
+/// entries). The whole-mesh functions below with an output argument are each
+/// their twin's values into existing storage: what a metric rebuild calls.
+void edgeLengths(const SurfaceTopology& topology, const RowVectors3& vertexPositions, Vector& lengths);
 
 /// #F by 3 interior angles; entry (f, k) is the angle at vertex faces(f, k),
 /// θ = atan2(4A, b² + c² − a²): law of cosines for the cosine, stable Heron
@@ -40,6 +44,7 @@ void faceAnglesAreasAndCotanWeights(const SurfaceTopology& topology, const Vecto
 
 /// #V lumped (barycentric) mass: one third of the one-ring area.
 Vector vertexDualAreas(const SurfaceTopology& topology, const Vector& faceAreas);
+void vertexDualAreas(const SurfaceTopology& topology, const Vector& faceAreas, Vector& vertexDualAreas);
 
 /// Partial updates (SurfaceGeometry's partial intrinsic rebuild): each writes,
 /// for the listed elements only (ids ascending, no repeats), bitwise the

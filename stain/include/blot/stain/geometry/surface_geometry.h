@@ -493,6 +493,7 @@ class SurfaceGeometry {
   std::vector<int> regionVertices_;
   IntrinsicRefresh intrinsicRefresh_ = IntrinsicRefresh::Full;
   Eigen::MatrixX2d faceWeftCoefficients_;
+  RowVectors3 currentWefts_;  // a whole rebuild's wefts (currentWeftDirections), kept for the next
   std::vector<char> edgeMarks_, faceMarks_, vertexMarks_, vertexMarks2_;
   std::vector<int> chosenEdges_, faces1_, vertices1_, edges1_, faces2_, edges2_, vertices2_, faces3_;
   std::vector<int> prepareOrder_;  // prepareVertices' sorted ids (capacity #V)

@@ -26,6 +26,10 @@ struct PolarMap {
 };
 
 PolarMap geodesicPolarMap(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles);
+/// The same into `polarMap` (resized; no allocation at the mesh's sizes). So
+/// too the whole-mesh transport angles below with an output argument: what a
+/// metric rebuild calls.
+void geodesicPolarMap(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles, PolarMap& polarMap);
 
 /// angle wrapped to [−π, π]: bitwise std::remainder(angle, 2π), without its
 /// call for |angle| < 9.4 (the transport angles' range).
@@ -34,6 +38,7 @@ double wrapAngle(double angle);
 /// #E transport angles θ_ij for each edge (i, j) = edgeVertices row, i < j:
 /// the rotation carrying vectors in j's frame into i's frame. θ_ji = −θ_ij.
 Vector edgeTransportAngles(const SurfaceTopology& topology, const PolarMap& polarMap);
+void edgeTransportAngles(const SurfaceTopology& topology, const PolarMap& polarMap, Vector& edgeTransportAngles);
 
 /// exp(iθ_vj) for the ring entry of vertex v whose neighbour j lies across
 /// edge e: carries j's frame into v's (θ stored for the lower end, negated
@@ -53,6 +58,8 @@ inline Complex ringTransport(const Vector& edgeTransportAngles, int v, int j, in
 Eigen::MatrixX3d faceTransportAngles(const SurfaceTopology& topology,
                                      const Eigen::MatrixX3d& faceCornerAngles,
                                      const PolarMap& polarMap);
+void faceTransportAngles(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles,
+                         const PolarMap& polarMap, Eigen::MatrixX3d& faceTransportAngles);
 
 /// Partial updates (SurfaceGeometry's partial intrinsic rebuild): for the
 /// listed elements only, bitwise what the whole-mesh functions above give from
