@@ -82,6 +82,9 @@ CoupledSurface::CoupledSurface(std::unique_ptr<cloth::SurfaceMotion> motion, con
   topology_ = std::make_unique<stain::SurfaceTopology>(topology);
   stain_ = std::make_unique<stain::StainSolver>(*topology_, motion_->positions(), fabric, stainDef);
   stain_->setInitialMotion(motion_->positions(), motion_->velocities());
+  // A surface that deforms rebuilds its metric: what the first rebuild
+  // would allocate is sized now, at load, rather than in a step.
+  if (Eigen::Matrix3d rotation; !motion_->knownRotation(rotation)) stain_->prepareForDeformation();
 
   const int n = topology.vertexCount();
   liquidMasses_ = Eigen::VectorXd::Zero(n);

@@ -213,6 +213,8 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
 
 StainSolver::~StainSolver() = default;
 
+void StainSolver::prepareForDeformation() { geometry_.prepareWholeRebuilds(); }
+
 void StainSolver::completeGeometry() {
   const ThreadScope threads(threads_);
   geometry_.prepareAllVertices();

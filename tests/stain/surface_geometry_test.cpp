@@ -555,6 +555,47 @@ TEST(SurfaceGeometry, SwappingTwoTiersExchangesEveryFieldAndCopiesNothing) {
   EXPECT_NE(a0.edgeLengths, b0.edgeLengths);  // two different tiers, so the comparisons above can fail
 }
 
+// A surface that deforms sizes its rebuilds ahead (prepareWholeRebuilds):
+// then every whole rebuild, the first included, allocates nothing and gives
+// bit for bit the tier of a surface that was not prepared (whose first
+// rebuild builds the second tier's operators). The construction's build
+// replaced nothing, so there is nothing to undo until a rebuild; after one,
+// the undo gives back the same tier in both.
+TEST(SurfaceGeometry, PreparedWholeRebuildsAllocateNothingAndChangeNoBit) {
+  const TriangleMesh mesh = wavySheet();
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  const FabricField fabric = anisotropicFabric(topology.faceCount(), 5);
+  const RowVectors3& rest = mesh.vertexPositions;
+  SurfaceGeometry prepared(topology, rest, fabric), plain(topology, rest, fabric);
+  EXPECT_THROW(prepared.undoIntrinsicRefresh(), std::logic_error);
+  prepared.prepareWholeRebuilds();
+  prepared.prepareWholeRebuilds();  // idempotent
+  EXPECT_THROW(prepared.undoIntrinsicRefresh(), std::logic_error);
+  expectSameIntrinsic(prepared.intrinsic(), plain.intrinsic());
+  long allocations = 0;
+  for (int k = 1; k <= 3; ++k) {
+    const RowVectors3 p = bumpedSheet(rest, 0.2 + 0.2 * k, 0.35, 0.02 * k, static_cast<unsigned>(k));
+    ASSERT_TRUE(prepared.refreshExtrinsic(p, 0.01)) << "rebuild " << k;
+    ASSERT_TRUE(plain.refreshExtrinsic(p, 0.01)) << "rebuild " << k;
+    gAllocations = 0;
+    gCountAllocations = true;
+    prepared.refreshIntrinsic();
+    gCountAllocations = false;
+    allocations += gAllocations.load();
+    plain.refreshIntrinsic();
+    expectSameIntrinsic(prepared.intrinsic(), plain.intrinsic());
+    EXPECT_EQ(prepared.intrinsic().rebuildCount, k + 1);
+  }
+  if (kCountsAllocations) {
+    EXPECT_EQ(allocations, 0);
+  }
+  const Vector third = prepared.intrinsic().edgeLengths;
+  prepared.undoIntrinsicRefresh();
+  plain.undoIntrinsicRefresh();
+  expectSameIntrinsic(prepared.intrinsic(), plain.intrinsic());
+  EXPECT_NE(prepared.intrinsic().edgeLengths, third);  // the second rebuild's tier, not the third's
+}
+
 // A partial refresh after local strain gives bitwise the whole tier built
 // from the same per-edge lengths, over several refreshes in a row; it
 // re-measures only the edges past half the tolerance, touches a small share

@@ -263,6 +263,7 @@ SurfaceGeometry::SurfaceGeometry(const SurfaceTopology& topology, const RowVecto
   for (std::vector<int>* list : {&vertices1_, &vertices2_, &prepareOrder_, &regionVertices_})
     list->reserve(static_cast<size_t>(n));
   refreshIntrinsic();
+  kept_.valid = false;  // the first build replaced no tier: nothing to undo
 }
 
 void SurfaceGeometry::setPreviousPositions(const RowVectors3& previous) {
@@ -356,6 +357,19 @@ void SurfaceGeometry::refreshIntrinsic() {
     refreshedFaces_ = topology_->faceCount();
   }
   ++in.rebuildCount;
+}
+
+void SurfaceGeometry::prepareWholeRebuilds() {
+  const SurfaceTopology& topology = *topology_;
+  if (faceEntries_.index.empty()) faceEntries_ = oneRingFaceEntries(topology);
+  if (!kept_.valid && (!faceEntries_.fits(topology, kept_.intrinsic.densityStiffness) ||
+                       !faceEntries_.fits(topology, kept_.intrinsic.velocityStiffness))) {
+    // Every array of the tier at its size, and operators of the one-ring
+    // pattern the refill writes into (the first build's own).
+    kept_.intrinsic = dynamic_.intrinsic;
+    kept_.inverseBuiltSquaredLengths = dynamic_.inverseBuiltSquaredLengths;
+  }
+  currentWefts_.setZero(topology.faceCount(), 3);
 }
 
 void SurfaceGeometry::undoIntrinsicRefresh() {

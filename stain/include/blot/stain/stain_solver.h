@@ -145,6 +145,14 @@ class StainSolver {
               const StainSolverDef& def);
   ~StainSolver();
 
+  /// For a surface that will deform (a simulated cloth, a mesh sequence):
+  /// sizes now what the first metric rebuild would allocate
+  /// (SurfaceGeometry::prepareWholeRebuilds), so that the first rebuild
+  /// costs what later ones do and no step allocates for one. A surface that
+  /// only moves rigidly never rebuilds and need not call it: it would hold
+  /// one more intrinsic tier in memory. CoupledSurface calls it for every
+  /// motion that is not known to be rigid.
+  void prepareForDeformation();
   /// Positions and velocities at t = 0 of the moving surface (p(−h) is
   /// estimated as p(0) − h v(0) on the first step). Default: the rest shape at rest.
   void setInitialMotion(const RowVectors3& positions, const RowVectors3& velocities);

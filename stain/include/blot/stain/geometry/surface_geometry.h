@@ -328,6 +328,15 @@ class SurfaceGeometry {
   /// first refresh after construction). The partial path allocates nothing.
   /// The tier it replaces is kept for undoIntrinsicRefresh.
   void refreshIntrinsic();
+  /// Sizes now what a whole refreshIntrinsic would otherwise allocate at the
+  /// first rebuild: the second tier it builds into (with the operators'
+  /// patterns), the table that refills them in place, the current wefts. A
+  /// surface that deforms calls it before its first step, so that no rebuild
+  /// allocates and the first is no dearer than the later ones; one that
+  /// never deforms need not, as it then holds one more tier in memory. The
+  /// spare tier holds a copy of this one (no refresh to undo: the kept tier
+  /// stays invalid). Idempotent.
+  void prepareWholeRebuilds();
   /// Puts back the tier, the built lengths and the strain measure as they
   /// were before the last refreshIntrinsic: the rollback of a step that
   /// rebuilt and then failed, so that the restored densities (per area) meet
@@ -512,7 +521,8 @@ class SurfaceGeometry {
   } kept_;
   // Where each face's block lies in the operators' values (oneRingFaceEntries):
   // a whole rebuild after the first refills the two operators in place. Made
-  // at the second build, so a mesh that never deforms does not hold it.
+  // at the second build or by prepareWholeRebuilds, so a mesh that never
+  // deforms does not hold it.
   OneRingEntries faceEntries_;
 };
 
