@@ -197,9 +197,9 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   validateAll_ = true;
   diffusionScratch_.resize(n, topology.edgeCount());
   systems_.setSolverChoice(def_.diffusionSolver);
-  velocityScratch_.resize(n);
+  velocityScratch_.prepare(topology);
   densityScratch_.resize(n, topology.edgeCount(), topology.faceCount());
-  band_.resize(n);
+  band_.resize(n, static_cast<int>(topology.ringNeighbors().size()));
   interactionScratch_.reserve(static_cast<size_t>(n));
   strainTestVertices_.reserve(static_cast<size_t>(n));
   strainTestMarks_.assign(static_cast<size_t>(n), 0);
@@ -209,6 +209,7 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   threads_ = resolvedThreads(def_.threads);
   threadChoice_.reset(threads_);
   geometry_.setVertexRefresh(def_.geometryVertices);
+  systems_.preparePatterns(geometry_.intrinsic());  // the first step then assembles in place
 }
 
 StainSolver::~StainSolver() = default;

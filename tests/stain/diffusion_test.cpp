@@ -334,6 +334,39 @@ TEST(Diffusion, VelocityEnergyNeverIncreases) {
 
 // --- Systems, switches, failures ---------------------------------------------------
 
+// preparePatterns (StainSolver's construction) builds what the first
+// assemble would allocate: that assemble then allocates nothing and fills
+// the same patterns with the same values as one without it, and nothing is
+// analysed or factorized before the first direct solve.
+TEST(DiffusionSystems, PreparedPatternsLetTheFirstAssemblyAllocateNothing) {
+  const int n = 10;
+  const LiquidMesh g(gridMesh(n, n, 1, 1), isotropicFabric(2 * n * n));
+  DiffusionSystems prepared, plain;
+  prepared.preparePatterns(g.intrinsic);
+  EXPECT_EQ(prepared.scalarSystem().nonZeros(), g.intrinsic.densityStiffness.nonZeros());
+  EXPECT_EQ(prepared.vectorSystem().nonZeros(), g.intrinsic.velocityStiffness.nonZeros());
+  countAllocations = true;
+  allocationCount = 0;
+  ASSERT_EQ(prepared.assemble(g.intrinsic, 0.01), SolverStatus::Ok);
+  countAllocations = false;
+  if (kCountsAllocations) {
+    EXPECT_EQ(allocationCount.load(), 0);
+  }
+  ASSERT_EQ(plain.assemble(g.intrinsic, 0.01), SolverStatus::Ok);
+  const auto same = [](const auto& a, const auto& b) {
+    return a.nonZeros() == b.nonZeros() &&
+           std::equal(a.outerIndexPtr(), a.outerIndexPtr() + a.cols() + 1, b.outerIndexPtr()) &&
+           std::equal(a.innerIndexPtr(), a.innerIndexPtr() + a.nonZeros(), b.innerIndexPtr()) &&
+           std::equal(a.valuePtr(), a.valuePtr() + a.nonZeros(), b.valuePtr());
+  };
+  EXPECT_TRUE(same(prepared.scalarSystem(), plain.scalarSystem()));
+  EXPECT_TRUE(same(prepared.vectorSystem(), plain.vectorSystem()));
+  EXPECT_EQ(prepared.scalarSolver().analysisCount(), 0);
+  EXPECT_EQ(prepared.factorizationCount(), 0);
+  ASSERT_EQ(prepared.factorize(g.intrinsic, 0.01), SolverStatus::Ok);  // the analysis still runs when needed
+  EXPECT_EQ(prepared.scalarSolver().analysisCount(), 1);
+}
+
 TEST(DiffusionSystems, RefactorizationReusesTheScalarAnalysisForBothSystems) {
   const int n = 10;
   const LiquidMesh g(gridMesh(n, n, 1, 1), isotropicFabric(2 * n * n));

@@ -82,6 +82,24 @@ void DiffusionSystems::releaseFactors() {
   h_ = 0;  // diffuse() refuses to run until the systems are assembled again
 }
 
+void DiffusionSystems::preparePatterns(const IntrinsicGeometry& geometry) {
+  const Vector& areas = geometry.vertexDualAreas;
+  const auto n = areas.size();
+  const auto matches = [&](const auto& stiffness) { return stiffness.rows() == n && stiffness.cols() == n; };
+  // The values M + L are overwritten by the next assemble (h > 0); only the
+  // patterns, and so the analysis to redo, carry over.
+  if (matches(geometry.densityStiffness) && !fillSystem(geometry.densityStiffness, areas, 1.0, scalarSystem_)) {
+    buildSystem(geometry.densityStiffness, areas, 1.0, scalarSystem_);
+    scalarReanalyze_ = vectorReanalyze_ = true;
+  }
+  if (matches(geometry.velocityStiffness) && !fillSystem(geometry.velocityStiffness, areas, 1.0, vectorSystem_)) {
+    buildSystem(geometry.velocityStiffness, areas, 1.0, vectorSystem_);
+    vectorReanalyze_ = true;
+  }
+  scalarInverseDiagonal_.setZero(n);  // the Jacobi diagonals assemble() writes
+  vectorInverseDiagonal_.setZero(n);
+}
+
 SolverStatus DiffusionSystems::assemble(const IntrinsicGeometry& geometry, double h) {
   const Vector& areas = geometry.vertexDualAreas;
   const SparseMatrix& scalarStiffness = geometry.densityStiffness;

@@ -30,7 +30,7 @@ void clearBand(LiquidBand& band) {
 
 }  // namespace
 
-void LiquidBand::resize(int vertexCount) {
+void LiquidBand::resize(int vertexCount, int ringEntries) {
   const size_t n = static_cast<size_t>(vertexCount);
   vertices.clear();
   vertices.reserve(n);
@@ -57,6 +57,10 @@ void LiquidBand::resize(int vertexCount) {
   distances.assign(n, Distances());
   rings = reachRings = haloCount = regrowths = interiorCount = 0;
   speedBound = 0;
+  if (ringEntries > 0) {
+    ringTransports.setZero(ringEntries);
+    ringRebuildCounts.assign(n, -1);  // no entry filled yet
+  }
 }
 
 namespace {

@@ -245,8 +245,8 @@ Walk backtrack(const Tables& t, const ComplexVector& u, int i, const Complex& d)
 void VelocityAdvectionScratch::prepare(const SurfaceTopology& topology) {
   const auto entries = static_cast<Eigen::Index>(topology.ringNeighbors().size());
   resize(topology.vertexCount());
-  ringPoints.resize(entries);
-  ringTransports.resize(entries);
+  ringPoints.setZero(entries);  // written, so that no step maps their pages
+  ringTransports.setZero(entries);
   ringRebuildCounts.assign(static_cast<size_t>(topology.vertexCount()), -1);
 }
 

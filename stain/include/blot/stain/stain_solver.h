@@ -139,8 +139,9 @@ struct StainSolverSnapshot {
 
 class StainSolver {
  public:
-  /// Builds topology-dependent caches, the geometry for the rest shape, and
-  /// factorizes nothing yet (the first step does, for its h).
+  /// Builds topology-dependent caches, the geometry for the rest shape and
+  /// the diffusion systems' patterns, and factorizes nothing yet (the first
+  /// direct solve does, for its h).
   StainSolver(const SurfaceTopology& topology, const RowVectors3& restPositions, const FabricField& fabric,
               const StainSolverDef& def);
   ~StainSolver();

@@ -93,6 +93,13 @@ class DiffusionSystems {
   /// both factors stale. Factorizes nothing. Returns SizeMismatch when the
   /// geometry's operators do not match its vertex count.
   SolverStatus assemble(const IntrinsicGeometry& geometry, double h);
+  /// Builds the systems' sparsity patterns for the geometry's operators, the
+  /// part of the first assemble() that allocates, so that a solver built
+  /// ahead of its steps (StainSolver's constructor) assembles its first step
+  /// in place. Values stay unspecified until assemble(); nothing is analysed
+  /// or factorized. A geometry whose operators do not match is left to
+  /// assemble() to refuse.
+  void preparePatterns(const IntrinsicGeometry& geometry);
   /// assemble() and both numeric factors now (tests, benchmarks, studies that
   /// time or inspect the factor). Returns the first failing status.
   SolverStatus factorize(const IntrinsicGeometry& geometry, double h);

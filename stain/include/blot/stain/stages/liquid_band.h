@@ -93,8 +93,11 @@ struct LiquidBand {
   };
   std::vector<Distances> distances;  ///< #V
 
-  /// Sizes everything for the mesh (allocates: call at build time).
-  void resize(int vertexCount);
+  /// Sizes everything for the mesh (allocates: call at build time). With
+  /// ringEntries (SurfaceTopology::ringNeighbors().size()) the ring table
+  /// too, written once so that its pages are mapped: the first
+  /// growLiquidBand then allocates and faults nothing.
+  void resize(int vertexCount, int ringEntries = 0);
   /// Forgets what was computed from the intrinsic tier (call when it is
   /// replaced by a restored snapshot, whose rebuildCount may repeat one).
   void invalidateIntrinsic() {
