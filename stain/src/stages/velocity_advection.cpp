@@ -245,7 +245,11 @@ Walk backtrack(const Tables& t, const ComplexVector& u, int i, const Complex& d)
 void VelocityAdvectionScratch::prepare(const SurfaceTopology& topology) {
   const auto entries = static_cast<Eigen::Index>(topology.ringNeighbors().size());
   resize(topology.vertexCount());
-  ringPoints.setZero(entries);  // written, so that no step maps their pages
+  // Written once, so that no step maps their pages.
+  advected.setZero();
+  footVertices.setZero();
+  footWeights.setZero();
+  ringPoints.setZero(entries);
   ringTransports.setZero(entries);
   ringRebuildCounts.assign(static_cast<size_t>(topology.vertexCount()), -1);
 }
