@@ -361,6 +361,25 @@ TEST(DiffusionSystems, PreparedPatternsLetTheFirstAssemblyAllocateNothing) {
   };
   EXPECT_TRUE(same(prepared.scalarSystem(), plain.scalarSystem()));
   EXPECT_TRUE(same(prepared.vectorSystem(), plain.vectorSystem()));
+  // The pattern is L's union with the diagonal (taken as L's own when L
+  // holds every diagonal entry, as the one-ring operators do).
+  const auto samePattern = [](const auto& a, const auto& b) {
+    return a.nonZeros() == b.nonZeros() &&
+           std::equal(a.outerIndexPtr(), a.outerIndexPtr() + a.cols() + 1, b.outerIndexPtr()) &&
+           std::equal(a.innerIndexPtr(), a.innerIndexPtr() + a.nonZeros(), b.innerIndexPtr());
+  };
+  SparseMatrix identity(g.vertexCount(), g.vertexCount());
+  identity.setIdentity();
+  SparseMatrix expected = g.intrinsic.densityStiffness + identity;
+  expected.makeCompressed();
+  EXPECT_TRUE(samePattern(prepared.scalarSystem(), expected));
+  // An L without its diagonal entries gets them added (explicit zeros kept).
+  IntrinsicGeometry offDiagonal = g.intrinsic;
+  offDiagonal.densityStiffness.prune([](Eigen::Index row, Eigen::Index col, double) { return row != col; });
+  offDiagonal.densityStiffness.makeCompressed();
+  DiffusionSystems added;
+  ASSERT_EQ(added.assemble(offDiagonal, 0.01), SolverStatus::Ok);
+  EXPECT_TRUE(samePattern(added.scalarSystem(), expected));
   EXPECT_EQ(prepared.scalarSolver().analysisCount(), 0);
   EXPECT_EQ(prepared.factorizationCount(), 0);
   ASSERT_EQ(prepared.factorize(g.intrinsic, 0.01), SolverStatus::Ok);  // the analysis still runs when needed
