@@ -58,7 +58,7 @@ void buildSystem(const Eigen::SparseMatrix<Scalar>& stiffness, const Vector& dua
                  Eigen::SparseMatrix<Scalar>& system) {
   // Every column of a compressed L holding its diagonal (the one-ring
   // operators do): the union is L's own pattern, so a copy of it, without
-  // the sparse sum's merge (a tenth of a second at 140K vertices).
+  // the sparse sum's merge.
   bool fullDiagonal = stiffness.isCompressed() && stiffness.rows() == stiffness.cols();
   for (Eigen::Index j = 0; fullDiagonal && j < stiffness.cols(); ++j) {
     const int* begin = stiffness.innerIndexPtr() + stiffness.outerIndexPtr()[j];
@@ -74,6 +74,16 @@ void buildSystem(const Eigen::SparseMatrix<Scalar>& stiffness, const Vector& dua
     system.makeCompressed();
   }
   fillSystem(stiffness, dualAreas, h, system);
+}
+
+// Refills `system` = M + h L, building its pattern first when L has one the
+// system lacks; true when it built (the analysis is then to redo).
+template <typename Scalar>
+bool fillOrBuildSystem(const Eigen::SparseMatrix<Scalar>& stiffness, const Vector& dualAreas, double h,
+                       Eigen::SparseMatrix<Scalar>& system) {
+  if (fillSystem(stiffness, dualAreas, h, system)) return false;
+  buildSystem(stiffness, dualAreas, h, system);
+  return true;
 }
 
 template <typename A, typename B>
@@ -101,14 +111,10 @@ void DiffusionSystems::preparePatterns(const IntrinsicGeometry& geometry) {
   const auto matches = [&](const auto& stiffness) { return stiffness.rows() == n && stiffness.cols() == n; };
   // The values M + L are overwritten by the next assemble (h > 0); only the
   // patterns, and so the analysis to redo, carry over.
-  if (matches(geometry.densityStiffness) && !fillSystem(geometry.densityStiffness, areas, 1.0, scalarSystem_)) {
-    buildSystem(geometry.densityStiffness, areas, 1.0, scalarSystem_);
-    scalarReanalyze_ = vectorReanalyze_ = true;
-  }
-  if (matches(geometry.velocityStiffness) && !fillSystem(geometry.velocityStiffness, areas, 1.0, vectorSystem_)) {
-    buildSystem(geometry.velocityStiffness, areas, 1.0, vectorSystem_);
+  if (matches(geometry.densityStiffness) && fillOrBuildSystem(geometry.densityStiffness, areas, 1.0, scalarSystem_))
+    scalarReanalyze_ = vectorReanalyze_ = true;  // the vector system shares this analysis
+  if (matches(geometry.velocityStiffness) && fillOrBuildSystem(geometry.velocityStiffness, areas, 1.0, vectorSystem_))
     vectorReanalyze_ = true;
-  }
   scalarInverseDiagonal_.setZero(n);  // the Jacobi diagonals assemble() writes
   vectorInverseDiagonal_.setZero(n);
 }
@@ -128,15 +134,10 @@ SolverStatus DiffusionSystems::assemble(const IntrinsicGeometry& geometry, doubl
   h_ = h;
   ++assemblies_;
   scalarFactorCurrent_ = vectorFactorCurrent_ = false;
-  if (!fillSystem(scalarStiffness, areas, h, scalarSystem_)) {
-    buildSystem(scalarStiffness, areas, h, scalarSystem_);
+  if (fillOrBuildSystem(scalarStiffness, areas, h, scalarSystem_))
     scalarReanalyze_ = vectorReanalyze_ = true;  // the vector system shares this analysis
-  }
   if (vectorStiffness.rows() != 0) {
-    if (!fillSystem(vectorStiffness, areas, h, vectorSystem_)) {
-      buildSystem(vectorStiffness, areas, h, vectorSystem_);
-      vectorReanalyze_ = true;
-    }
+    if (fillOrBuildSystem(vectorStiffness, areas, h, vectorSystem_)) vectorReanalyze_ = true;
   } else {
     vectorSystem_.resize(0, 0);
   }
