@@ -84,7 +84,7 @@ CoupledSurface::CoupledSurface(std::unique_ptr<cloth::SurfaceMotion> motion, con
   stain_->setInitialMotion(motion_->positions(), motion_->velocities());
   // A surface that deforms rebuilds its metric: what the first rebuild
   // would allocate is sized now, at load, rather than in a step.
-  if (Eigen::Matrix3d rotation; !motion_->knownRotation(rotation)) stain_->prepareForDeformation();
+  if (motion_->deforms()) stain_->prepareForDeformation();
 
   const int n = topology.vertexCount();
   liquidMasses_ = Eigen::VectorXd::Zero(n);

@@ -57,5 +57,20 @@ TEST(SurfaceMotion, StaticSurfaceStaysAndRejectsBadStep) {
   EXPECT_THROW(still.advance(std::nan("")), std::invalid_argument);
 }
 
+// Which motions change the surface's shape (what sizes a stain's metric
+// rebuilds at load): not the static or rigid ones, whatever their state;
+// a caller-supplied surface can be anything.
+TEST(SurfaceMotion, OnlyStaticAndRigidMotionsKeepTheirShape) {
+  StaticSurface still(somePoints());
+  RigidMotionDef def;
+  def.angularVelocity = {0, 0, 2.0};
+  RigidMotion turning(somePoints(), def);
+  turning.advance(0.3);
+  CallerMotion supplied(somePoints());
+  EXPECT_FALSE(still.deforms());
+  EXPECT_FALSE(turning.deforms());
+  EXPECT_TRUE(supplied.deforms());
+}
+
 }  // namespace
 }  // namespace blot::cloth

@@ -78,6 +78,10 @@ class SurfaceMotion {
     (void)rotation;
     return false;
   }
+  /// False for a motion that never changes the surface's shape (static,
+  /// rigid): a stain on it never rebuilds its metric, so nothing is sized for
+  /// a rebuild (StainSolver::prepareForDeformation).
+  virtual bool deforms() const { return true; }
   /// The dynamic state beyond time() (a simulated cloth's nodes and loads),
   /// one field at a time: save hands the visitor every field to read, load
   /// has it fill them and then takes them (throws std::invalid_argument on a
@@ -106,6 +110,7 @@ class StaticSurface final : public SurfaceMotion {
   void advance(double h) override;
   void keepRollbackPoint() override { rollbackTime_ = time_; }
   void rollBack() override { time_ = rollbackTime_; }
+  bool deforms() const override { return false; }
 
  private:
   Eigen::MatrixX3d positions_, velocities_;
@@ -185,6 +190,7 @@ class RigidMotion final : public SurfaceMotion {
     rotation = rotationAt(time_);
     return true;
   }
+  bool deforms() const override { return false; }
 
   /// Rotation exp(t [ω]×) at time t.
   Eigen::Matrix3d rotationAt(double t) const;

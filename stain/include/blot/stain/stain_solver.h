@@ -152,7 +152,7 @@ class StainSolver {
   /// costs what later ones do and no step allocates for one. A surface that
   /// only moves rigidly never rebuilds and need not call it: it would hold
   /// one more intrinsic tier in memory. CoupledSurface calls it for every
-  /// motion that is not known to be rigid.
+  /// motion that deforms (cloth::SurfaceMotion::deforms).
   void prepareForDeformation();
   /// Positions and velocities at t = 0 of the moving surface (p(−h) is
   /// estimated as p(0) − h v(0) on the first step). Default: the rest shape at rest.
