@@ -1,0 +1,202 @@
+// Design note: stain/src/numerics/vector_trig.h.
+#include "numerics/vector_trig.h"
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#if defined(BLOT_HAVE_LIBMVEC)
+#include <immintrin.h>
+
+// libmvec's entry points (x86-64 vector function ABI names: b = SSE, 2 lanes;
+// d = AVX2, 4 lanes; v = a vector argument). glibc 2.35 added atan2.
+extern "C" {
+__m128d _ZGVbN2vv_atan2(__m128d y, __m128d x);
+__m128d _ZGVbN2v_sin(__m128d x);
+__m128d _ZGVbN2v_cos(__m128d x);
+__m256d _ZGVdN4vv_atan2(__m256d y, __m256d x);
+__m256d _ZGVdN4v_sin(__m256d x);
+__m256d _ZGVdN4v_cos(__m256d x);
+}
+#endif
+
+namespace blot::stain::trig {
+namespace {
+
+// The tail of a batch, padded to a full vector of `Lanes` values: inputs
+// beyond `count` are `pad` (a value with no special case), outputs beyond it
+// dropped.
+template <int Lanes>
+struct Padded {
+  double in0[Lanes], in1[Lanes], out0[Lanes], out1[Lanes];
+  Padded(const double* a, const double* b, int count, double padA, double padB) {
+    for (int m = 0; m < Lanes; ++m) {
+      in0[m] = m < count ? a[m] : padA;
+      in1[m] = b != nullptr && m < count ? b[m] : padB;
+    }
+  }
+};
+
+void atan2Scalar(const double* y, const double* x, double* out, int count) {
+  for (int k = 0; k < count; ++k) out[k] = std::atan2(y[k], x[k]);
+}
+
+void unitPhasesScalar(const double* angles, double* out, int count) {
+  for (int k = 0; k < count; ++k) {
+    const double a = angles[k];
+    out[2 * k] = std::cos(a);
+    out[2 * k + 1] = std::sin(a);
+  }
+}
+
+#if defined(BLOT_HAVE_LIBMVEC)
+void atan2Sse2(const double* y, const double* x, double* out, int count) {
+  int k = 0;
+  for (; k + 2 <= count; k += 2) _mm_storeu_pd(out + k, _ZGVbN2vv_atan2(_mm_loadu_pd(y + k), _mm_loadu_pd(x + k)));
+  if (k == count) return;
+  Padded<2> p(y + k, x + k, count - k, 0.0, 1.0);
+  _mm_storeu_pd(p.out0, _ZGVbN2vv_atan2(_mm_loadu_pd(p.in0), _mm_loadu_pd(p.in1)));
+  for (int m = 0; m < count - k; ++m) out[k + m] = p.out0[m];
+}
+
+// (cos, sin) of two angles into out[0..3].
+inline void storePhases2(__m128d a, double* out) {
+  const __m128d c = _ZGVbN2v_cos(a), s = _ZGVbN2v_sin(a);
+  _mm_storeu_pd(out, _mm_unpacklo_pd(c, s));
+  _mm_storeu_pd(out + 2, _mm_unpackhi_pd(c, s));
+}
+
+void unitPhasesSse2(const double* angles, double* out, int count) {
+  int k = 0;
+  for (; k + 2 <= count; k += 2) storePhases2(_mm_loadu_pd(angles + k), out + 2 * k);
+  if (k == count) return;
+  Padded<2> p(angles + k, nullptr, count - k, 0.0, 0.0);
+  double phases[4];
+  storePhases2(_mm_loadu_pd(p.in0), phases);
+  for (int m = 0; m < 2 * (count - k); ++m) out[2 * k + m] = phases[m];
+}
+
+__attribute__((target("avx2"))) void atan2Avx2(const double* y, const double* x, double* out, int count) {
+  int k = 0;
+  for (; k + 4 <= count; k += 4)
+    _mm256_storeu_pd(out + k, _ZGVdN4vv_atan2(_mm256_loadu_pd(y + k), _mm256_loadu_pd(x + k)));
+  if (k == count) return;
+  Padded<4> p(y + k, x + k, count - k, 0.0, 1.0);
+  _mm256_storeu_pd(p.out0, _ZGVdN4vv_atan2(_mm256_loadu_pd(p.in0), _mm256_loadu_pd(p.in1)));
+  for (int m = 0; m < count - k; ++m) out[k + m] = p.out0[m];
+}
+
+__attribute__((target("avx2"))) void unitPhasesAvx2(const double* angles, double* out, int count) {
+  // (cos, sin) pairs of four angles into out[0..7].
+  const auto store = [](__m256d a, double* to) __attribute__((target("avx2"))) {
+    double c[4], s[4];
+    _mm256_storeu_pd(c, _ZGVdN4v_cos(a));
+    _mm256_storeu_pd(s, _ZGVdN4v_sin(a));
+    for (int m = 0; m < 4; ++m) {
+      to[2 * m] = c[m];
+      to[2 * m + 1] = s[m];
+    }
+  };
+  int k = 0;
+  for (; k + 4 <= count; k += 4) store(_mm256_loadu_pd(angles + k), out + 2 * k);
+  if (k == count) return;
+  Padded<4> p(angles + k, nullptr, count - k, 0.0, 0.0);
+  double phases[8];
+  store(_mm256_loadu_pd(p.in0), phases);
+  for (int m = 0; m < 2 * (count - k); ++m) out[2 * k + m] = phases[m];
+}
+#endif
+
+Kernel bestKernel() {
+#if defined(BLOT_HAVE_LIBMVEC)
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx2") ? Kernel::Avx2 : Kernel::Sse2;
+#else
+  return Kernel::Scalar;
+#endif
+}
+
+}  // namespace
+
+Kernel activeKernel() {
+  static const Kernel kernel = bestKernel();
+  return kernel;
+}
+
+bool available(Kernel kernel) {
+  switch (kernel) {
+    case Kernel::Scalar: return true;
+    case Kernel::Sse2: return activeKernel() != Kernel::Scalar;
+    case Kernel::Avx2: return activeKernel() == Kernel::Avx2;
+  }
+  return false;
+}
+
+const char* name(Kernel kernel) {
+  switch (kernel) {
+    case Kernel::Scalar: return "scalar libm";
+    case Kernel::Sse2: return "libmvec SSE, 2 lanes";
+    case Kernel::Avx2: return "libmvec AVX2, 4 lanes";
+  }
+  return "unknown";
+}
+
+namespace {
+
+void runAtan2(Kernel kernel, const double* y, const double* x, double* out, int count) {
+  switch (kernel) {
+#if defined(BLOT_HAVE_LIBMVEC)
+    case Kernel::Avx2: atan2Avx2(y, x, out, count); return;
+    case Kernel::Sse2: atan2Sse2(y, x, out, count); return;
+#endif
+    default: atan2Scalar(y, x, out, count); return;
+  }
+}
+
+void runUnitPhases(Kernel kernel, const double* angles, Complex* out, int count) {
+  double* to = reinterpret_cast<double*>(out);  // [complex.numbers]: array-compatible
+  switch (kernel) {
+#if defined(BLOT_HAVE_LIBMVEC)
+    case Kernel::Avx2: unitPhasesAvx2(angles, to, count); return;
+    case Kernel::Sse2: unitPhasesSse2(angles, to, count); return;
+#endif
+    default: unitPhasesScalar(angles, to, count); return;
+  }
+}
+
+void requireAvailable(Kernel kernel, const char* function) {
+  if (!available(kernel))
+    throw std::invalid_argument(std::string("trig::") + function + ": kernel \"" + name(kernel) +
+                                "\" is not available on this CPU or build (expected one of those available()" +
+                                " accepts)");
+}
+
+}  // namespace
+
+void atan2With(Kernel kernel, const double* y, const double* x, double* out, int count) {
+  requireAvailable(kernel, "atan2With");
+  runAtan2(kernel, y, x, out, count);
+}
+
+void unitPhasesWith(Kernel kernel, const double* angles, Complex* out, int count) {
+  requireAvailable(kernel, "unitPhasesWith");
+  runUnitPhases(kernel, angles, out, count);
+}
+
+void atan2(const double* y, const double* x, double* out, int count) { runAtan2(activeKernel(), y, x, out, count); }
+
+void unitPhases(const double* angles, Complex* out, int count) { runUnitPhases(activeKernel(), angles, out, count); }
+
+double atan2(double y, double x) {
+  double out;
+  atan2(&y, &x, &out, 1);
+  return out;
+}
+
+Complex unitPhase(double angle) {
+  Complex out;
+  unitPhases(&angle, &out, 1);
+  return out;
+}
+
+}  // namespace blot::stain::trig
