@@ -3,6 +3,8 @@
 // Design note: docs/design-notes.md, "stain/src/geometry/intrinsic_geometry.cpp".
 #include <blot/stain/geometry/intrinsic_geometry.h>
 
+#include "numerics/vector_trig.h"
+
 #include <algorithm>
 #include <cmath>
 #include <utility>
@@ -32,13 +34,30 @@ inline double cornerCosineTerm(const double (&l)[3], int k) {
   return (b - a) * (b + a) + c * c;
 }
 
-// Corner angles and area of face f (the body of faceCornerAngles and faceAreas).
-inline void faceAnglesAndArea(const Eigen::MatrixX3i& fe, const Vector& edgeLengths, int f, Eigen::MatrixX3d& angles,
-                              double& area) {
-  const double l[3] = {edgeLengths(fe(f, 0)), edgeLengths(fe(f, 1)), edgeLengths(fe(f, 2))};
-  area = stableHeronArea(l[0], l[1], l[2]);
-  const double fourArea = 4.0 * area;
-  for (int k = 0; k < 3; ++k) angles(f, k) = std::atan2(fourArea, cornerCosineTerm(l, k));
+// Visits faces list[0..count) (faces 0..count without a list) in order with
+// each one's area, its corners' b² + c² − a² and its corner angles θ_k =
+// atan2(4A, b² + c² − a²). The angles of a block of faces are one vector
+// batch (numerics/vector_trig.h: the same bits as one at a time).
+template <typename Visit>
+void forEachFaceCorners(const Eigen::MatrixX3i& fe, const Vector& edgeLengths, const int* list, int count,
+                        const Visit& visit) {
+  constexpr int kBlock = 32;
+  double area[kBlock], y[3 * kBlock], x[3 * kBlock], theta[3 * kBlock];
+  for (int start = 0; start < count; start += kBlock) {
+    const int size = std::min(kBlock, count - start);
+    for (int b = 0; b < size; ++b) {
+      const int f = list != nullptr ? list[start + b] : start + b;
+      const double l[3] = {edgeLengths(fe(f, 0)), edgeLengths(fe(f, 1)), edgeLengths(fe(f, 2))};
+      area[b] = stableHeronArea(l[0], l[1], l[2]);
+      for (int k = 0; k < 3; ++k) {
+        y[3 * b + k] = 4.0 * area[b];
+        x[3 * b + k] = cornerCosineTerm(l, k);
+      }
+    }
+    trig::atan2(y, x, theta, 3 * size);
+    for (int b = 0; b < size; ++b)
+      visit(list != nullptr ? list[start + b] : start + b, area[b], x + 3 * b, theta + 3 * b);
+  }
 }
 
 // ½ cot θ of a corner from its b² + c² − a² and its face's 4A, without a
@@ -78,10 +97,11 @@ void edgeLengths(const SurfaceTopology& topology, const RowVectors3& vertexPosit
 }
 
 Eigen::MatrixX3d faceCornerAngles(const SurfaceTopology& topology, const Vector& edgeLengths) {
-  const Eigen::MatrixX3i& fe = topology.faceEdges();
   Eigen::MatrixX3d angles(topology.faceCount(), 3);
-  double area;
-  for (int f = 0; f < topology.faceCount(); ++f) faceAnglesAndArea(fe, edgeLengths, f, angles, area);
+  forEachFaceCorners(topology.faceEdges(), edgeLengths, nullptr, topology.faceCount(),
+                     [&](int f, double, const double*, const double* theta) {
+                       for (int k = 0; k < 3; ++k) angles(f, k) = theta[k];
+                     });
   return angles;
 }
 
@@ -124,25 +144,25 @@ void faceAnglesAreasAndCotanWeights(const SurfaceTopology& topology, const Vecto
   faceCornerAngles.resize(faceCount, 3);
   faceAreas.resize(faceCount);
   edgeCotanWeights.setZero(topology.edgeCount());
-  for (int f = 0; f < faceCount; ++f) {
-    const double l[3] = {edgeLengths(fe(f, 0)), edgeLengths(fe(f, 1)), edgeLengths(fe(f, 2))};
-    const double area = stableHeronArea(l[0], l[1], l[2]);
-    const double fourArea = 4.0 * area;
-    faceAreas(f) = area;
-    for (int k = 0; k < 3; ++k) {
-      const double cosineTerm = cornerCosineTerm(l, k);
-      faceCornerAngles(f, k) = std::atan2(fourArea, cosineTerm);
-      // Corner k is opposite edge faceEdges(f, k + 1). Faces ascending: an
-      // edge's lower-index face adds first, onto 0, as updateEdgeCotanWeights sums.
-      edgeCotanWeights(fe(f, (k + 1) % 3)) += halfCotangent(cosineTerm, fourArea);
-    }
-  }
+  forEachFaceCorners(fe, edgeLengths, nullptr, faceCount,
+                     [&](int f, double area, const double* cosineTerms, const double* theta) {
+                       faceAreas(f) = area;
+                       for (int k = 0; k < 3; ++k) {
+                         faceCornerAngles(f, k) = theta[k];
+                         // Corner k is opposite edge faceEdges(f, k + 1). Faces ascending: an edge's
+                         // lower-index face adds first, onto 0, as updateEdgeCotanWeights sums.
+                         edgeCotanWeights(fe(f, (k + 1) % 3)) += halfCotangent(cosineTerms[k], 4.0 * area);
+                       }
+                     });
 }
 
 void updateFaceAnglesAndAreas(const SurfaceTopology& topology, const Vector& edgeLengths, const int* faces,
                               int count, Eigen::MatrixX3d& faceCornerAngles, Vector& faceAreas) {
-  const Eigen::MatrixX3i& fe = topology.faceEdges();
-  for (int n = 0; n < count; ++n) faceAnglesAndArea(fe, edgeLengths, faces[n], faceCornerAngles, faceAreas(faces[n]));
+  forEachFaceCorners(topology.faceEdges(), edgeLengths, faces, count,
+                     [&](int f, double area, const double*, const double* theta) {
+                       faceAreas(f) = area;
+                       for (int k = 0; k < 3; ++k) faceCornerAngles(f, k) = theta[k];
+                     });
 }
 
 void updateEdgeCotanWeights(const SurfaceTopology& topology, const Vector& edgeLengths, const Vector& faceAreas,

@@ -6,6 +6,8 @@
 
 #include <blot/stain/geometry/intrinsic_geometry.h>
 
+#include "numerics/vector_trig.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -125,6 +127,41 @@ Matrix3 intrinsicFaceStiffness(const SurfaceTopology& topology, const Vector& ed
   const FaceLayout layout = intrinsicLayout(topology, edgeLengths, faceTensors, faceWeftCoefficients, f);
   return triangleStiffness(layout.corners[0], layout.corners[1], layout.corners[2], layout.tensor);
 }
+
+// exp(iφ(f, k)) of the faces list[0..count) (faces 0..count without a list),
+// asked for in that order: a block of faces at a time, whose 3 × kBlock
+// angles are one vector batch (numerics/vector_trig.h: the same bits as one
+// at a time, so every connection path agrees).
+class FacePhases {
+ public:
+  FacePhases(const Eigen::MatrixX3d& faceTransportAngles, const int* list, int count)
+      : angles_(faceTransportAngles), list_(list), count_(count) {}
+
+  /// exp(iφ) of the n-th face's corners; n ascending.
+  const Complex* at(int n) {
+    if (n >= end_) fill(n);
+    return phases_ + 3 * (n - begin_);
+  }
+
+ private:
+  static constexpr int kBlock = 32;
+
+  void fill(int n) {
+    begin_ = n;
+    end_ = std::min(n + kBlock, count_);
+    double phi[3 * kBlock];
+    for (int b = 0; b < end_ - begin_; ++b) {
+      const int f = list_ != nullptr ? list_[begin_ + b] : begin_ + b;
+      for (int k = 0; k < 3; ++k) phi[3 * b + k] = angles_(f, k);
+    }
+    trig::unitPhases(phi, phases_, 3 * (end_ - begin_));
+  }
+
+  const Eigen::MatrixX3d& angles_;
+  const int* list_;
+  int count_, begin_ = 0, end_ = 0;
+  Complex phases_[3 * kBlock];
+};
 
 // Face f's connection block entry (k, l): K_kl conj(r_k) r_l, the diagonal real.
 inline Complex connectionEntry(const Matrix3& K, const Complex* r, int k, int l) {
@@ -259,12 +296,12 @@ template <typename Add>
 void forEachConnectionEntry(const SurfaceTopology& topology, const RowVectors3& vertexPositions,
                             const Eigen::MatrixX3d& faceTransportAngles, const Eigen::MatrixX3d& faceTensors,
                             const RowVectors3& faceWeftDirections, const Add& add) {
+  FacePhases phases(faceTransportAngles, nullptr, topology.faceCount());
   for (int f = 0; f < topology.faceCount(); ++f) {
     const FaceLayout layout = layoutFace(topology, vertexPositions, faceTensors, faceWeftDirections, f);
     const Matrix3 K = triangleStiffness(layout.corners[0], layout.corners[1], layout.corners[2],
                                         layout.tensor);
-    Complex r[3];
-    for (int k = 0; k < 3; ++k) r[k] = std::polar(1.0, faceTransportAngles(f, k));
+    const Complex* r = phases.at(f);
     for (int k = 0; k < 3; ++k) {
       for (int l = 0; l < 3; ++l) add(f, k, l, connectionEntry(K, r, k, l));
     }
@@ -345,6 +382,7 @@ void refillStiffnessAndConnection(const SurfaceTopology& topology, const RowVect
   // The terms of forEachStiffnessEntry and forEachConnectionEntry, face by
   // face in the same order, each matrix summing only its own: the same bits
   // as the two refills, with each face laid out once.
+  FacePhases phases(faceTransportAngles, nullptr, topology.faceCount());
   for (int f = 0; f < topology.faceCount(); ++f) {
     const FaceFrame frame = faceFrame(topology, vertexPositions, f);
     const int* at = entry + 9 * static_cast<size_t>(f);
@@ -353,8 +391,7 @@ void refillStiffnessAndConnection(const SurfaceTopology& topology, const RowVect
     for (int k = 0; k < 3; ++k)
       for (int l = 0; l < 3; ++l) stiffnessValues[at[3 * k + l]] += Kd(k, l);
     const Matrix3 Kv = stiffnessFromGradients(gradients, tensorInFrame(frame, velocityTensors, faceWeftDirections, f));
-    Complex r[3];
-    for (int k = 0; k < 3; ++k) r[k] = std::polar(1.0, faceTransportAngles(f, k));
+    const Complex* r = phases.at(f);
     for (int k = 0; k < 3; ++k)
       for (int l = 0; l < 3; ++l) connectionValues[at[3 * k + l]] += connectionEntry(Kv, r, k, l);
   }
@@ -446,10 +483,10 @@ ComplexSparseMatrix connectionLaplacianFromLengths(const SurfaceTopology& topolo
                                                    const Eigen::MatrixX2d& faceWeftCoefficients) {
   const Triangles& faces = topology.faces();
   ComplexSparseMatrix L = oneRingPattern<Complex>(topology);
+  FacePhases phases(faceTransportAngles, nullptr, topology.faceCount());
   for (int f = 0; f < topology.faceCount(); ++f) {
     const Matrix3 K = intrinsicFaceStiffness(topology, edgeLengths, faceTensors, faceWeftCoefficients, f);
-    Complex r[3];
-    for (int k = 0; k < 3; ++k) r[k] = std::polar(1.0, faceTransportAngles(f, k));
+    const Complex* r = phases.at(f);
     for (int k = 0; k < 3; ++k) {
       for (int l = 0; l < 3; ++l) addEntry(L, faces(f, k), faces(f, l), connectionEntry(K, r, k, l));
     }
@@ -464,11 +501,11 @@ void reassembleConnectionFromLengths(const SurfaceTopology& topology, const Vect
                                      ComplexSparseMatrix& L) {
   const Triangles& faces = topology.faces();
   zeroMarkedEntries(vertexMarks, vertices, vertexCount, L);
+  FacePhases phases(faceTransportAngles, faceList, faceCount);
   for (int n = 0; n < faceCount; ++n) {
     const int f = faceList[n];
     const Matrix3 K = intrinsicFaceStiffness(topology, edgeLengths, faceTensors, faceWeftCoefficients, f);
-    Complex r[3];
-    for (int k = 0; k < 3; ++k) r[k] = std::polar(1.0, faceTransportAngles(f, k));
+    const Complex* r = phases.at(n);
     for (int k = 0; k < 3; ++k) {
       if (!vertexMarks[faces(f, k)]) continue;
       for (int l = 0; l < 3; ++l)

@@ -164,11 +164,10 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
     int& filledFrom = band.ringRebuildCounts[static_cast<size_t>(v)];
     if (filledFrom == intrinsic.rebuildCount) return;
     double shortest = haveLengths ? std::numeric_limits<double>::infinity() : 0.0;
-    for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m) {
-      const int edge = ringEdges[static_cast<size_t>(m)];
-      band.ringTransports(m) = ringTransport(intrinsic.edgeTransportAngles, v, neighbors[static_cast<size_t>(m)], edge);
-      if (haveLengths) shortest = std::min(shortest, intrinsic.edgeLengths[edge]);
-    }
+    fillRingTransports(topology, intrinsic.edgeTransportAngles, v, band.ringTransports.data());
+    if (haveLengths)
+      for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m)
+        shortest = std::min(shortest, intrinsic.edgeLengths[ringEdges[static_cast<size_t>(m)]]);
     band.distances[static_cast<size_t>(v)].shortestEdge = shortest;
     filledFrom = intrinsic.rebuildCount;
   };

@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "numerics/threads.h"
+#include "numerics/vector_trig.h"
 
 namespace blot::stain {
 namespace {
@@ -54,14 +55,12 @@ struct Tables {
 void fillRing(const SurfaceTopology& topology, const IntrinsicGeometry& geometry, int v, ComplexVector& ringPoints,
               ComplexVector& ringTransports) {
   const std::vector<int>& offsets = topology.ringOffsets();
-  const std::vector<int>& neighbors = topology.ringNeighbors();
   const std::vector<int>& ringEdges = topology.ringEdges();
-  for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m) {
-    const int e = ringEdges[static_cast<size_t>(m)];
-    const int j = neighbors[static_cast<size_t>(m)];
-    ringPoints(m) = geometry.edgeLengths(e) * unitFromAngle(geometry.polarMap.ringAngles(m));
-    ringTransports(m) = ringTransport(geometry.edgeTransportAngles, v, j, e);
-  }
+  const int begin = offsets[static_cast<size_t>(v)], end = offsets[static_cast<size_t>(v) + 1];
+  // The ring's polar angles as unit phases in one vector batch, then scaled.
+  trig::unitPhases(geometry.polarMap.ringAngles.data() + begin, ringPoints.data() + begin, end - begin);
+  for (int m = begin; m < end; ++m) ringPoints(m) *= geometry.edgeLengths(ringEdges[static_cast<size_t>(m)]);
+  fillRingTransports(topology, geometry.edgeTransportAngles, v, ringTransports.data());
 }
 
 struct Walk {

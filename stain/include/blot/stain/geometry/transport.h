@@ -40,14 +40,13 @@ double wrapAngle(double angle);
 Vector edgeTransportAngles(const SurfaceTopology& topology, const PolarMap& polarMap);
 void edgeTransportAngles(const SurfaceTopology& topology, const PolarMap& polarMap, Vector& edgeTransportAngles);
 
-/// exp(iθ_vj) for the ring entry of vertex v whose neighbour j lies across
-/// edge e: carries j's frame into v's (θ stored for the lower end, negated
-/// from the upper one). The one formula the band's and the velocity
-/// advection's ring tables fill from.
-inline Complex ringTransport(const Vector& edgeTransportAngles, int v, int j, int e) {
-  const double theta = v < j ? edgeTransportAngles(e) : -edgeTransportAngles(e);
-  return {std::cos(theta), std::sin(theta)};
-}
+/// exp(iθ_vj) for each ring entry m of vertex v, into out[m] (out indexed
+/// like topology.ringNeighbors()): j the entry's neighbour across edge e
+/// carries j's frame into v's (θ stored for the lower end, negated from the
+/// upper one). The one formula the band's and the velocity advection's ring
+/// tables fill from; the ring's sines and cosines are one vector batch
+/// (stain/src/numerics/vector_trig.h).
+void fillRingTransports(const SurfaceTopology& topology, const Vector& edgeTransportAngles, int v, Complex* out);
 
 /// #F by 3 rotation angles φ(f, k) carrying a vector from the frame of vertex
 /// faces(f, k) into face f's own frame (x along the half-edge faces(f,0) ->
