@@ -1,4 +1,6 @@
-// Design note: stain/src/numerics/vector_trig.h.
+// Batched atan2, sin and cos (vector_trig.h).
+//
+// Design note: docs/design-notes.md, "stain/src/numerics/vector_trig.cpp".
 #include "numerics/vector_trig.h"
 
 #include <cmath>

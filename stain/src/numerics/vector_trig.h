@@ -1,23 +1,9 @@
-// atan2, sin and cos for a handful of values at a time, through glibc's
-// vector math library (libmvec).
+// atan2, sin and cos a batch at a time, through glibc's vector math library
+// (libmvec): the metric rebuild's corner angles and phases, the ring tables.
+// The kernel is chosen once per process by the CPU; a value's bits do not
+// depend on the batch it comes in, its place there or the thread.
 //
-// A metric rebuild takes one atan2 per face corner (its angle) and one sine
-// and cosine per face corner (the connection's phases); glibc's scalar calls
-// cost about 15 ns each here, with a rounding-mode guard inside, and were
-// about 40 % of a whole rebuild. libmvec's kernels compute 2 (SSE) or 4 (AVX2)
-// values per call, without the guard, at 2–4 ulp (glibc's stated bound;
-// tests/stain/vector_trig_test.cpp measures it): a 4-lane call costs about
-// what one scalar call does.
-//
-// The kernel is chosen once per process by the CPU (AVX2 when it has it, SSE
-// otherwise; scalar libm where the build has no libmvec: not x86-64 or glibc
-// older than 2.35). Every value goes through that kernel whole: a batch's
-// tail is padded to a full vector, never finished by scalar calls, and each
-// lane depends only on its own input. So a value's bits do not depend on the
-// batch it came in, its position there, or the thread that computed it: a
-// partial rebuild, a whole one and any thread count agree. Like glibc's own
-// scalar functions (ifunc variants per CPU), the last bit may differ between
-// CPUs.
+// Design note: docs/design-notes.md, "stain/src/numerics/vector_trig.cpp".
 #pragma once
 
 #include <blot/stain/types.h>
