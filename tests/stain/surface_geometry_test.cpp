@@ -893,6 +893,73 @@ TEST(SurfaceGeometry, RefilledOperatorsAreBitwiseANewAssembly) {
                std::invalid_argument);
 }
 
+// refillStiffnessAndConnectionFromLengths writes bitwise what the two
+// from-lengths assemblies return (anisotropic tensors and weft coefficients,
+// transport angles of another shape), allocates nothing, and refuses a matrix
+// of another topology.
+TEST(SurfaceGeometry, OperatorsRefilledFromLengthsAreBitwiseTheirAssemblies) {
+  const TriangleMesh mesh = wavySheet();
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  const FabricField fabric = anisotropicFabric(topology.faceCount(), 7);
+  const Eigen::MatrixX2d coefficients = faceWeftCoefficients(topology, mesh.vertexPositions, fabric.weftDirections);
+  const Vector first = edgeLengths(topology, bumpedSheet(mesh.vertexPositions, 0.4, 0.5, 0.02, 1));
+  const Vector second = edgeLengths(topology, bumpedSheet(mesh.vertexPositions, 0.6, 0.3, 0.05, 2));
+  const Eigen::MatrixX3d angles(Eigen::MatrixX3d::Random(topology.faceCount(), 3) * 3.0);
+  SparseMatrix stiffness = anisotropicStiffnessFromLengths(topology, first, fabric.densityTensors, coefficients);
+  ComplexSparseMatrix connection =
+      connectionLaplacianFromLengths(topology, first, angles * 0.5, fabric.velocityTensors, coefficients);
+  const OneRingEntries entries = oneRingFaceEntries(topology);
+  gAllocations = 0;
+  gCountAllocations = true;
+  refillStiffnessAndConnectionFromLengths(topology, second, fabric.densityTensors, angles, fabric.velocityTensors,
+                                          coefficients, entries, stiffness, connection);
+  gCountAllocations = false;
+  if (kCountsAllocations) {
+    EXPECT_EQ(gAllocations.load(), 0);
+  }
+  EXPECT_TRUE(
+      sameValueBits(stiffness, anisotropicStiffnessFromLengths(topology, second, fabric.densityTensors, coefficients)));
+  EXPECT_TRUE(sameValueBits(
+      connection, connectionLaplacianFromLengths(topology, second, angles, fabric.velocityTensors, coefficients)));
+  const TriangleMesh other = jitteredIcosphere(1, 0.1, 3);
+  const SurfaceTopology otherTopology(other.faces, static_cast<int>(other.vertexPositions.rows()));
+  SparseMatrix wrong = anisotropicStiffness(otherTopology, other.vertexPositions,
+                                            identityFaceTensors(static_cast<int>(other.faces.rows())),
+                                            RowVectors3::Zero(other.faces.rows(), 3));
+  EXPECT_THROW(refillStiffnessAndConnectionFromLengths(topology, second, fabric.densityTensors, angles,
+                                                       fabric.velocityTensors, coefficients, entries, wrong,
+                                                       connection),
+               std::invalid_argument);
+}
+
+// A whole rebuild is the tier of the lengths it measures, bit for bit: the
+// same function (intrinsicGeometryFromLengths) a partial rebuild, a switch to
+// Partial and every length-only path use. So a whole and a partial rebuild
+// of every edge agree, and no rebuild's operators depend on positions beyond
+// their lengths.
+TEST(SurfaceGeometry, AWholeRebuildIsTheTierOfItsLengths) {
+  const TriangleMesh mesh = wavySheet();
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  const FabricField fabric = anisotropicFabric(topology.faceCount(), 5);
+  const double h = 0.01;
+  SurfaceGeometry geometry(topology, mesh.vertexPositions, fabric, 1e-3);
+  geometry.prepareWholeRebuilds();
+  for (int step = 1; step <= 3; ++step) {
+    const RowVectors3 bent = bumpedSheet(mesh.vertexPositions, 0.3 + 0.1 * step, 0.5, 0.02 * step, step);
+    ASSERT_TRUE(geometry.refreshExtrinsic(bent, h, true)) << "step " << step;
+    geometry.refreshIntrinsic();
+    IntrinsicGeometry expected;
+    intrinsicGeometryFromLengths(topology, edgeLengths(topology, bent), fabric.densityTensors, fabric.velocityTensors,
+                                 geometry.faceWeftCoefficients(), expected);
+    const IntrinsicGeometry& in = geometry.intrinsic();
+    EXPECT_EQ(in.edgeLengths, expected.edgeLengths) << "step " << step;
+    EXPECT_EQ(in.faceCornerAngles, expected.faceCornerAngles) << "step " << step;
+    EXPECT_EQ(in.faceTransportAngles, expected.faceTransportAngles) << "step " << step;
+    EXPECT_TRUE(sameValueBits(in.densityStiffness, expected.densityStiffness)) << "step " << step;
+    EXPECT_TRUE(sameValueBits(in.velocityStiffness, expected.velocityStiffness)) << "step " << step;
+  }
+}
+
 TEST(KabschRotation, RecoversExactRotationAndIsOptimalUnderNoise) {
   std::mt19937 rng(2024);
   std::normal_distribution<double> normal;

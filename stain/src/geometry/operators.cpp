@@ -90,25 +90,27 @@ FaceLayout layoutFace(const SurfaceTopology& topology, const RowVectors3& positi
   return layout;
 }
 
-// Lays face f out from its edge lengths (see anisotropicStiffnessFromLengths).
-FaceLayout intrinsicLayout(const SurfaceTopology& topology, const Vector& edgeLengths,
-                           const Eigen::MatrixX3d& faceTensors, const Eigen::MatrixX2d& faceWeftCoefficients, int f) {
+// Face f's corners laid out from its edge lengths (see
+// anisotropicStiffnessFromLengths): corner 0 at the origin, 1 on +x, 2 above.
+void intrinsicCorners(const SurfaceTopology& topology, const Vector& edgeLengths, int f, Vector2 (&corners)[3]) {
   const Eigen::MatrixX3i& fe = topology.faceEdges();
   // faceEdges(f, 0) joins corners 0 and 1, (f, 1) corners 1 and 2, (f, 2) corners 2 and 0.
   const double l0 = edgeLengths(fe(f, 0)), l1 = edgeLengths(fe(f, 1)), l2 = edgeLengths(fe(f, 2));
   const double x = (l0 * l0 + (l2 - l1) * (l2 + l1)) / (2.0 * l0);
   const double y = 2.0 * triangleArea(l0, l1, l2) / l0;
-  FaceLayout layout;
-  layout.corners[0] = Vector2::Zero();
-  layout.corners[1] = Vector2(l0, 0.0);
-  layout.corners[2] = Vector2(x, y);
+  corners[0] = Vector2::Zero();
+  corners[1] = Vector2(l0, 0.0);
+  corners[2] = Vector2(x, y);
+}
+
+// Face f's fabric tensor in the frame of its intrinsic corners: the weft
+// a c₁ + b c₂ with the rest coefficients.
+Matrix2 intrinsicTensor(const Vector2 (&corners)[3], const Eigen::MatrixX3d& faceTensors,
+                        const Eigen::MatrixX2d& faceWeftCoefficients, int f) {
   const double sww = faceTensors(f, 0), swp = faceTensors(f, 1), spp = faceTensors(f, 2);
-  if (swp == 0.0 && sww == spp) {  // isotropic: orientation irrelevant
-    layout.tensor = sww * Matrix2::Identity();
-    return layout;
-  }
+  if (swp == 0.0 && sww == spp) return sww * Matrix2::Identity();  // isotropic: orientation irrelevant
   const double a = faceWeftCoefficients(f, 0), b = faceWeftCoefficients(f, 1);
-  const Vector2 weft = a * layout.corners[1] + b * layout.corners[2];
+  const Vector2 weft = a * corners[1] + b * corners[2];
   const double length = weft.norm();
   if (!(length > 0) || !std::isfinite(length)) {  // also catches a zero or out-of-plane weft (NaN coefficients)
     std::ostringstream s;
@@ -116,7 +118,15 @@ FaceLayout intrinsicLayout(const SurfaceTopology& topology, const Vector& edgeLe
       << "the fabric orientation is undefined for an anisotropic tensor";
     throw std::invalid_argument(s.str());
   }
-  layout.tensor = tensorInFace(weft / length, sww, swp, spp);
+  return tensorInFace(weft / length, sww, swp, spp);
+}
+
+// Lays face f out from its edge lengths (see anisotropicStiffnessFromLengths).
+FaceLayout intrinsicLayout(const SurfaceTopology& topology, const Vector& edgeLengths,
+                           const Eigen::MatrixX3d& faceTensors, const Eigen::MatrixX2d& faceWeftCoefficients, int f) {
+  FaceLayout layout;
+  intrinsicCorners(topology, edgeLengths, f, layout.corners);
+  layout.tensor = intrinsicTensor(layout.corners, faceTensors, faceWeftCoefficients, f);
   return layout;
 }
 
@@ -391,6 +401,44 @@ void refillStiffnessAndConnection(const SurfaceTopology& topology, const RowVect
     for (int k = 0; k < 3; ++k)
       for (int l = 0; l < 3; ++l) stiffnessValues[at[3 * k + l]] += Kd(k, l);
     const Matrix3 Kv = stiffnessFromGradients(gradients, tensorInFrame(frame, velocityTensors, faceWeftDirections, f));
+    const Complex* r = phases.at(f);
+    for (int k = 0; k < 3; ++k)
+      for (int l = 0; l < 3; ++l) connectionValues[at[3 * k + l]] += connectionEntry(Kv, r, k, l);
+  }
+}
+
+void refillStiffnessAndConnectionFromLengths(const SurfaceTopology& topology, const Vector& edgeLengths,
+                                             const Eigen::MatrixX3d& densityTensors,
+                                             const Eigen::MatrixX3d& faceTransportAngles,
+                                             const Eigen::MatrixX3d& velocityTensors,
+                                             const Eigen::MatrixX2d& faceWeftCoefficients,
+                                             const OneRingEntries& entries, SparseMatrix& stiffness,
+                                             ComplexSparseMatrix& connection) {
+  if (!entries.fits(topology, stiffness) || !entries.fits(topology, connection))
+    throw std::invalid_argument(
+        "refillStiffnessAndConnectionFromLengths: the stiffness, the connection or the entry table is not of this "
+        "topology");
+  double* stiffnessValues = stiffness.valuePtr();
+  Complex* connectionValues = connection.valuePtr();
+  std::fill(stiffnessValues, stiffnessValues + stiffness.nonZeros(), 0.0);
+  std::fill(connectionValues, connectionValues + connection.nonZeros(), Complex(0.0, 0.0));
+  const int* entry = entries.index.data();
+  // The terms of anisotropicStiffnessFromLengths and
+  // connectionLaplacianFromLengths (intrinsicFaceStiffness's layout and
+  // kernel), face by face in the same order: the same bits, the layout and
+  // the gradients computed once for both.
+  FacePhases phases(faceTransportAngles, nullptr, topology.faceCount());
+  for (int f = 0; f < topology.faceCount(); ++f) {
+    Vector2 corners[3];
+    intrinsicCorners(topology, edgeLengths, f, corners);
+    const TriangleGradients gradients = triangleGradients(corners[0], corners[1], corners[2]);
+    const int* at = entry + 9 * static_cast<size_t>(f);
+    const Matrix3 Kd =
+        stiffnessFromGradients(gradients, intrinsicTensor(corners, densityTensors, faceWeftCoefficients, f));
+    for (int k = 0; k < 3; ++k)
+      for (int l = 0; l < 3; ++l) stiffnessValues[at[3 * k + l]] += Kd(k, l);
+    const Matrix3 Kv =
+        stiffnessFromGradients(gradients, intrinsicTensor(corners, velocityTensors, faceWeftCoefficients, f));
     const Complex* r = phases.at(f);
     for (int k = 0; k < 3; ++k)
       for (int l = 0; l < 3; ++l) connectionValues[at[3 * k + l]] += connectionEntry(Kv, r, k, l);

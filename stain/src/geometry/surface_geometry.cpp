@@ -146,25 +146,6 @@ void checkRows(Eigen::Index rows, Eigen::Index expected, const char* what) {
   }
 }
 
-// Weft directions of the rest shape carried to `positions` as material lines
-// (see the design note): w = a c₁ + b c₂ with (a, b) the rest weft's
-// coefficients (faceWeftCoefficients). Zero wefts stay zero.
-void currentWeftDirections(const SurfaceTopology& topology, const RowVectors3& positions,
-                           const Eigen::MatrixX2d& coefficients, const RowVectors3& restWefts, RowVectors3& wefts) {
-  const Triangles& faces = topology.faces();
-  wefts.resize(topology.faceCount(), 3);
-  for (int f = 0; f < topology.faceCount(); ++f) {
-    if (restWefts.row(f).isZero(0)) {
-      wefts.row(f).setZero();
-      continue;
-    }
-    const Vector3 c0 = positions.row(faces(f, 0)).transpose();
-    const Vector3 c1 = positions.row(faces(f, 1)).transpose() - c0;
-    const Vector3 c2 = positions.row(faces(f, 2)).transpose() - c0;
-    wefts.row(f) = (coefficients(f, 0) * c1 + coefficients(f, 1) * c2).transpose();
-  }
-}
-
 }  // namespace
 
 Matrix3 rotationFromCovariance(const Matrix3& covariance) {
@@ -369,7 +350,6 @@ void SurfaceGeometry::prepareWholeRebuilds() {
     kept_.intrinsic = dynamic_.intrinsic;
     kept_.inverseBuiltSquaredLengths = dynamic_.inverseBuiltSquaredLengths;
   }
-  currentWefts_.setZero(topology.faceCount(), 3);
 }
 
 void SurfaceGeometry::undoIntrinsicRefresh() {
@@ -386,22 +366,28 @@ void SurfaceGeometry::refreshIntrinsicFromPositions(const RowVectors3& positions
   IntrinsicGeometry& in = dynamic_.intrinsic;
   edgeLengths(topology, positions, in.edgeLengths);
   lengthQuantities(topology, in);
-  // The first build is on the rest shape, where the given wefts apply as they are.
-  if (in.rebuildCount > 0)
-    currentWeftDirections(topology, positions, faceWeftCoefficients_, fabric_.weftDirections, currentWefts_);
-  const RowVectors3& wefts = in.rebuildCount == 0 ? fabric_.weftDirections : currentWefts_;
-  if (in.rebuildCount > 0 && faceEntries_.index.empty()) faceEntries_ = oneRingFaceEntries(topology);
-  if (in.rebuildCount == 0 || !faceEntries_.fits(topology, in.densityStiffness) ||
-      !faceEntries_.fits(topology, in.velocityStiffness)) {
-    in.densityStiffness = anisotropicStiffness(topology, positions, fabric_.densityTensors, wefts);
-    in.velocityStiffness = connectionLaplacian(topology, positions, in.faceTransportAngles,
-                                               fabric_.velocityTensors, wefts);
+  if (in.rebuildCount == 0) {
+    // The first build is on the rest shape, where the given wefts apply as they are.
+    in.densityStiffness = anisotropicStiffness(topology, positions, fabric_.densityTensors, fabric_.weftDirections);
+    in.velocityStiffness = connectionLaplacian(topology, positions, in.faceTransportAngles, fabric_.velocityTensors,
+                                               fabric_.weftDirections);
   } else {
-    // The same values, into the existing patterns: no pattern build, no
-    // search for each entry, no new matrices, each face laid out once.
-    refillStiffnessAndConnection(topology, positions, fabric_.densityTensors, in.faceTransportAngles,
-                                 fabric_.velocityTensors, wefts, faceEntries_, in.densityStiffness,
-                                 in.velocityStiffness);
+    // A rebuild lays each face out from the lengths it has just measured,
+    // as every other tier path does (design note): no frames from positions.
+    if (faceEntries_.index.empty()) faceEntries_ = oneRingFaceEntries(topology);
+    if (!faceEntries_.fits(topology, in.densityStiffness) || !faceEntries_.fits(topology, in.velocityStiffness)) {
+      in.densityStiffness =
+          anisotropicStiffnessFromLengths(topology, in.edgeLengths, fabric_.densityTensors, faceWeftCoefficients_);
+      in.velocityStiffness = connectionLaplacianFromLengths(topology, in.edgeLengths, in.faceTransportAngles,
+                                                            fabric_.velocityTensors, faceWeftCoefficients_);
+    } else {
+      // The same values, into the existing patterns: no pattern build, no
+      // search for each entry, no new matrices, each face laid out once.
+      refillStiffnessAndConnectionFromLengths(topology, in.edgeLengths, fabric_.densityTensors,
+                                              in.faceTransportAngles, fabric_.velocityTensors,
+                                              faceWeftCoefficients_, faceEntries_, in.densityStiffness,
+                                              in.velocityStiffness);
+    }
   }
   dynamic_.inverseBuiltSquaredLengths = in.edgeLengths.array().square().inverse().matrix();
   dynamic_.maxEdgeStrain = 0;

@@ -117,6 +117,19 @@ ComplexSparseMatrix connectionLaplacianFromLengths(const SurfaceTopology& topolo
                                                    const Eigen::MatrixX3d& faceTransportAngles,
                                                    const Eigen::MatrixX3d& faceTensors,
                                                    const Eigen::MatrixX2d& faceWeftCoefficients);
+/// Both from lengths into existing one-ring patterns (what SurfaceGeometry's
+/// whole rebuild does), each face laid out once: `stiffness` gets
+/// anisotropicStiffnessFromLengths's values with densityTensors,
+/// `connection` connectionLaplacianFromLengths's with velocityTensors,
+/// bitwise. Allocates nothing; a matrix or table of another topology throws
+/// std::invalid_argument.
+void refillStiffnessAndConnectionFromLengths(const SurfaceTopology& topology, const Vector& edgeLengths,
+                                             const Eigen::MatrixX3d& densityTensors,
+                                             const Eigen::MatrixX3d& faceTransportAngles,
+                                             const Eigen::MatrixX3d& velocityTensors,
+                                             const Eigen::MatrixX2d& faceWeftCoefficients,
+                                             const OneRingEntries& entries, SparseMatrix& stiffness,
+                                             ComplexSparseMatrix& connection);
 /// Partial re-assembly into L's existing pattern (a matrix built by the
 /// function above on the same topology): every entry (i, j) with both
 /// vertexMarks[i] and vertexMarks[j] set is summed again from zero over

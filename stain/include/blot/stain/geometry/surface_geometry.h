@@ -330,7 +330,7 @@ class SurfaceGeometry {
   void refreshIntrinsic();
   /// Sizes now what a whole refreshIntrinsic would otherwise allocate at the
   /// first rebuild: the second tier it builds into (with the operators'
-  /// patterns), the table that refills them in place, the current wefts. A
+  /// patterns) and the table that refills them in place. A
   /// surface that deforms calls it before its first step, so that no rebuild
   /// allocates and the first is no dearer than the later ones; one that
   /// never deforms need not, as it then holds one more tier in memory. The
@@ -502,7 +502,6 @@ class SurfaceGeometry {
   std::vector<int> regionVertices_;
   IntrinsicRefresh intrinsicRefresh_ = IntrinsicRefresh::Full;
   Eigen::MatrixX2d faceWeftCoefficients_;
-  RowVectors3 currentWefts_;  // a whole rebuild's wefts (currentWeftDirections), kept for the next
   std::vector<char> edgeMarks_, faceMarks_, vertexMarks_, vertexMarks2_;
   std::vector<int> chosenEdges_, faces1_, vertices1_, edges1_, faces2_, edges2_, vertices2_, faces3_;
   std::vector<int> prepareOrder_;  // prepareVertices' sorted ids (capacity #V)
