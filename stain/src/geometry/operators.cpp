@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -103,12 +104,9 @@ void intrinsicCorners(const SurfaceTopology& topology, const Vector& edgeLengths
   corners[2] = Vector2(x, y);
 }
 
-// Face f's fabric tensor in the frame of its intrinsic corners: the weft
-// a c₁ + b c₂ with the rest coefficients.
-Matrix2 intrinsicTensor(const Vector2 (&corners)[3], const Eigen::MatrixX3d& faceTensors,
-                        const Eigen::MatrixX2d& faceWeftCoefficients, int f) {
-  const double sww = faceTensors(f, 0), swp = faceTensors(f, 1), spp = faceTensors(f, 2);
-  if (swp == 0.0 && sww == spp) return sww * Matrix2::Identity();  // isotropic: orientation irrelevant
+// Face f's unit weft in the frame of its intrinsic corners: a c₁ + b c₂
+// with the rest coefficients, normalised.
+Vector2 intrinsicWeft(const Vector2 (&corners)[3], const Eigen::MatrixX2d& faceWeftCoefficients, int f) {
   const double a = faceWeftCoefficients(f, 0), b = faceWeftCoefficients(f, 1);
   const Vector2 weft = a * corners[1] + b * corners[2];
   const double length = weft.norm();
@@ -118,7 +116,17 @@ Matrix2 intrinsicTensor(const Vector2 (&corners)[3], const Eigen::MatrixX3d& fac
       << "the fabric orientation is undefined for an anisotropic tensor";
     throw std::invalid_argument(s.str());
   }
-  return tensorInFace(weft / length, sww, swp, spp);
+  return weft / length;
+}
+
+// Face f's fabric tensor in the frame of its intrinsic corners, the unit weft
+// taken from *weft (computed there by intrinsicWeft when still unset).
+Matrix2 intrinsicTensor(const Vector2 (&corners)[3], const Eigen::MatrixX3d& faceTensors,
+                        const Eigen::MatrixX2d& faceWeftCoefficients, int f, std::optional<Vector2>& weft) {
+  const double sww = faceTensors(f, 0), swp = faceTensors(f, 1), spp = faceTensors(f, 2);
+  if (swp == 0.0 && sww == spp) return sww * Matrix2::Identity();  // isotropic: orientation irrelevant
+  if (!weft) weft = intrinsicWeft(corners, faceWeftCoefficients, f);
+  return tensorInFace(*weft, sww, swp, spp);
 }
 
 // Lays face f out from its edge lengths (see anisotropicStiffnessFromLengths).
@@ -126,7 +134,8 @@ FaceLayout intrinsicLayout(const SurfaceTopology& topology, const Vector& edgeLe
                            const Eigen::MatrixX3d& faceTensors, const Eigen::MatrixX2d& faceWeftCoefficients, int f) {
   FaceLayout layout;
   intrinsicCorners(topology, edgeLengths, f, layout.corners);
-  layout.tensor = intrinsicTensor(layout.corners, faceTensors, faceWeftCoefficients, f);
+  std::optional<Vector2> weft;
+  layout.tensor = intrinsicTensor(layout.corners, faceTensors, faceWeftCoefficients, f, weft);
   return layout;
 }
 
@@ -433,12 +442,13 @@ void refillStiffnessAndConnectionFromLengths(const SurfaceTopology& topology, co
     intrinsicCorners(topology, edgeLengths, f, corners);
     const TriangleGradients gradients = triangleGradients(corners[0], corners[1], corners[2]);
     const int* at = entry + 9 * static_cast<size_t>(f);
+    std::optional<Vector2> weft;  // one unit weft for both tensors
     const Matrix3 Kd =
-        stiffnessFromGradients(gradients, intrinsicTensor(corners, densityTensors, faceWeftCoefficients, f));
+        stiffnessFromGradients(gradients, intrinsicTensor(corners, densityTensors, faceWeftCoefficients, f, weft));
     for (int k = 0; k < 3; ++k)
       for (int l = 0; l < 3; ++l) stiffnessValues[at[3 * k + l]] += Kd(k, l);
     const Matrix3 Kv =
-        stiffnessFromGradients(gradients, intrinsicTensor(corners, velocityTensors, faceWeftCoefficients, f));
+        stiffnessFromGradients(gradients, intrinsicTensor(corners, velocityTensors, faceWeftCoefficients, f, weft));
     const Complex* r = phases.at(f);
     for (int k = 0; k < 3; ++k)
       for (int l = 0; l < 3; ++l) connectionValues[at[3 * k + l]] += connectionEntry(Kv, r, k, l);

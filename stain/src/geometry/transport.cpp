@@ -92,8 +92,24 @@ Vector edgeTransportAngles(const SurfaceTopology& topology, const PolarMap& pola
 }
 
 void edgeTransportAngles(const SurfaceTopology& topology, const PolarMap& polarMap, Vector& theta) {
+  // updateEdgeTransportAngles over every edge, without its search of two
+  // rings per edge: each ring entry is an edge seen from one end, so one pass
+  // over the entries writes α at the lower end, a second one subtracts α at
+  // the upper end (the same expression, the same bits).
+  const std::vector<int>& offsets = topology.ringOffsets();
+  const std::vector<int>& neighbors = topology.ringNeighbors();
+  const std::vector<int>& ringEdges = topology.ringEdges();
+  const int n = topology.vertexCount();
   theta.resize(topology.edgeCount());
-  for (int e = 0; e < topology.edgeCount(); ++e) updateEdgeTransportAngles(topology, polarMap, &e, 1, theta);
+  for (int v = 0; v < n; ++v)
+    for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m)
+      if (v < neighbors[static_cast<size_t>(m)]) theta(ringEdges[static_cast<size_t>(m)]) = polarMap.ringAngles(m);
+  for (int v = 0; v < n; ++v)
+    for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m)
+      if (v > neighbors[static_cast<size_t>(m)]) {
+        double& t = theta(ringEdges[static_cast<size_t>(m)]);
+        t = wrapAngle(t - polarMap.ringAngles(m) + kPi);
+      }
 }
 
 void updateEdgeTransportAngles(const SurfaceTopology& topology, const PolarMap& polarMap, const int* edges, int count,
