@@ -380,7 +380,7 @@ void BM_IntrinsicRebuildPart(benchmark::State& state) {
         benchmark::DoNotOptimize(connection.valuePtr());
         break;
       case kBothRefillFromLengths:
-        refillStiffnessAndConnectionFromLengths(topology, lengths, fabric.densityTensors, faceTransport,
+        refillStiffnessAndConnectionFromLengths(topology, lengths, areas, fabric.densityTensors, faceTransport,
                                                 fabric.velocityTensors,
                                                 c.engine->surface().stain().geometry().faceWeftCoefficients(), entries,
                                                 stiffness, connection);

@@ -909,10 +909,11 @@ TEST(SurfaceGeometry, OperatorsRefilledFromLengthsAreBitwiseTheirAssemblies) {
   ComplexSparseMatrix connection =
       connectionLaplacianFromLengths(topology, first, angles * 0.5, fabric.velocityTensors, coefficients);
   const OneRingEntries entries = oneRingFaceEntries(topology);
+  const Vector secondAreas = faceAreas(topology, second);
   gAllocations = 0;
   gCountAllocations = true;
-  refillStiffnessAndConnectionFromLengths(topology, second, fabric.densityTensors, angles, fabric.velocityTensors,
-                                          coefficients, entries, stiffness, connection);
+  refillStiffnessAndConnectionFromLengths(topology, second, secondAreas, fabric.densityTensors, angles,
+                                          fabric.velocityTensors, coefficients, entries, stiffness, connection);
   gCountAllocations = false;
   if (kCountsAllocations) {
     EXPECT_EQ(gAllocations.load(), 0);
@@ -926,9 +927,13 @@ TEST(SurfaceGeometry, OperatorsRefilledFromLengthsAreBitwiseTheirAssemblies) {
   SparseMatrix wrong = anisotropicStiffness(otherTopology, other.vertexPositions,
                                             identityFaceTensors(static_cast<int>(other.faces.rows())),
                                             RowVectors3::Zero(other.faces.rows(), 3));
-  EXPECT_THROW(refillStiffnessAndConnectionFromLengths(topology, second, fabric.densityTensors, angles,
+  EXPECT_THROW(refillStiffnessAndConnectionFromLengths(topology, second, secondAreas, fabric.densityTensors, angles,
                                                        fabric.velocityTensors, coefficients, entries, wrong,
                                                        connection),
+               std::invalid_argument);
+  EXPECT_THROW(refillStiffnessAndConnectionFromLengths(topology, second, Vector::Ones(3), fabric.densityTensors,
+                                                       angles, fabric.velocityTensors, coefficients, entries,
+                                                       stiffness, connection),
                std::invalid_argument);
 }
 

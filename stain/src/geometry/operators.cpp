@@ -93,12 +93,15 @@ FaceLayout layoutFace(const SurfaceTopology& topology, const RowVectors3& positi
 
 // Face f's corners laid out from its edge lengths (see
 // anisotropicStiffnessFromLengths): corner 0 at the origin, 1 on +x, 2 above.
-void intrinsicCorners(const SurfaceTopology& topology, const Vector& edgeLengths, int f, Vector2 (&corners)[3]) {
+// `area` is the face's triangleArea of those lengths when the caller has it
+// (faceAreas: the same bits), negative to compute it here.
+void intrinsicCorners(const SurfaceTopology& topology, const Vector& edgeLengths, int f, Vector2 (&corners)[3],
+                      double area = -1.0) {
   const Eigen::MatrixX3i& fe = topology.faceEdges();
   // faceEdges(f, 0) joins corners 0 and 1, (f, 1) corners 1 and 2, (f, 2) corners 2 and 0.
   const double l0 = edgeLengths(fe(f, 0)), l1 = edgeLengths(fe(f, 1)), l2 = edgeLengths(fe(f, 2));
   const double x = (l0 * l0 + (l2 - l1) * (l2 + l1)) / (2.0 * l0);
-  const double y = 2.0 * triangleArea(l0, l1, l2) / l0;
+  const double y = 2.0 * (area >= 0.0 ? area : triangleArea(l0, l1, l2)) / l0;
   corners[0] = Vector2::Zero();
   corners[1] = Vector2(l0, 0.0);
   corners[2] = Vector2(x, y);
@@ -417,16 +420,17 @@ void refillStiffnessAndConnection(const SurfaceTopology& topology, const RowVect
 }
 
 void refillStiffnessAndConnectionFromLengths(const SurfaceTopology& topology, const Vector& edgeLengths,
-                                             const Eigen::MatrixX3d& densityTensors,
+                                             const Vector& faceAreas, const Eigen::MatrixX3d& densityTensors,
                                              const Eigen::MatrixX3d& faceTransportAngles,
                                              const Eigen::MatrixX3d& velocityTensors,
                                              const Eigen::MatrixX2d& faceWeftCoefficients,
                                              const OneRingEntries& entries, SparseMatrix& stiffness,
                                              ComplexSparseMatrix& connection) {
-  if (!entries.fits(topology, stiffness) || !entries.fits(topology, connection))
+  if (!entries.fits(topology, stiffness) || !entries.fits(topology, connection) ||
+      faceAreas.size() != topology.faceCount())
     throw std::invalid_argument(
-        "refillStiffnessAndConnectionFromLengths: the stiffness, the connection or the entry table is not of this "
-        "topology");
+        "refillStiffnessAndConnectionFromLengths: the stiffness, the connection, the face areas or the entry table "
+        "is not of this topology");
   double* stiffnessValues = stiffness.valuePtr();
   Complex* connectionValues = connection.valuePtr();
   std::fill(stiffnessValues, stiffnessValues + stiffness.nonZeros(), 0.0);
@@ -439,7 +443,7 @@ void refillStiffnessAndConnectionFromLengths(const SurfaceTopology& topology, co
   FacePhases phases(faceTransportAngles, nullptr, topology.faceCount());
   for (int f = 0; f < topology.faceCount(); ++f) {
     Vector2 corners[3];
-    intrinsicCorners(topology, edgeLengths, f, corners);
+    intrinsicCorners(topology, edgeLengths, f, corners, faceAreas(f));
     const TriangleGradients gradients = triangleGradients(corners[0], corners[1], corners[2]);
     const int* at = entry + 9 * static_cast<size_t>(f);
     std::optional<Vector2> weft;  // one unit weft for both tensors

@@ -383,7 +383,7 @@ void SurfaceGeometry::refreshIntrinsicFromPositions(const RowVectors3& positions
     } else {
       // The same values, into the existing patterns: no pattern build, no
       // search for each entry, no new matrices, each face laid out once.
-      refillStiffnessAndConnectionFromLengths(topology, in.edgeLengths, fabric_.densityTensors,
+      refillStiffnessAndConnectionFromLengths(topology, in.edgeLengths, in.faceAreas, fabric_.densityTensors,
                                               in.faceTransportAngles, fabric_.velocityTensors,
                                               faceWeftCoefficients_, faceEntries_, in.densityStiffness,
                                               in.velocityStiffness);

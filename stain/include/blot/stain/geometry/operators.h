@@ -121,10 +121,11 @@ ComplexSparseMatrix connectionLaplacianFromLengths(const SurfaceTopology& topolo
 /// whole rebuild does), each face laid out once: `stiffness` gets
 /// anisotropicStiffnessFromLengths's values with densityTensors,
 /// `connection` connectionLaplacianFromLengths's with velocityTensors,
-/// bitwise. Allocates nothing; a matrix or table of another topology throws
-/// std::invalid_argument.
+/// bitwise. `faceAreas` are those lengths' faceAreas (their Heron areas,
+/// not computed again). Allocates nothing; a matrix, table or area vector of
+/// another topology throws std::invalid_argument.
 void refillStiffnessAndConnectionFromLengths(const SurfaceTopology& topology, const Vector& edgeLengths,
-                                             const Eigen::MatrixX3d& densityTensors,
+                                             const Vector& faceAreas, const Eigen::MatrixX3d& densityTensors,
                                              const Eigen::MatrixX3d& faceTransportAngles,
                                              const Eigen::MatrixX3d& velocityTensors,
                                              const Eigen::MatrixX2d& faceWeftCoefficients,
