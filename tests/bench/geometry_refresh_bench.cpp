@@ -314,14 +314,13 @@ BENCHMARK(BM_IntrinsicRebuildTrips)->ArgName("scene")->DenseRange(0, 1)->Iterati
 
 enum RebuildPart {
   kLengths, kAngles, kAreas, kCotan, kDualAreas, kPolarMap, kEdgeTransport, kFaceTransport,
-  kDensityStiffness, kConnectionLaplacian, kWholeRefresh, kAssemble, kDensityRefill, kConnectionRefill, kBothRefill,
+  kDensityStiffness, kConnectionLaplacian, kWholeRefresh, kAssemble, kDensityRefill, kConnectionRefill,
   kBothRefillFromLengths, kPartCount
 };
 constexpr const char* kPartNames[] = {"edge lengths", "corner angles", "face areas", "cotan weights", "dual areas",
                                       "polar map", "edge transport", "face transport", "density stiffness",
                                       "connection Laplacian", "refreshIntrinsic", "assemble M+hL",
                                       "density stiffness refilled", "connection Laplacian refilled",
-                                      "both refilled, each face laid out once",
                                       "both refilled from lengths (a whole rebuild's)"};
 
 // Args: scene, part (RebuildPart). Label: the part's name.
@@ -372,11 +371,6 @@ void BM_IntrinsicRebuildPart(benchmark::State& state) {
       case kConnectionRefill:
         refillConnectionLaplacian(topology, p, faceTransport, fabric.velocityTensors, fabric.weftDirections, entries,
                                   connection);
-        benchmark::DoNotOptimize(connection.valuePtr());
-        break;
-      case kBothRefill:
-        refillStiffnessAndConnection(topology, p, fabric.densityTensors, faceTransport, fabric.velocityTensors,
-                                     fabric.weftDirections, entries, stiffness, connection);
         benchmark::DoNotOptimize(connection.valuePtr());
         break;
       case kBothRefillFromLengths:

@@ -874,22 +874,12 @@ TEST(SurfaceGeometry, RefilledOperatorsAreBitwiseANewAssembly) {
     refillConnectionLaplacian(topology, second, angles, fabric.velocityTensors, fabric.weftDirections, entries,
                               connection);
   });
-  // Both at once (the whole rebuild's path).
-  const RowVectors3 third = bumpedSheet(mesh.vertexPositions, 0.3, 0.7, 0.04, 3);
-  expectRefilledAt(third, [&] {
-    refillStiffnessAndConnection(topology, third, fabric.densityTensors, angles, fabric.velocityTensors,
-                                 fabric.weftDirections, entries, stiffness, connection);
-  });
-
   const TriangleMesh other = jitteredIcosphere(1, 0.1, 3);
   SparseMatrix wrong = anisotropicStiffness(SurfaceTopology(other.faces, static_cast<int>(other.vertexPositions.rows())),
                                             other.vertexPositions, identityFaceTensors(static_cast<int>(other.faces.rows())),
                                             RowVectors3::Zero(other.faces.rows(), 3));
   EXPECT_THROW(refillAnisotropicStiffness(topology, second, fabric.densityTensors, fabric.weftDirections, entries,
                                           wrong),
-               std::invalid_argument);
-  EXPECT_THROW(refillStiffnessAndConnection(topology, second, fabric.densityTensors, angles, fabric.velocityTensors,
-                                            fabric.weftDirections, entries, wrong, connection),
                std::invalid_argument);
 }
 

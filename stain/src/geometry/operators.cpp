@@ -387,38 +387,6 @@ void refillAnisotropicStiffness(const SurfaceTopology& topology, const RowVector
   });
 }
 
-void refillStiffnessAndConnection(const SurfaceTopology& topology, const RowVectors3& vertexPositions,
-                                  const Eigen::MatrixX3d& densityTensors, const Eigen::MatrixX3d& faceTransportAngles,
-                                  const Eigen::MatrixX3d& velocityTensors, const RowVectors3& faceWeftDirections,
-                                  const OneRingEntries& entries, SparseMatrix& stiffness,
-                                  ComplexSparseMatrix& connection) {
-  if (!entries.fits(topology, stiffness))
-    throw std::invalid_argument("refillStiffnessAndConnection: the stiffness or the entry table is not of this topology");
-  if (!entries.fits(topology, connection))
-    throw std::invalid_argument("refillStiffnessAndConnection: the connection or the entry table is not of this topology");
-  double* stiffnessValues = stiffness.valuePtr();
-  Complex* connectionValues = connection.valuePtr();
-  std::fill(stiffnessValues, stiffnessValues + stiffness.nonZeros(), 0.0);
-  std::fill(connectionValues, connectionValues + connection.nonZeros(), Complex(0.0, 0.0));
-  const int* entry = entries.index.data();
-  // The terms of forEachStiffnessEntry and forEachConnectionEntry, face by
-  // face in the same order, each matrix summing only its own: the same bits
-  // as the two refills, with each face laid out once.
-  FacePhases phases(faceTransportAngles, nullptr, topology.faceCount());
-  for (int f = 0; f < topology.faceCount(); ++f) {
-    const FaceFrame frame = faceFrame(topology, vertexPositions, f);
-    const int* at = entry + 9 * static_cast<size_t>(f);
-    const TriangleGradients gradients = triangleGradients(frame.corners[0], frame.corners[1], frame.corners[2]);
-    const Matrix3 Kd = stiffnessFromGradients(gradients, tensorInFrame(frame, densityTensors, faceWeftDirections, f));
-    for (int k = 0; k < 3; ++k)
-      for (int l = 0; l < 3; ++l) stiffnessValues[at[3 * k + l]] += Kd(k, l);
-    const Matrix3 Kv = stiffnessFromGradients(gradients, tensorInFrame(frame, velocityTensors, faceWeftDirections, f));
-    const Complex* r = phases.at(f);
-    for (int k = 0; k < 3; ++k)
-      for (int l = 0; l < 3; ++l) connectionValues[at[3 * k + l]] += connectionEntry(Kv, r, k, l);
-  }
-}
-
 void refillStiffnessAndConnectionFromLengths(const SurfaceTopology& topology, const Vector& edgeLengths,
                                              const Vector& faceAreas, const Eigen::MatrixX3d& densityTensors,
                                              const Eigen::MatrixX3d& faceTransportAngles,

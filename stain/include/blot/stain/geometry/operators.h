@@ -92,16 +92,6 @@ void refillConnectionLaplacian(const SurfaceTopology& topology, const RowVectors
                                const Eigen::MatrixX3d& faceTransportAngles, const Eigen::MatrixX3d& faceTensors,
                                const RowVectors3& faceWeftDirections, const OneRingEntries& entries,
                                ComplexSparseMatrix& L);
-/// Both refills at once, each face laid out once (what SurfaceGeometry's
-/// whole rebuild does): `stiffness` gets refillAnisotropicStiffness's values
-/// with densityTensors, `connection` refillConnectionLaplacian's with
-/// velocityTensors, bitwise.
-void refillStiffnessAndConnection(const SurfaceTopology& topology, const RowVectors3& vertexPositions,
-                                  const Eigen::MatrixX3d& densityTensors, const Eigen::MatrixX3d& faceTransportAngles,
-                                  const Eigen::MatrixX3d& velocityTensors, const RowVectors3& faceWeftDirections,
-                                  const OneRingEntries& entries, SparseMatrix& stiffness,
-                                  ComplexSparseMatrix& connection);
-
 /// The same operators from edge lengths alone (the intrinsic tier of
 /// SurfaceGeometry): face f is laid out in 2D from its lengths ℓ(faceEdges(f,
 /// 0..2)) (corner 0 at the origin, corner 1 on +x, corner 2 above), and its
