@@ -10,16 +10,21 @@
 #if defined(BLOT_HAVE_LIBMVEC)
 #include <immintrin.h>
 
-// libmvec's entry points (x86-64 vector function ABI names: b = SSE, 2 lanes;
-// d = AVX2, 4 lanes; v = a vector argument). glibc 2.35 added atan2.
+// libmvec's SSE entry points (x86-64 vector function ABI names: b = SSE, 2
+// lanes; v = a vector argument). glibc 2.35 added atan2.
 extern "C" {
 __m128d _ZGVbN2vv_atan2(__m128d y, __m128d x);
 __m128d _ZGVbN2v_sin(__m128d x);
 __m128d _ZGVbN2v_cos(__m128d x);
-__m256d _ZGVdN4vv_atan2(__m256d y, __m256d x);
-__m256d _ZGVdN4v_sin(__m256d x);
-__m256d _ZGVdN4v_cos(__m256d x);
 }
+
+// The AVX2 kernels: vector_trig_avx2.cpp, the one file built with -mavx2
+// (passing ymm registers needs the whole file's ABI to be AVX's: clang
+// otherwise passes them in memory, whatever the function's target).
+namespace blot::stain::trig::avx2 {
+void atan2(const double* y, const double* x, double* out, int count);
+void unitPhases(const double* angles, double* out, int count);
+}  // namespace blot::stain::trig::avx2
 #endif
 
 namespace blot::stain::trig {
@@ -78,35 +83,6 @@ void unitPhasesSse2(const double* angles, double* out, int count) {
   for (int m = 0; m < 2 * (count - k); ++m) out[2 * k + m] = phases[m];
 }
 
-__attribute__((target("avx2"))) void atan2Avx2(const double* y, const double* x, double* out, int count) {
-  int k = 0;
-  for (; k + 4 <= count; k += 4)
-    _mm256_storeu_pd(out + k, _ZGVdN4vv_atan2(_mm256_loadu_pd(y + k), _mm256_loadu_pd(x + k)));
-  if (k == count) return;
-  Padded<4> p(y + k, x + k, count - k, 0.0, 1.0);
-  _mm256_storeu_pd(p.out0, _ZGVdN4vv_atan2(_mm256_loadu_pd(p.in0), _mm256_loadu_pd(p.in1)));
-  for (int m = 0; m < count - k; ++m) out[k + m] = p.out0[m];
-}
-
-__attribute__((target("avx2"))) void unitPhasesAvx2(const double* angles, double* out, int count) {
-  // (cos, sin) pairs of four angles into out[0..7].
-  const auto store = [](__m256d a, double* to) __attribute__((target("avx2"))) {
-    double c[4], s[4];
-    _mm256_storeu_pd(c, _ZGVdN4v_cos(a));
-    _mm256_storeu_pd(s, _ZGVdN4v_sin(a));
-    for (int m = 0; m < 4; ++m) {
-      to[2 * m] = c[m];
-      to[2 * m + 1] = s[m];
-    }
-  };
-  int k = 0;
-  for (; k + 4 <= count; k += 4) store(_mm256_loadu_pd(angles + k), out + 2 * k);
-  if (k == count) return;
-  Padded<4> p(angles + k, nullptr, count - k, 0.0, 0.0);
-  double phases[8];
-  store(_mm256_loadu_pd(p.in0), phases);
-  for (int m = 0; m < 2 * (count - k); ++m) out[2 * k + m] = phases[m];
-}
 #endif
 
 Kernel bestKernel() {
@@ -148,7 +124,7 @@ namespace {
 void runAtan2(Kernel kernel, const double* y, const double* x, double* out, int count) {
   switch (kernel) {
 #if defined(BLOT_HAVE_LIBMVEC)
-    case Kernel::Avx2: atan2Avx2(y, x, out, count); return;
+    case Kernel::Avx2: avx2::atan2(y, x, out, count); return;
     case Kernel::Sse2: atan2Sse2(y, x, out, count); return;
 #endif
     default: atan2Scalar(y, x, out, count); return;
@@ -159,7 +135,7 @@ void runUnitPhases(Kernel kernel, const double* angles, Complex* out, int count)
   double* to = reinterpret_cast<double*>(out);  // [complex.numbers]: array-compatible
   switch (kernel) {
 #if defined(BLOT_HAVE_LIBMVEC)
-    case Kernel::Avx2: unitPhasesAvx2(angles, to, count); return;
+    case Kernel::Avx2: avx2::unitPhases(angles, to, count); return;
     case Kernel::Sse2: unitPhasesSse2(angles, to, count); return;
 #endif
     default: unitPhasesScalar(angles, to, count); return;
