@@ -30,20 +30,6 @@ void unitPhases(const double* angles, double* out, int count);
 namespace blot::stain::trig {
 namespace {
 
-// The tail of a batch, padded to a full vector of `Lanes` values: inputs
-// beyond `count` are `pad` (a value with no special case), outputs beyond it
-// dropped.
-template <int Lanes>
-struct Padded {
-  double in0[Lanes], in1[Lanes], out0[Lanes], out1[Lanes];
-  Padded(const double* a, const double* b, int count, double padA, double padB) {
-    for (int m = 0; m < Lanes; ++m) {
-      in0[m] = m < count ? a[m] : padA;
-      in1[m] = b != nullptr && m < count ? b[m] : padB;
-    }
-  }
-};
-
 void atan2Scalar(const double* y, const double* x, double* out, int count) {
   for (int k = 0; k < count; ++k) out[k] = std::atan2(y[k], x[k]);
 }
@@ -61,9 +47,12 @@ void atan2Sse2(const double* y, const double* x, double* out, int count) {
   int k = 0;
   for (; k + 2 <= count; k += 2) _mm_storeu_pd(out + k, _ZGVbN2vv_atan2(_mm_loadu_pd(y + k), _mm_loadu_pd(x + k)));
   if (k == count) return;
-  Padded<2> p(y + k, x + k, count - k, 0.0, 1.0);
-  _mm_storeu_pd(p.out0, _ZGVbN2vv_atan2(_mm_loadu_pd(p.in0), _mm_loadu_pd(p.in1)));
-  for (int m = 0; m < count - k; ++m) out[k + m] = p.out0[m];
+  // The tail padded to a full vector with (0, 1), never a scalar call: the
+  // same bits in any batch (as vector_trig_avx2.cpp).
+  const double yy[2] = {y[k], 0.0}, xx[2] = {x[k], 1.0};
+  double r[2];
+  _mm_storeu_pd(r, _ZGVbN2vv_atan2(_mm_loadu_pd(yy), _mm_loadu_pd(xx)));
+  out[k] = r[0];
 }
 
 // (cos, sin) of two angles into out[0..3].
@@ -77,10 +66,11 @@ void unitPhasesSse2(const double* angles, double* out, int count) {
   int k = 0;
   for (; k + 2 <= count; k += 2) storePhases2(_mm_loadu_pd(angles + k), out + 2 * k);
   if (k == count) return;
-  Padded<2> p(angles + k, nullptr, count - k, 0.0, 0.0);
+  const double a[2] = {angles[k], 0.0};  // the tail padded, as above
   double phases[4];
-  storePhases2(_mm_loadu_pd(p.in0), phases);
-  for (int m = 0; m < 2 * (count - k); ++m) out[2 * k + m] = phases[m];
+  storePhases2(_mm_loadu_pd(a), phases);
+  out[2 * k] = phases[0];
+  out[2 * k + 1] = phases[1];
 }
 
 #endif
