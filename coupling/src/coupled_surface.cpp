@@ -80,7 +80,11 @@ CoupledSurface::CoupledSurface(std::unique_ptr<cloth::SurfaceMotion> motion, con
   if (mode_ == CouplingMode::TwoWay && !motion_->acceptsLiquidLoads())
     throw std::invalid_argument("coupling mode two-way needs a Bullet cloth source");
   topology_ = std::make_unique<stain::SurfaceTopology>(topology);
-  stain_ = std::make_unique<stain::StainSolver>(*topology_, motion_->positions(), fabric, stainDef);
+  // A free film's momentum reads the frame of every vertex holding free
+  // liquid, traces too, between steps: the steps prepare them.
+  stain::StainSolverDef def = stainDef;
+  def.framesOnDampVertices = def.framesOnDampVertices || relative_ == RelativeMomentum::Free;
+  stain_ = std::make_unique<stain::StainSolver>(*topology_, motion_->positions(), fabric, def);
   stain_->setInitialMotion(motion_->positions(), motion_->velocities());
   // A surface that deforms rebuilds its metric: what the first rebuild
   // would allocate is sized now, at load, rather than in a step.

@@ -222,7 +222,7 @@ void StainSolver::completeGeometry() {
 }
 
 void StainSolver::completeGeometryAfterOutsideWrite() {
-  if (!writtenSinceRefresh_) return;
+  if (!writtenSinceRefresh_ && def_.framesOnDampVertices) return;
   completeGeometry();
   writtenSinceRefresh_ = false;
 }
@@ -527,8 +527,9 @@ void StainSolver::prepareBand() {
   updateWetVertices(def_.liquid.wetThreshold, state_, band_, def_.soakedApart && ctx_.switches.velocityOnFreeLiquid);
   velocityByFactor_ = ctx_.switches.velocityDiffusion && !systems_.vectorIterative();
   // The per-vertex geometry where this step reads it (the wet set now, each
-  // ring as the band grows) and where the coupling does (traces of liquid).
-  geometry_.prepareVertices(band_.dampVertices);
+  // ring as the band grows), and on the traces of liquid where a reader
+  // between steps asks for them (the coupling's free relative momentum).
+  if (def_.framesOnDampVertices) geometry_.prepareVertices(band_.dampVertices);
   const auto settleSoaked = [&] {
     settleSoakedVelocities(band_, state_, [&](int i) { noteChanged(&i, 1); });
   };

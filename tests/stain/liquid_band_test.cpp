@@ -603,6 +603,8 @@ void expectSameBandGeometry(const StainSolver& band, const StainSolver& full, in
 // that computes it on every vertex, on every step, while computing it on a
 // fraction of the mesh; the liquid leaves the first step's band (new
 // vertices enter the band from the dry side) and the geometry follows it.
+// With framesOnDampVertices the traces of liquid outside the band get their
+// frames too (for a reader between steps), to the same state.
 TEST(LiquidBand, BandRestrictedGeometryGivesTheFullGeometryStepOnADeformingFlag) {
   const TriangleMesh mesh = gridMesh(80, 40, 1.2, 0.6);
   const int n = static_cast<int>(mesh.vertexPositions.rows());
@@ -612,45 +614,60 @@ TEST(LiquidBand, BandRestrictedGeometryGivesTheFullGeometryStepOnADeformingFlag)
   onBand.liquid.evaporationRate = 0.002;
   StainSolverDef everywhere = onBand;
   everywhere.geometryVertices = VertexRefresh::AllVertices;
+  StainSolverDef onTraces = onBand;
+  onTraces.framesOnDampVertices = true;
   StainSolver band(topology, mesh.vertexPositions, fabric, onBand);
   StainSolver full(topology, mesh.vertexPositions, fabric, everywhere);
+  StainSolver traces(topology, mesh.vertexPositions, fabric, onTraces);
   const double h = 0.01, dt = 1e-6;
   const RowVectors3 v0 = (wavingPositions(mesh, dt) - wavingPositions(mesh, -dt)) / (2 * dt);
-  for (StainSolver* s : {&band, &full}) s->setInitialMotion(wavingPositions(mesh, 0.0), v0);
+  for (StainSolver* s : {&band, &full, &traces}) s->setInitialMotion(wavingPositions(mesh, 0.0), v0);
   DropDef drop;
   drop.centerPoint = Vector3(0.3, 0.3, 0.0);
   drop.radius = 0.06;
   drop.solventMass = 2e-3;
   drop.soluteMass = 4e-4;
   drop.velocity = Vector3(2.0, 0.5, 0.0);
-  for (StainSolver* s : {&band, &full}) s->addDrop(drop);
+  for (StainSolver* s : {&band, &full, &traces}) s->addDrop(drop);
   expectSameState(band.state(), full.state(), 0);
 
   std::vector<char> firstBand(static_cast<size_t>(n), 0);
-  int rebuilds = 0, firstShare = 0;
+  int rebuilds = 0, firstShare = 0, tracesOutsideBand = 0;
   bool leftFirstBand = false;
   for (int step = 1; step <= 40; ++step) {
     if (step == 25) {  // a drop far from the first, onto vertices the band never reached
       DropDef second = drop;
       second.centerPoint = Vector3(1.0, 0.45, 0.0);
       second.velocity = Vector3(-1.0, 0.0, 0.0);
-      for (StainSolver* s : {&band, &full}) s->addDrop(second);
+      for (StainSolver* s : {&band, &full, &traces}) s->addDrop(second);
       expectSameState(band.state(), full.state(), step);
     }
+    if (step == 30)  // a trace below the wet threshold in a far corner: damp, never in the band
+      for (StainSolver* s : {&band, &full, &traces}) s->mutableState().solvent[n - 1] = 0.1 * onBand.liquid.wetThreshold;
     const RowVectors3 next = wavingPositions(mesh, step * h);
     const StepReport a = band.step(h, next);
     const StepReport b = full.step(h, next);
+    const StepReport c = traces.step(h, next);
     ASSERT_EQ(a.status, StepStatus::Ok) << a.message;
     ASSERT_EQ(b.status, StepStatus::Ok) << b.message;
+    ASSERT_EQ(c.status, StepStatus::Ok) << c.message;
     expectSameState(band.state(), full.state(), step);
+    expectSameState(traces.state(), full.state(), step);
     expectSameBandGeometry(band, full, step);
+    expectSameBandGeometry(traces, full, step);
     if (HasFatalFailure()) return;
+    // The band only; with framesOnDampVertices every trace as well.
+    EXPECT_EQ(band.profile().geometryVertices, band.profile().bandVertices) << "step " << step;
+    int outside = 0;
+    for (const int i : traces.band().dampVertices) {
+      EXPECT_TRUE(traces.geometry().vertexPrepared(i)) << "step " << step << " vertex " << i;
+      outside += band.geometry().vertexPrepared(i) ? 0 : 1;
+    }
+    EXPECT_EQ(traces.profile().geometryVertices, band.profile().geometryVertices + outside) << "step " << step;
+    tracesOutsideBand += outside;
     rebuilds += band.profile().intrinsicRefreshes;
     EXPECT_EQ(band.profile().intrinsicRefreshes, full.profile().intrinsicRefreshes);
     EXPECT_EQ(full.profile().geometryVertices, n);
-    // The band and the traces of liquid, nothing else.
-    EXPECT_GE(band.profile().geometryVertices, band.profile().bandVertices);
-    EXPECT_LE(band.profile().geometryVertices, band.profile().bandVertices + n / 20) << "step " << step;
     if (step == 1) firstShare = band.profile().geometryVertices;
     if (step == 1)
       for (const int i : band.bandVertices()) firstBand[static_cast<size_t>(i)] = 1;
@@ -658,6 +675,7 @@ TEST(LiquidBand, BandRestrictedGeometryGivesTheFullGeometryStepOnADeformingFlag)
       leftFirstBand |= firstBand[static_cast<size_t>(band.bandVertices()[static_cast<size_t>(k)])] == 0;
   }
   EXPECT_TRUE(leftFirstBand) << "the liquid never left the first step's band";
+  EXPECT_GT(tracesOutsideBand, 0) << "no trace of liquid outside the band: framesOnDampVertices was not exercised";
   EXPECT_GT(rebuilds, 0) << "the waving flag should trip the strain test";
   EXPECT_LT(firstShare, n / 5) << "the first step's band-restricted geometry covered a fifth of the mesh";
   // A snapshot holds every vertex's values: restored into a fresh solver, the

@@ -79,6 +79,14 @@ struct StainSolverDef {
   /// rest. AllVertices: every vertex every step, the reference: the state
   /// after any step is bitwise the same in both modes.
   VertexRefresh geometryVertices = VertexRefresh::OnDemand;
+  /// With OnDemand: whether each step also computes the per-vertex geometry
+  /// of the damp vertices (a trace of free liquid outside the wet set,
+  /// LiquidBand::dampVertices), which no stage reads. For a reader of every
+  /// vertex holding free liquid between steps: the coupling's relative
+  /// momentum with RelativeMomentum::Free sets it. false: the band only (a
+  /// trace's frame is fitted when it is read: completeGeometry). Only the
+  /// time of a step and which vertices are prepared depend on it.
+  bool framesOnDampVertices = false;
   /// How the diffusion systems are solved (DiffusionSolverChoice): Auto, the
   /// per-solve choice by predicted cost (docs/performance.md, "The cheapest
   /// solver"), or one method forced (tests, studies, a reference run).
@@ -224,12 +232,13 @@ class StainSolver {
   /// completeGeometry() computes them on every vertex (for views and outputs).
   const SurfaceGeometry& geometry() const { return geometry_; }
   void completeGeometry();
-  /// completeGeometry() if the state was written from outside since the last
-  /// step's refresh (mutableState may have put liquid where no step prepared
-  /// the frame); otherwise nothing, since the last step prepared every vertex
-  /// holding free liquid. For a reader of the whole state between steps that
-  /// needs frames (the coupling's start-of-step momentum with
-  /// RelativeMomentum::Free).
+  /// Makes every vertex holding free liquid have this step's frame. With
+  /// StainSolverDef::framesOnDampVertices the last step prepared them all:
+  /// completeGeometry() only if the state was written from outside since the
+  /// last step's refresh (mutableState may have put liquid where no step
+  /// prepared the frame), otherwise nothing. Without it, completeGeometry().
+  /// For a reader of the whole state between steps that needs frames (the
+  /// coupling's start-of-step momentum with RelativeMomentum::Free).
   void completeGeometryAfterOutsideWrite();
   const StepProfile& profile() const { return profile_; }
   const StainSolverDef& definition() const { return def_; }
