@@ -419,7 +419,10 @@ TEST(SurfaceGeometry, BitIdenticalForOneAndTwoThreads) {
 // On demand, the vertices passed to prepareVertices get bitwise what every
 // vertex gets in AllVertices mode, whatever the list's order and repeats
 // (sorted and deduplicated first; a list longer than #V goes in windows),
-// on two threads, and the others stay unprepared.
+// on two threads, and the others stay unprepared. The fits run four at a
+// time in lanes: a random list puts each vertex beside other companions than
+// the whole mesh in order does, so this also checks that a fit's bits do not
+// depend on its lane or its companions.
 TEST(SurfaceGeometry, PreparedVerticesGetTheAllVerticesBitsInAnyOrderWithRepeats) {
   const TriangleMesh mesh = jitteredIcosphere(4, 0.2, 8);  // 2562 vertices: above the parallel threshold
   const int n = static_cast<int>(mesh.vertexPositions.rows());

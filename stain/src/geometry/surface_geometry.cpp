@@ -29,6 +29,9 @@ constexpr double kGradientTolerance = 1e-13;
 // O(step²) ≈ 1e-14 (quadratic convergence), so no confirming iteration is needed.
 constexpr double kNewtonStepTolerance = 1e-7;
 constexpr int kMaxNewtonIterations = 8;
+// Vertices prepared together (prepareGroup): their fits, up to two each,
+// fill the lanes of fitSlots.
+constexpr int kPrepareGroup = 4;
 // A Newton step longer than this (rad) means the start was far off: use the SVD.
 constexpr double kMaxNewtonStep = 1.0;
 // Relative size of a Hessian pivot below which the fit is treated as degenerate.
@@ -36,27 +39,6 @@ constexpr double kPivotTolerance = 1e-10;
 // Below this many vertices a refresh takes a few microseconds and waking a
 // second thread costs more than it saves (and much more on a loaded machine).
 constexpr int kMinParallelVertices = 2048;
-
-// Solves the 3x3 symmetric system H x = b by unpivoted LDLᵀ; false if a pivot
-// is not clearly positive (H not positive definite at this scale).
-bool solveSymmetricPositive(const Matrix3& H, const Vector3& b, double scale, Vector3& x) {
-  const double tiny = kPivotTolerance * scale;
-  const double d0 = H(0, 0);
-  if (!(d0 > tiny)) return false;
-  const double r0 = 1.0 / d0;
-  const double l10 = H(1, 0) * r0, l20 = H(2, 0) * r0;
-  const double d1 = H(1, 1) - l10 * H(1, 0);
-  if (!(d1 > tiny)) return false;
-  const double r1 = 1.0 / d1;
-  const double l21 = (H(2, 1) - l20 * H(1, 0)) * r1;
-  const double d2 = H(2, 2) - l20 * H(2, 0) - l21 * l21 * d1;
-  if (!(d2 > tiny)) return false;
-  const double y0 = b(0), y1 = b(1) - l10 * y0, y2 = b(2) - l20 * y0 - l21 * y1;
-  x(2) = y2 / d2;
-  x(1) = y1 * r1 - l21 * x(2);
-  x(0) = y0 * r0 - l10 * x(1) - l20 * x(2);
-  return true;
-}
 
 // max_e |ℓ_e/ℓ̂_e − 1| from the extremes of the squared ratios ℓ_e²/ℓ̂_e²
 // over the measured edges (1 and 1 for none): the strain tests' one root each.
@@ -84,58 +66,197 @@ Vector3 rotationVector(const Eigen::Quaterniond& q) {
   return v * (2.0 * std::atan2(s, w) / s);
 }
 
-// The Newton iteration behind fitRotation (see the design note). Starts at the
-// unit quaternion q; on return q and R hold the rotation. Returns false when it
-// gave up (the caller then takes the SVD).
-bool newtonRotation(const Matrix3& covariance, Eigen::Quaterniond& q, Matrix3& R, int& iterations) {
-  for (int iteration = 1; iteration <= kMaxNewtonIterations; ++iteration) {
-    iterations = iteration;
-    R = q.toRotationMatrix();
-    const Matrix3 M = R.transpose() * covariance;
-    const double trace = M.trace();
-    if (!(trace > 0)) return false;
-    // g = 2 vee(skew M); the Newton step is δ = (tr M·I − sym M)⁻¹ g.
-    const Vector3 g(M(2, 1) - M(1, 2), M(0, 2) - M(2, 0), M(1, 0) - M(0, 1));
-    if (g.squaredNorm() <= kGradientTolerance * kGradientTolerance * trace * trace) return true;
-    Matrix3 H = -0.5 * (M + M.transpose());
-    H.diagonal().array() += trace;
-    Vector3 delta;
-    if (!solveSymmetricPositive(H, g, trace, delta)) return false;
-    const double stepSquared = delta.squaredNorm();
-    if (!(stepSquared <= kMaxNewtonStep * kMaxNewtonStep)) return false;
-    // q ⊗ (1, δ/2), normalised: |(1, δ/2)| = √(1 + |δ|²/4) and |q| = 1.
-    const double c = 1.0 / std::sqrt(1.0 + 0.25 * stepSquared);
-    const Vector3 half = (0.5 * c) * delta;
-    q = q * Eigen::Quaterniond(c, half.x(), half.y(), half.z());
-    if (stepSquared <= kNewtonStepTolerance * kNewtonStepTolerance) {
-      R = q.toRotationMatrix();
-      return true;
-    }
+// Rotation fits in lanes. The fits of a vertex list are independent chains
+// of divisions and roots (~300 ns a vertex, latency-bound): kFitLanes of them
+// go through each step together, so the core overlaps them (and the compiler
+// may pack them into vector registers). Every lane does the same operations
+// on its own values, in the same order as a lone fit would: a fit's bits do
+// not depend on its lane, its companions, the list or the thread. A lane past
+// the fits given repeats the first one; its results are dropped.
+constexpr int kFitLanes = 4;
+
+struct LaneQuaternions {
+  double w[kFitLanes], x[kFitLanes], y[kFitLanes], z[kFitLanes];
+};
+
+// R(q) (Eigen's toRotationMatrix) of every lane, row-major: R[3r + c][l].
+void laneRotationMatrices(const LaneQuaternions& q, double (&R)[9][kFitLanes]) {
+  for (int l = 0; l < kFitLanes; ++l) {
+    const double tx = 2.0 * q.x[l], ty = 2.0 * q.y[l], tz = 2.0 * q.z[l];
+    const double twx = tx * q.w[l], twy = ty * q.w[l], twz = tz * q.w[l];
+    const double txx = tx * q.x[l], txy = ty * q.x[l], txz = tz * q.x[l];
+    const double tyy = ty * q.y[l], tyz = tz * q.y[l], tzz = tz * q.z[l];
+    R[0][l] = 1.0 - (tyy + tzz);
+    R[1][l] = txy - twz;
+    R[2][l] = txz + twy;
+    R[3][l] = txy + twz;
+    R[4][l] = 1.0 - (txx + tzz);
+    R[5][l] = tyz - twx;
+    R[6][l] = txz - twy;
+    R[7][l] = tyz + twx;
+    R[8][l] = 1.0 - (txx + tyy);
   }
-  return false;
 }
 
-// Newton's starting rotation for a ring with normal direction `normal`
-// (unnormalised, |normal|² = normalSquared) and reference edge `edge` (to the
-// first ring neighbour): the rotation taking the rest frame F̄ (normal, edge
-// in its tangent plane) onto the same frame built from these. Exact for a
-// rigidly moved ring; off by the ring's shear otherwise (Newton converges in
-// 2–4 iterations from there). A function of the slot's positions only, so a
-// fit gives the same bits whichever vertices were fitted before. Identity
-// where the frame is degenerate (Newton or the SVD then decide).
-Eigen::Quaterniond frameGuess(const Vector3& normal, double normalSquared, const Vector3& edge, const Matrix3& restFrame) {
-  if (!(normalSquared > 0.0)) return Eigen::Quaterniond::Identity();
-  const Vector3 z = normal * (1.0 / std::sqrt(normalSquared));
-  Vector3 y = z.cross(edge);
-  const double length = y.norm();
-  if (!(length > 1e-12 * edge.norm())) return Eigen::Quaterniond::Identity();
-  y /= length;
-  Matrix3 frame;
-  frame.col(0) = y.cross(z);
-  frame.col(1) = y;
-  frame.col(2) = z;
-  const Eigen::Quaterniond q(Matrix3(frame * restFrame.transpose()));
-  return q.normalized();
+enum class LaneStatus : char { Active, Converged, Failed };
+
+// The Newton iteration behind fitRotation (see the design note), in lanes.
+// C: each lane's covariance; q: each lane's start, on return its rotation;
+// iterations: taken. A lane whose status is Failed on return gave up (the
+// caller then takes the SVD).
+void newtonLanes(const Matrix3* const (&C)[kFitLanes], LaneQuaternions& q, int (&iterations)[kFitLanes],
+                 LaneStatus (&status)[kFitLanes]) {
+  for (int l = 0; l < kFitLanes; ++l) {
+    status[l] = LaneStatus::Active;
+    iterations[l] = 0;
+  }
+  for (int iteration = 1; iteration <= kMaxNewtonIterations; ++iteration) {
+    double R[9][kFitLanes];
+    laneRotationMatrices(q, R);
+    double trace[kFitLanes], gradient[kFitLanes], tiny[kFitLanes], d0[kFitLanes], d1[kFitLanes], d2[kFitLanes];
+    double stepSquared[kFitLanes];
+    LaneQuaternions next;
+    for (int l = 0; l < kFitLanes; ++l) {
+      // M = Rᵀ C.
+      const Matrix3& c = *C[l];
+      double M[3][3];
+      for (int r = 0; r < 3; ++r)
+        for (int k = 0; k < 3; ++k)
+          M[r][k] = R[r][l] * c(0, k) + R[3 + r][l] * c(1, k) + R[6 + r][l] * c(2, k);
+      trace[l] = M[0][0] + M[1][1] + M[2][2];
+      // g = 2 vee(skew M); the Newton step is δ = (tr M·I − sym M)⁻¹ g, by
+      // unpivoted LDLᵀ (pivots checked below).
+      const double g0 = M[2][1] - M[1][2], g1 = M[0][2] - M[2][0], g2 = M[1][0] - M[0][1];
+      gradient[l] = g0 * g0 + g1 * g1 + g2 * g2;
+      const double h00 = trace[l] - M[0][0], h11 = trace[l] - M[1][1], h22 = trace[l] - M[2][2];
+      const double h10 = -0.5 * (M[1][0] + M[0][1]), h20 = -0.5 * (M[2][0] + M[0][2]);
+      const double h21 = -0.5 * (M[2][1] + M[1][2]);
+      tiny[l] = kPivotTolerance * trace[l];
+      d0[l] = h00;
+      const double r0 = 1.0 / h00;
+      const double l10 = h10 * r0, l20 = h20 * r0;
+      d1[l] = h11 - l10 * h10;
+      const double r1 = 1.0 / d1[l];
+      const double l21 = (h21 - l20 * h10) * r1;
+      d2[l] = h22 - l20 * h20 - l21 * l21 * d1[l];
+      const double y0 = g0, y1 = g1 - l10 * y0, y2 = g2 - l20 * y0 - l21 * y1;
+      const double x2 = y2 / d2[l];
+      const double x1 = y1 * r1 - l21 * x2;
+      const double x0 = y0 * r0 - l10 * x1 - l20 * x2;
+      stepSquared[l] = x0 * x0 + x1 * x1 + x2 * x2;
+      // q ⊗ (1, δ/2), normalised: |(1, δ/2)| = √(1 + |δ|²/4) and |q| = 1.
+      const double cw = 1.0 / std::sqrt(1.0 + 0.25 * stepSquared[l]);
+      const double hx = 0.5 * cw * x0, hy = 0.5 * cw * x1, hz = 0.5 * cw * x2;
+      next.w[l] = q.w[l] * cw - q.x[l] * hx - q.y[l] * hy - q.z[l] * hz;
+      next.x[l] = q.w[l] * hx + q.x[l] * cw + q.y[l] * hz - q.z[l] * hy;
+      next.y[l] = q.w[l] * hy + q.y[l] * cw + q.z[l] * hx - q.x[l] * hz;
+      next.z[l] = q.w[l] * hz + q.z[l] * cw + q.x[l] * hy - q.y[l] * hx;
+    }
+    bool active = false;
+    for (int l = 0; l < kFitLanes; ++l) {
+      if (status[l] != LaneStatus::Active) continue;
+      iterations[l] = iteration;
+      if (!(trace[l] > 0)) {
+        status[l] = LaneStatus::Failed;
+      } else if (gradient[l] <= kGradientTolerance * kGradientTolerance * trace[l] * trace[l]) {
+        status[l] = LaneStatus::Converged;
+      } else if (!(d0[l] > tiny[l]) || !(d1[l] > tiny[l]) || !(d2[l] > tiny[l]) ||
+                 !(stepSquared[l] <= kMaxNewtonStep * kMaxNewtonStep)) {
+        status[l] = LaneStatus::Failed;
+      } else {
+        q.w[l] = next.w[l];
+        q.x[l] = next.x[l];
+        q.y[l] = next.y[l];
+        q.z[l] = next.z[l];
+        if (stepSquared[l] <= kNewtonStepTolerance * kNewtonStepTolerance) {
+          status[l] = LaneStatus::Converged;
+        } else {
+          active = true;
+        }
+      }
+    }
+    if (!active) return;
+  }
+  for (int l = 0; l < kFitLanes; ++l)
+    if (status[l] == LaneStatus::Active) status[l] = LaneStatus::Failed;
+}
+
+// One fit's inputs for the lanes: the covariance, the ring's (unnormalised)
+// normal with its squared length, the reference edge (to the first ring
+// neighbour) and the rest frame.
+struct FitInputs {
+  const Matrix3* covariance;
+  const Vector3* normal;
+  double normalSquared;
+  const Vector3* edge;
+  const Matrix3* restFrame;
+};
+
+// Newton's starting rotation of each lane, for a ring with normal direction
+// `normal` and reference edge `edge`: the rotation taking the rest frame F̄
+// (normal, edge in its tangent plane) onto the same frame built from these.
+// Exact for a rigidly moved ring; off by the ring's shear otherwise (Newton
+// converges in 2–4 iterations from there). A function of the slot's
+// positions only, so a fit gives the same bits whichever vertices were
+// fitted before. Identity where the frame is degenerate (Newton or the SVD
+// then decide).
+void frameGuessLanes(const FitInputs (&in)[kFitLanes], LaneQuaternions& q) {
+  double Q[3][3][kFitLanes];
+  bool usable[kFitLanes];
+  for (int l = 0; l < kFitLanes; ++l) {
+    const Vector3& n = *in[l].normal;
+    const Vector3& e = *in[l].edge;
+    const Matrix3& F = *in[l].restFrame;
+    const double inverse = 1.0 / std::sqrt(in[l].normalSquared);
+    const double z0 = n.x() * inverse, z1 = n.y() * inverse, z2 = n.z() * inverse;
+    double y0 = z1 * e.z() - z2 * e.y(), y1 = z2 * e.x() - z0 * e.z(), y2 = z0 * e.y() - z1 * e.x();
+    const double length = std::sqrt(y0 * y0 + y1 * y1 + y2 * y2);
+    const double edgeLength = std::sqrt(e.x() * e.x() + e.y() * e.y() + e.z() * e.z());
+    usable[l] = in[l].normalSquared > 0.0 && length > 1e-12 * edgeLength;
+    y0 /= length;
+    y1 /= length;
+    y2 /= length;
+    const double x0 = y1 * z2 - y2 * z1, x1 = y2 * z0 - y0 * z2, x2 = y0 * z1 - y1 * z0;
+    const double frame[3][3] = {{x0, y0, z0}, {x1, y1, z1}, {x2, y2, z2}};
+    // Q = frame F̄ᵀ.
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c)
+        Q[r][c][l] = frame[r][0] * F(c, 0) + frame[r][1] * F(c, 1) + frame[r][2] * F(c, 2);
+  }
+  // The quaternion of Q (Shepperd's choice of the largest component, as
+  // Eigen's), normalised.
+  for (int l = 0; l < kFitLanes; ++l) {
+    double w, x, y, z;
+    const double trace = Q[0][0][l] + Q[1][1][l] + Q[2][2][l];
+    if (trace > 0) {
+      double t = std::sqrt(trace + 1.0);
+      w = 0.5 * t;
+      t = 0.5 / t;
+      x = (Q[2][1][l] - Q[1][2][l]) * t;
+      y = (Q[0][2][l] - Q[2][0][l]) * t;
+      z = (Q[1][0][l] - Q[0][1][l]) * t;
+    } else {
+      int i = 0;
+      if (Q[1][1][l] > Q[0][0][l]) i = 1;
+      if (Q[2][2][l] > Q[i][i][l]) i = 2;
+      const int j = (i + 1) % 3, k = (j + 1) % 3;
+      double t = std::sqrt(Q[i][i][l] - Q[j][j][l] - Q[k][k][l] + 1.0);
+      double v[3];
+      v[i] = 0.5 * t;
+      t = 0.5 / t;
+      w = (Q[k][j][l] - Q[j][k][l]) * t;
+      v[j] = (Q[j][i][l] + Q[i][j][l]) * t;
+      v[k] = (Q[k][i][l] + Q[i][k][l]) * t;
+      x = v[0];
+      y = v[1];
+      z = v[2];
+    }
+    const double norm = std::sqrt(w * w + x * x + y * y + z * z);
+    q.w[l] = usable[l] ? w / norm : 1.0;
+    q.x[l] = usable[l] ? x / norm : 0.0;
+    q.y[l] = usable[l] ? y / norm : 0.0;
+    q.z[l] = usable[l] ? z / norm : 0.0;
+  }
 }
 
 void checkRows(Eigen::Index rows, Eigen::Index expected, const char* what) {
@@ -170,10 +291,21 @@ Matrix3 kabschRotation(const Eigen::Ref<const Eigen::MatrixX3d>& restEdges,
 
 RotationFit fitRotation(const Matrix3& covariance, const Eigen::Quaterniond& initialGuess) {
   RotationFit fit;
-  Eigen::Quaterniond q = initialGuess.normalized();
-  Matrix3 R;
-  if (newtonRotation(covariance, q, R, fit.iterations)) {
-    fit.rotation = q;
+  const Eigen::Quaterniond start = initialGuess.normalized();
+  const Matrix3* const C[kFitLanes] = {&covariance, &covariance, &covariance, &covariance};
+  LaneQuaternions q;
+  for (int l = 0; l < kFitLanes; ++l) {
+    q.w[l] = start.w();
+    q.x[l] = start.x();
+    q.y[l] = start.y();
+    q.z[l] = start.z();
+  }
+  int iterations[kFitLanes];
+  LaneStatus status[kFitLanes];
+  newtonLanes(C, q, iterations, status);
+  fit.iterations = iterations[0];
+  if (status[0] == LaneStatus::Converged) {
+    fit.rotation = Eigen::Quaterniond(q.w[0], q.x[0], q.y[0], q.z[0]);
   } else {
     fit.rotation = Eigen::Quaterniond(rotationFromCovariance(covariance));
     fit.usedSvd = true;
@@ -716,11 +848,9 @@ void SurfaceGeometry::measureStrain() {
   strainMeasured_ = true;
 }
 
-void SurfaceGeometry::evaluateSlot(const SlotRule& rule, const RowVectors3& positions, int i,
-                                   Eigen::Quaterniond& rotation, Matrix3& frame, RowVectors3& normals,
-                                   Matrix3& fit, FitCounts& counts) const {
-  const size_t k = static_cast<size_t>(i);
-  const Matrix3& restFrame = dynamic_.extrinsic.restFrames[k];
+void SurfaceGeometry::evaluateSlot(const SlotRule& rule, int i, Eigen::Quaterniond& rotation, Matrix3& frame,
+                                   RowVectors3& normals, Matrix3& fit) const {
+  const Matrix3& restFrame = dynamic_.extrinsic.restFrames[static_cast<size_t>(i)];
   if (rule.kind == SlotKind::Rest) {
     rotation = Eigen::Quaterniond::Identity();
     frame = restFrame;
@@ -728,20 +858,26 @@ void SurfaceGeometry::evaluateSlot(const SlotRule& rule, const RowVectors3& posi
     fit = Matrix3::Identity();
     return;
   }
-  if (rule.kind == SlotKind::Rigid) {
-    rotation = rule.rotation;
-    fit = rule.matrix;
-    frame.noalias() = rule.matrix * restFrame;
-    normals.row(i) = frame.col(2).transpose();
-    return;
-  }
+  rotation = rule.rotation;
+  fit = rule.matrix;
+  frame.noalias() = rule.matrix * restFrame;
+  normals.row(i) = frame.col(2).transpose();
+}
+
+void SurfaceGeometry::sampleSlot(const RowVectors3& positions, int i, SlotFit& job) const {
   const SurfaceTopology& topology = *topology_;
   const std::vector<int>& offsets = topology.ringOffsets();
   const std::vector<int>& neighbors = topology.ringNeighbors();
   const int n = topology.vertexCount();
+  const size_t k = static_cast<size_t>(i);
   const double* x = positions.data();
   const double* y = x + n;
   const double* z = y + n;
+  // The fit reads the rest frame after every slot of its group is sampled:
+  // asked for now, its two lines (cold after a cloth step) arrive meanwhile.
+  const char* restFrame = reinterpret_cast<const char*>(&dynamic_.extrinsic.restFrames[k]);
+  __builtin_prefetch(restFrame);
+  __builtin_prefetch(restFrame + sizeof(Matrix3) - 1);
   const int begin = offsets[k], end = offsets[k + 1];
   const double xi = x[i], yi = y[i], zi = z[i];
   Matrix3 covariance = Matrix3::Zero();
@@ -760,47 +896,110 @@ void SurfaceGeometry::evaluateSlot(const SlotRule& rule, const RowVectors3& posi
     previous = e;
   }
   if (!topology.vertexIsBoundary()[k]) normalSum += previous.cross(first);  // the ring's closing face
-  const double normalSquared = normalSum.squaredNorm();
+  job.vertex = i;
+  job.covariance = covariance;
+  job.normal = normalSum;
+  job.normalSquared = normalSum.squaredNorm();
+  job.edge = first;
+}
 
-  Matrix3 U;
-  Eigen::Quaterniond q = frameGuess(normalSum, normalSquared, first, restFrame);
-  int iterations = 0;
-  const bool useSvd = rotationFitMethod_ == RotationFitMethod::Svd;
-  const bool converged = !useSvd && newtonRotation(covariance, q, U, iterations);
-  if (!converged) {
-    U = rotationFromCovariance(covariance);
-    q = Eigen::Quaterniond(U);
-    if (!useSvd) ++counts.fallbacks;
+void SurfaceGeometry::fitSlots(SlotFit* jobs, int count, FitCounts& counts) const {
+  const std::vector<Matrix3>& restFrames = dynamic_.extrinsic.restFrames;
+  const auto finish = [&](SlotFit& job, const Eigen::Quaterniond& q, const Matrix3& U) {
+    *job.rotation = q;
+    *job.fit = U;
+    job.frame->noalias() = U * restFrames[static_cast<size_t>(job.vertex)];
+    // A fully folded fan has no normal: take the fitted frame's.
+    if (job.normalSquared > 0.0) {
+      job.normals->row(job.vertex) = (job.normal * (1.0 / std::sqrt(job.normalSquared))).transpose();
+    } else {
+      job.normals->row(job.vertex) = job.frame->col(2).transpose();
+    }
+    ++counts.fitted;
+  };
+  if (rotationFitMethod_ == RotationFitMethod::Svd) {
+    for (int k = 0; k < count; ++k) {
+      const Matrix3 U = rotationFromCovariance(jobs[k].covariance);
+      finish(jobs[k], Eigen::Quaterniond(U), U);
+    }
+    return;
   }
-  if (!useSvd) counts.iterations += iterations;
-  ++counts.fitted;
-  rotation = q;
-  fit = U;
-  frame.noalias() = U * restFrame;
-  // A fully folded fan has no normal: take the fitted frame's.
-  if (normalSquared > 0.0) {
-    normals.row(i) = (normalSum * (1.0 / std::sqrt(normalSquared))).transpose();
-  } else {
-    normals.row(i) = frame.col(2).transpose();
+  for (int start = 0; start < count; start += kFitLanes) {
+    const int lanes = std::min(kFitLanes, count - start);
+    FitInputs in[kFitLanes];
+    const Matrix3* C[kFitLanes];
+    for (int l = 0; l < kFitLanes; ++l) {
+      const SlotFit& job = jobs[start + std::min(l, lanes - 1)];
+      in[l] = {&job.covariance, &job.normal, job.normalSquared, &job.edge,
+               &restFrames[static_cast<size_t>(job.vertex)]};
+      C[l] = &job.covariance;
+    }
+    LaneQuaternions q;
+    frameGuessLanes(in, q);
+    int iterations[kFitLanes];
+    LaneStatus status[kFitLanes];
+    newtonLanes(C, q, iterations, status);
+    double R[9][kFitLanes];
+    laneRotationMatrices(q, R);
+    for (int l = 0; l < lanes; ++l) {
+      SlotFit& job = jobs[start + l];
+      counts.iterations += iterations[l];
+      if (status[l] == LaneStatus::Converged) {
+        Matrix3 U;
+        U << R[0][l], R[1][l], R[2][l], R[3][l], R[4][l], R[5][l], R[6][l], R[7][l], R[8][l];
+        finish(job, Eigen::Quaterniond(q.w[l], q.x[l], q.y[l], q.z[l]), U);
+      } else {
+        ++counts.fallbacks;
+        const Matrix3 U = rotationFromCovariance(job.covariance);
+        finish(job, Eigen::Quaterniond(U), U);
+      }
+    }
   }
 }
 
-void SurfaceGeometry::prepareInto(DynamicState& d, int i, bool currentValid, FitCounts& counts) const {
+void SurfaceGeometry::prepareGroup(DynamicState& d, const int* vertices, const bool* currentValid, int count,
+                                   FitCounts& counts) const {
+  ExtrinsicGeometry& ex = d.extrinsic;
+  SlotFit jobs[2 * kPrepareGroup];
+  Matrix3 unused[kPrepareGroup];
+  int jobCount = 0;
+  // A slot's values: fitted in the lanes below, or from its rule.
+  const auto slot = [&](const SlotRule& rule, const RowVectors3& positions, int i, Eigen::Quaterniond& rotation,
+                        Matrix3& frame, RowVectors3& normals, Matrix3& fit) {
+    if (rule.kind != SlotKind::Fitted) {
+      evaluateSlot(rule, i, rotation, frame, normals, fit);
+      return;
+    }
+    SlotFit& job = jobs[jobCount++];
+    sampleSlot(positions, i, job);
+    job.rotation = &rotation;
+    job.frame = &frame;
+    job.normals = &normals;
+    job.fit = &fit;
+  };
+  for (int g = 0; g < count; ++g) {
+    const int i = vertices[g];
+    const size_t k = static_cast<size_t>(i);
+    if (!currentValid[g])
+      slot(currentRule_, ex.positions, i, d.rotations[k], ex.frames[k], ex.vertexNormals,
+           rates_.still ? ex.kabschRotations[k] : unused[g]);
+    if (!rates_.still)
+      slot(nextRule_, ex.nextPositions, i, d.nextRotations[k], ex.nextFrames[k], d.nextNormals,
+           ex.kabschRotations[k]);
+  }
+  fitSlots(jobs, jobCount, counts);
+  for (int g = 0; g < count; ++g) finishVertex(d, vertices[g]);
+}
+
+void SurfaceGeometry::finishVertex(DynamicState& d, int i) const {
   const size_t k = static_cast<size_t>(i);
   ExtrinsicGeometry& ex = d.extrinsic;
-  if (!currentValid) {
-    Matrix3 unused;
-    evaluateSlot(currentRule_, ex.positions, i, d.rotations[k], ex.frames[k], ex.vertexNormals,
-                 rates_.still ? ex.kabschRotations[k] : unused, counts);
-  }
   if (rates_.still) {
     d.nextRotations[k] = d.rotations[k];
     ex.nextFrames[k] = ex.frames[k];
     d.nextNormals.row(i) = ex.vertexNormals.row(i);
     ex.vertexAngularVelocities.row(i).setZero();
   } else {
-    evaluateSlot(nextRule_, ex.nextPositions, i, d.nextRotations[k], ex.nextFrames[k], d.nextNormals,
-                 ex.kabschRotations[k], counts);
     // ω_i: (F^t)ᵀ F^{t+h} = F̄ᵀ (U^tᵀ U^{t+h}) F̄, whose rotation vector is F̄ᵀ
     // times that of U^tᵀ U^{t+h}.
     const Vector3 restAxis =
@@ -822,40 +1021,41 @@ void SurfaceGeometry::prepareInto(DynamicState& d, int i, bool currentValid, Fit
   }
 }
 
-void SurfaceGeometry::prepareOne(int i, FitCounts& counts) {
-  unsigned& stamp = preparedAt_[static_cast<size_t>(i)];
-  if (stamp == refreshIndex_) return;
-  prepareInto(dynamic_, i, stamp + 1 == refreshIndex_, counts);
-  stamp = refreshIndex_;
-}
-
 void SurfaceGeometry::addCounts(const FitCounts& counts) {
   rotationFitStats_.fittedVertices += counts.fitted;
   rotationFitStats_.newtonIterations += counts.iterations;
   rotationFitStats_.svdFallbacks += counts.fallbacks;
 }
 
-namespace {
-
-// Runs prepare(vertexAt(k), counts) for k in [0, count), on the calling
-// thread's OpenMP threads from kMinParallelVertices on (threads::runLoop),
-// adding the fit counts into `total`; prepare returns false for a vertex it
-// skipped (already prepared). Returns how many it prepared. The sums are
-// integers, the same in any order.
-template <typename Counts, typename VertexAt, typename Prepare>
-int prepareEach(int count, const VertexAt& vertexAt, const Prepare& prepare, Counts& total) {
+template <typename VertexAt>
+int SurfaceGeometry::prepareEach(int count, const VertexAt& vertexAt, FitCounts& total) {
+  // Groups of kPrepareGroup list positions, the stale vertices of each fitted
+  // together (prepareGroup), on the calling thread's OpenMP threads from
+  // kMinParallelVertices on (threads::runLoop). A vertex's values depend on
+  // its own slots only: the grouping and the threads change no bit. The
+  // counts are integers, the same summed in any order.
   int prepared = 0;
+  const int groups = (count + kPrepareGroup - 1) / kPrepareGroup;
   threads::runLoop(count >= kMinParallelVertices, [&] {
-    Counts here;
+    FitCounts here;
     int preparedHere = 0;
 #pragma omp for schedule(static) nowait
-    for (int k = 0; k < count; ++k) {
-      Counts counts;
-      if (!prepare(vertexAt(k), counts)) continue;
-      here.fitted += counts.fitted;
-      here.fallbacks += counts.fallbacks;
-      here.iterations += counts.iterations;
-      ++preparedHere;
+    for (int group = 0; group < groups; ++group) {
+      int ids[kPrepareGroup];
+      bool currentValid[kPrepareGroup];
+      int stale = 0;
+      for (int k = group * kPrepareGroup; k < std::min(count, (group + 1) * kPrepareGroup); ++k) {
+        const int i = vertexAt(k);
+        const unsigned stamp = preparedAt_[static_cast<size_t>(i)];
+        if (stamp == refreshIndex_) continue;
+        ids[stale] = i;
+        currentValid[stale] = stamp + 1 == refreshIndex_;
+        ++stale;
+      }
+      if (stale == 0) continue;
+      prepareGroup(dynamic_, ids, currentValid, stale, here);
+      for (int g = 0; g < stale; ++g) preparedAt_[static_cast<size_t>(ids[g])] = refreshIndex_;
+      preparedHere += stale;
     }
 #pragma omp critical(blot_threads_combine)
     {
@@ -867,8 +1067,6 @@ int prepareEach(int count, const VertexAt& vertexAt, const Prepare& prepare, Cou
   });
   return prepared;
 }
-
-}  // namespace
 
 void SurfaceGeometry::prepareVertices(const int* vertices, int count) {
   const int n = topology_->vertexCount();
@@ -889,15 +1087,14 @@ void SurfaceGeometry::prepareVertices(const int* vertices, int count) {
     std::sort(prepareOrder_.begin(), prepareOrder_.end());
     prepareOrder_.erase(std::unique(prepareOrder_.begin(), prepareOrder_.end()), prepareOrder_.end());
     const int* order = prepareOrder_.data();
-    preparedCount_ += prepareEach(static_cast<int>(prepareOrder_.size()), [&](int k) { return order[k]; },
-                                  staleVertexPreparer(), total);
+    preparedCount_ += prepareEach(static_cast<int>(prepareOrder_.size()), [&](int k) { return order[k]; }, total);
   }
   addCounts(total);
 }
 
 void SurfaceGeometry::prepareAllVertices() {
   FitCounts total;
-  preparedCount_ += prepareEach(topology_->vertexCount(), [](int i) { return i; }, staleVertexPreparer(), total);
+  preparedCount_ += prepareEach(topology_->vertexCount(), [](int i) { return i; }, total);
   addCounts(total);
 }
 
@@ -905,10 +1102,20 @@ SurfaceGeometry::DynamicState SurfaceGeometry::dynamicState() const {
   DynamicState d = dynamic_;
   const int n = topology_->vertexCount();
   FitCounts counts;
+  int ids[kPrepareGroup];
+  bool currentValid[kPrepareGroup];
+  int stale = 0;
   for (int i = 0; i < n; ++i) {
     const unsigned stamp = preparedAt_[static_cast<size_t>(i)];
-    if (stamp != refreshIndex_) prepareInto(d, i, stamp + 1 == refreshIndex_, counts);
+    if (stamp == refreshIndex_) continue;
+    ids[stale] = i;
+    currentValid[stale] = stamp + 1 == refreshIndex_;
+    if (++stale == kPrepareGroup || i == n - 1) {
+      prepareGroup(d, ids, currentValid, stale, counts);
+      stale = 0;
+    }
   }
+  if (stale > 0) prepareGroup(d, ids, currentValid, stale, counts);
   return d;
 }
 
