@@ -445,6 +445,70 @@ BENCHMARK(BM_IntrinsicRefreshReplay)
     ->UseManualTime()
     ->Unit(benchmark::kMicrosecond);
 
+// The per-vertex extrinsic geometry on a deforming cloth (VertexRefresh::
+// OnDemand, as in a step): the captured run replayed into a SurfaceGeometry,
+// each step's refresh (and rebuild, when the strain test trips) untimed, then
+// the vertices prepared (timed): what the liquid band pays per vertex, one
+// fitted slot (t + h; t was fitted the step before), ω and p̈. Args: scene,
+// list (0: every vertex in index order; 1: the 500 vertices nearest the rest
+// shape's centroid, a band's pattern: rows of a few dozen, the moving middle
+// of the cloth). Counters: ns_per_vertex, newton_per_fit, svd_per_fit.
+const std::vector<int>& centreDisc(int scene, const RowVectors3& rest) {
+  static std::map<int, std::vector<int>> discs;
+  std::vector<int>& disc = discs[scene];
+  if (!disc.empty()) return disc;
+  const Eigen::RowVector3d centre = rest.colwise().mean();
+  std::vector<std::pair<double, int>> byDistance;
+  for (int i = 0; i < rest.rows(); ++i) byDistance.push_back({(rest.row(i) - centre).squaredNorm(), i});
+  std::sort(byDistance.begin(), byDistance.end());
+  for (size_t k = 0; k < std::min<size_t>(500, byDistance.size()); ++k) disc.push_back(byDistance[k].second);
+  return disc;
+}
+
+void BM_PrepareVerticesDeforming(benchmark::State& state) {
+  const int scene = static_cast<int>(state.range(0));
+  const RebuildCapture& c = rebuildCapture(scene);
+  const SurfaceTopology& topology = c.engine->topology();
+  const FabricField& fabric = c.engine->surface().stain().geometry().fabric();
+  const RowVectors3& rest = c.engine->definition().mesh.vertexPositions;
+  const std::vector<int>& disc = centreDisc(scene, rest);
+  std::unique_ptr<SurfaceGeometry> geometry;
+  size_t k = 0;
+  double seconds = 0, prepared = 0, fits = 0, iterations = 0, fallbacks = 0;
+  for (auto _ : state) {
+    if (k == 0) {
+      geometry = std::make_unique<SurfaceGeometry>(topology, rest, fabric, c.tolerance);
+      geometry->setVertexRefresh(VertexRefresh::OnDemand);
+    }
+    if (geometry->refreshExtrinsic(c.sequence[k], c.h)) geometry->refreshIntrinsic();
+    k = (k + 1) % c.sequence.size();
+    const auto start = std::chrono::steady_clock::now();
+    if (state.range(1) == 0) {
+      geometry->prepareAllVertices();
+    } else {
+      geometry->prepareVertices(disc);
+    }
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    seconds += elapsed;
+    state.SetIterationTime(elapsed);
+    prepared += geometry->preparedVertexCount();
+    fits += geometry->rotationFitStats().fittedVertices;
+    iterations += static_cast<double>(geometry->rotationFitStats().newtonIterations);
+    fallbacks += geometry->rotationFitStats().svdFallbacks;
+  }
+  state.SetLabel(kRebuildScenes[scene]);
+  state.counters["ns_per_vertex"] = 1e9 * seconds / std::max(1.0, prepared);
+  state.counters["fits_per_vertex"] = fits / std::max(1.0, prepared);
+  state.counters["newton_per_fit"] = iterations / std::max(1.0, fits);
+  state.counters["svd_per_fit"] = fallbacks / std::max(1.0, fits);
+}
+BENCHMARK(BM_PrepareVerticesDeforming)
+    ->ArgNames({"scene", "list"})
+    ->ArgsProduct({{0, 1}, {0, 1}})
+    ->Iterations(4 * kRebuildSteps)
+    ->UseManualTime()
+    ->Unit(benchmark::kMicrosecond);
+
 }  // namespace
 }  // namespace blot::stain
 

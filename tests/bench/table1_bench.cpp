@@ -220,6 +220,7 @@ void BM_Table1(benchmark::State& state) {
     bare.advance(def.timeStep);
   }
   const EngineStatistics before = engine.statistics();
+  double fits = 0, newton = 0, bandVertices = 0, wetVertices = 0;  // sums over the timed steps
   double bareMs = 0;
   long refreshes = 0, substeps = 0;
   unsigned terms = 0;  // StepTerm bits of the terms that ran in any timed step
@@ -237,6 +238,10 @@ void BM_Table1(benchmark::State& state) {
     refreshes += engine.surface().stain().profile().intrinsicRefreshes;
     substeps += engine.surface().stain().profile().advectionSubsteps;
     terms |= engine.surface().stain().profile().terms;
+    fits += engine.surface().stain().geometry().rotationFitStats().fittedVertices;
+    newton += static_cast<double>(engine.surface().stain().geometry().rotationFitStats().newtonIterations);
+    bandVertices += engine.surface().stain().profile().bandVertices;
+    wetVertices += engine.surface().stain().profile().wetVertices;
   }
   const EngineStatistics after = engine.statistics();
   const double n = static_cast<double>(after.steps - before.steps);
@@ -275,6 +280,13 @@ void BM_Table1(benchmark::State& state) {
   state.counters["wet_vertices"] = engine.surface().stain().profile().wetVertices;
   state.counters["halo_vertices"] = engine.surface().stain().profile().haloVertices;
   state.counters["terms"] = terms;
+  // What the band stage works on, per timed step (the vertex counts above
+  // are the last step's): its vertices, the wet ones among them, and the
+  // rotation fits (one per band vertex and slot not fitted the step before).
+  state.counters["band_vertices_per_step"] = bandVertices / n;
+  state.counters["wet_vertices_per_step"] = wetVertices / n;
+  state.counters["fits_per_step"] = fits / n;
+  state.counters["newton_per_fit"] = fits > 0 ? newton / fits : 0.0;
   // "scene: terms that ran (vertex counts of the last step)"; scripts/table1
   // keys the rows by the scene name before the colon.
   stain::StepProfile last = engine.surface().stain().profile();
