@@ -980,6 +980,7 @@ void SurfaceGeometry::prepareGroup(DynamicState& d, const int* vertices, const b
   for (int g = 0; g < count; ++g) {
     const int i = vertices[g];
     const size_t k = static_cast<size_t>(i);
+    __builtin_prefetch(&d.rotations[k]);  // read by finishVertex (ω), cold since the last step
     if (!currentValid[g])
       slot(currentRule_, ex.positions, i, d.rotations[k], ex.frames[k], ex.vertexNormals,
            rates_.still ? ex.kabschRotations[k] : unused[g]);

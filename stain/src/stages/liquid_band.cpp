@@ -261,6 +261,20 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
       for (int k = end; k < ringEnd; ++k) {
         const int i = band.vertices[static_cast<size_t>(k)];
         const size_t ii = static_cast<size_t>(i);
+        // What a vertex two ahead reads once a step, cold after the cloth's
+        // step: its ring table, its distance labels and its frame at t.
+        if (k + 2 < ringEnd) {
+          const size_t ahead = static_cast<size_t>(band.vertices[static_cast<size_t>(k) + 2]);
+          const char* table = reinterpret_cast<const char*>(band.ringTransports.data() + offsets[ahead]);
+          __builtin_prefetch(table);
+          __builtin_prefetch(table + 64);
+          __builtin_prefetch(&band.distances[ahead]);
+          if (moving) {
+            const char* frame = reinterpret_cast<const char*>(&extrinsic.frames[ahead]);
+            __builtin_prefetch(frame);
+            __builtin_prefetch(frame + sizeof(Matrix3) - 1);
+          }
+        }
         band.bandMask[ii] = 1;
         if (level == 1) band.haloMask[ii] = 1;
         Complex weighted(0.0, 0.0), plain(0.0, 0.0);
