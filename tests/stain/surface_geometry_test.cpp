@@ -466,6 +466,55 @@ TEST(SurfaceGeometry, PreparedVerticesGetTheAllVerticesBitsInAnyOrderWithRepeats
   EXPECT_THROW(lazy.prepareVertices(std::vector<int>{0, n}), std::invalid_argument);
 }
 
+// The fits run four at a time in lanes. A lane's bits must not depend on
+// its companions, even when they take other paths: here the sheet is turned
+// by 170° (every start takes the quaternion's largest-diagonal branch), and
+// four rings are collapsed onto their vertex (no normal, zero covariance:
+// identity start, Newton gives up, the SVD decides). Each vertex prepared
+// alone, with its lanes padded, gets the bits it gets prepared with the
+// whole sheet in groups of four; both slots are fitted (the first prepare
+// after the refresh), so a group mixes slots of different vertices too.
+TEST(SurfaceGeometry, AFitGetsTheSameBitsAloneAndBesideFailingOrTurnedCompanions) {
+  const TriangleMesh mesh = gridMesh(9, 7, 1.0, 0.8);
+  const int n = static_cast<int>(mesh.vertexPositions.rows());
+  const SurfaceTopology topology(mesh.faces, n);
+  const FabricField fabric = isotropicFabricField(topology.faceCount(), 1.0, 1.0);
+  const Matrix3 turn = Eigen::AngleAxisd(170.0 * testing::kPi / 180.0, Vector3(0.3, 0.5, 0.8).normalized())
+                           .toRotationMatrix();
+  const auto stepPositions = [&](int step) {
+    const Matrix3 rotation = step == 2 ? Matrix3(turn.transpose()) : Matrix3(Matrix3::Identity());
+    RowVectors3 p = mesh.vertexPositions * rotation;
+    for (int i = 0; i < n; ++i) p(i, 2) += 0.01 * step * std::sin(3.0 * mesh.vertexPositions(i, 0));
+    for (const int v : {10, 24, 31, 47})  // interior vertices, every lane position: their ring collapses onto them
+        for (int m = topology.ringOffsets()[static_cast<size_t>(v)];
+             m < topology.ringOffsets()[static_cast<size_t>(v) + 1]; ++m)
+          p.row(topology.ringNeighbors()[static_cast<size_t>(m)]) = p.row(v);
+    return p;
+  };
+  SurfaceGeometry together(topology, mesh.vertexPositions, fabric);
+  together.setVertexRefresh(VertexRefresh::OnDemand);
+  for (int step = 1; step <= 2; ++step) together.refreshExtrinsic(stepPositions(step), 0.01);
+  together.prepareAllVertices();
+  EXPECT_GT(together.rotationFitStats().svdFallbacks, 0) << "no fit gave up: the failing lanes were not exercised";
+  EXPECT_EQ(together.rotationFitStats().fittedVertices, 2 * n);
+  for (int i = n - 1; i >= 0; --i) {
+    SurfaceGeometry alone(topology, mesh.vertexPositions, fabric);
+    alone.setVertexRefresh(VertexRefresh::OnDemand);
+    for (int step = 1; step <= 2; ++step) alone.refreshExtrinsic(stepPositions(step), 0.01);
+    alone.prepareVertices(std::vector<int>{i});
+    const ExtrinsicGeometry& a = together.extrinsic();
+    const ExtrinsicGeometry& b = alone.extrinsic();
+    const size_t k = static_cast<size_t>(i);
+    ASSERT_EQ(a.frames[k], b.frames[k]) << "vertex " << i;
+    ASSERT_EQ(a.nextFrames[k], b.nextFrames[k]) << "vertex " << i;
+    ASSERT_EQ(a.kabschRotations[k], b.kabschRotations[k]) << "vertex " << i;
+    ASSERT_EQ(a.vertexNormals.row(i), b.vertexNormals.row(i)) << "vertex " << i;
+    ASSERT_EQ(a.vertexAngularVelocities.row(i), b.vertexAngularVelocities.row(i)) << "vertex " << i;
+    // The fit is the Kabsch rotation whatever decided it.
+    EXPECT_NEAR(a.kabschRotations[k].determinant(), 1.0, 1e-12) << "vertex " << i;
+  }
+}
+
 // After the first refresh (OpenMP starts its threads there), refreshExtrinsic
 // allocates nothing on any path: fitted, rigid, unchanged, fully static.
 TEST(SurfaceGeometry, RefreshExtrinsicAllocatesNothing) {
