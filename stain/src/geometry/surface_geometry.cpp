@@ -1111,7 +1111,7 @@ SurfaceGeometry::DynamicState SurfaceGeometry::dynamicState() const {
     if (stamp == refreshIndex_) continue;
     ids[stale] = i;
     currentValid[stale] = stamp + 1 == refreshIndex_;
-    if (++stale == kPrepareGroup || i == n - 1) {
+    if (++stale == kPrepareGroup) {
       prepareGroup(d, ids, currentValid, stale, counts);
       stale = 0;
     }
