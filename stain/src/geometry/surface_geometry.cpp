@@ -181,11 +181,10 @@ void newtonLanes(const Matrix3* const (&C)[kFitLanes], LaneQuaternions& q, int (
     if (status[l] == LaneStatus::Active) status[l] = LaneStatus::Failed;
 }
 
-// One fit's inputs for the lanes: the covariance, the ring's (unnormalised)
-// normal with its squared length, the reference edge (to the first ring
-// neighbour) and the rest frame.
+// One fit's inputs for its start: the ring's (unnormalised) normal with its
+// squared length, the reference edge (to the first ring neighbour) and the
+// rest frame.
 struct FitInputs {
-  const Matrix3* covariance;
   const Vector3* normal;
   double normalSquared;
   const Vector3* edge;
@@ -930,8 +929,7 @@ void SurfaceGeometry::fitSlots(SlotFit* jobs, int count, FitCounts& counts) cons
     const Matrix3* C[kFitLanes];
     for (int l = 0; l < kFitLanes; ++l) {
       const SlotFit& job = jobs[start + std::min(l, lanes - 1)];
-      in[l] = {&job.covariance, &job.normal, job.normalSquared, &job.edge,
-               &restFrames[static_cast<size_t>(job.vertex)]};
+      in[l] = {&job.normal, job.normalSquared, &job.edge, &restFrames[static_cast<size_t>(job.vertex)]};
       C[l] = &job.covariance;
     }
     LaneQuaternions q;
