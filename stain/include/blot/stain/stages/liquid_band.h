@@ -55,8 +55,10 @@ struct LiquidBand {
   /// entries and distances[i].shortestEdge were filled from (−1: not yet).
   std::vector<int> ringRebuildCounts;
   /// Vertices not in the wet set whose free density σ_f + σ_s is > 0 (a
-  /// trace below wetThreshold), in index order: no stage works on them, but
-  /// the coupling reads their frames (their relative momentum).
+  /// trace below wetThreshold), in index order: no stage works on them;
+  /// their frames are prepared only for a reader between steps that asks
+  /// (StainSolverDef::framesOnDampVertices: the coupling's free relative
+  /// momentum).
   std::vector<int> dampVertices;
   /// Vertices not in the wet set whose absorbed solvent σ_p is > 0 (below
   /// wetThreshold, or a soaked vertex's), in index order: the interaction
