@@ -937,33 +937,54 @@ TEST(SurfaceGeometry, RefilledOperatorsAreBitwiseANewAssembly) {
 
 // refillStiffnessAndConnectionFromLengths writes bitwise what the two
 // from-lengths assemblies return (anisotropic tensors and weft coefficients,
-// transport angles of another shape), allocates nothing, and refuses a matrix
-// of another topology.
+// or isotropic ones as every Table 1 cloth has; transport angles of another
+// shape; a face count that is a multiple of the refill's four lanes and one
+// that leaves a short group), allocates nothing, and refuses a matrix of
+// another topology.
 TEST(SurfaceGeometry, OperatorsRefilledFromLengthsAreBitwiseTheirAssemblies) {
   const TriangleMesh mesh = wavySheet();
   const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
   const FabricField fabric = anisotropicFabric(topology.faceCount(), 7);
   const Eigen::MatrixX2d coefficients = faceWeftCoefficients(topology, mesh.vertexPositions, fabric.weftDirections);
-  const Vector first = edgeLengths(topology, bumpedSheet(mesh.vertexPositions, 0.4, 0.5, 0.02, 1));
   const Vector second = edgeLengths(topology, bumpedSheet(mesh.vertexPositions, 0.6, 0.3, 0.05, 2));
   const Eigen::MatrixX3d angles(Eigen::MatrixX3d::Random(topology.faceCount(), 3) * 3.0);
-  SparseMatrix stiffness = anisotropicStiffnessFromLengths(topology, first, fabric.densityTensors, coefficients);
-  ComplexSparseMatrix connection =
-      connectionLaplacianFromLengths(topology, first, angles * 0.5, fabric.velocityTensors, coefficients);
   const OneRingEntries entries = oneRingFaceEntries(topology);
   const Vector secondAreas = faceAreas(topology, second);
-  gAllocations = 0;
-  gCountAllocations = true;
-  refillStiffnessAndConnectionFromLengths(topology, second, secondAreas, fabric.densityTensors, angles,
-                                          fabric.velocityTensors, coefficients, entries, stiffness, connection);
-  gCountAllocations = false;
-  if (kCountsAllocations) {
-    EXPECT_EQ(gAllocations.load(), 0);
-  }
-  EXPECT_TRUE(
-      sameValueBits(stiffness, anisotropicStiffnessFromLengths(topology, second, fabric.densityTensors, coefficients)));
-  EXPECT_TRUE(sameValueBits(
-      connection, connectionLaplacianFromLengths(topology, second, angles, fabric.velocityTensors, coefficients)));
+  const auto refillsBitwise = [](const TriangleMesh& sheet, const FabricField& cloth, unsigned seed) {
+    SCOPED_TRACE(::testing::Message() << sheet.faces.rows() << " faces, seed " << seed);
+    const SurfaceTopology sheetTopology(sheet.faces, static_cast<int>(sheet.vertexPositions.rows()));
+    const Eigen::MatrixX2d weft = faceWeftCoefficients(sheetTopology, sheet.vertexPositions, cloth.weftDirections);
+    const Vector before = edgeLengths(sheetTopology, bumpedSheet(sheet.vertexPositions, 0.4, 0.5, 0.02, seed));
+    const Vector after = edgeLengths(sheetTopology, bumpedSheet(sheet.vertexPositions, 0.6, 0.3, 0.05, seed + 1));
+    const Eigen::MatrixX3d phi(Eigen::MatrixX3d::Random(sheetTopology.faceCount(), 3) * 3.0);
+    SparseMatrix K = anisotropicStiffnessFromLengths(sheetTopology, before, cloth.densityTensors, weft);
+    ComplexSparseMatrix C = connectionLaplacianFromLengths(sheetTopology, before, phi * 0.5, cloth.velocityTensors, weft);
+    const OneRingEntries table = oneRingFaceEntries(sheetTopology);
+    const Vector afterAreas = faceAreas(sheetTopology, after);
+    gAllocations = 0;
+    gCountAllocations = true;
+    refillStiffnessAndConnectionFromLengths(sheetTopology, after, afterAreas, cloth.densityTensors, phi,
+                                            cloth.velocityTensors, weft, table, K, C);
+    gCountAllocations = false;
+    if (kCountsAllocations) {
+      EXPECT_EQ(gAllocations.load(), 0);
+    }
+    EXPECT_TRUE(sameValueBits(K, anisotropicStiffnessFromLengths(sheetTopology, after, cloth.densityTensors, weft)));
+    EXPECT_TRUE(
+        sameValueBits(C, connectionLaplacianFromLengths(sheetTopology, after, phi, cloth.velocityTensors, weft)));
+  };
+  const TriangleMesh odd = gridMesh(7, 5, 0.7, 0.5);  // a face count that leaves a short group (asserted)
+  FabricField isotropic = fabric;
+  isotropic.densityTensors = 0.004 * identityFaceTensors(topology.faceCount());
+  isotropic.velocityTensors = 0.002 * identityFaceTensors(topology.faceCount());
+  refillsBitwise(mesh, fabric, 1);
+  refillsBitwise(mesh, isotropic, 3);
+  const SurfaceTopology oddTopology(odd.faces, static_cast<int>(odd.vertexPositions.rows()));
+  ASSERT_NE(oddTopology.faceCount() % 4, 0) << "the short lane group goes untested";
+  refillsBitwise(odd, anisotropicFabric(oddTopology.faceCount(), 9), 5);
+  SparseMatrix stiffness = anisotropicStiffnessFromLengths(topology, second, fabric.densityTensors, coefficients);
+  ComplexSparseMatrix connection =
+      connectionLaplacianFromLengths(topology, second, angles, fabric.velocityTensors, coefficients);
   const TriangleMesh other = jitteredIcosphere(1, 0.1, 3);
   const SurfaceTopology otherTopology(other.faces, static_cast<int>(other.vertexPositions.rows()));
   SparseMatrix wrong = anisotropicStiffness(otherTopology, other.vertexPositions,

@@ -186,8 +186,11 @@ class FacePhases {
 };
 
 // Face f's connection block entry (k, l): K_kl conj(r_k) r_l, the diagonal real.
+inline Complex connectionEntry(double Kkl, const Complex* r, int k, int l) {
+  return k == l ? Complex(Kkl, 0.0) : Kkl * std::conj(r[k]) * r[l];
+}
 inline Complex connectionEntry(const Matrix3& K, const Complex* r, int k, int l) {
-  return k == l ? Complex(K(k, k), 0.0) : K(k, l) * std::conj(r[k]) * r[l];
+  return connectionEntry(K(k, l), r, k, l);
 }
 
 // Zeroes the entries (i, j) of L with j in vertices and i marked.
@@ -277,6 +280,86 @@ TriangleGradients triangleGradients(const Vector2& p0, const Vector2& p1, const 
 
 Matrix3 stiffnessFromGradients(const TriangleGradients& g, const Matrix2& tensor) {
   return g.area * g.gradients.transpose() * tensor * g.gradients;
+}
+
+// kStiffnessLanes faces' density and velocity stiffness blocks at once, lane
+// j for face first + j (a short group's spare lanes repeat its last face).
+// Each lane runs the operations of intrinsicCorners, triangleGradients and
+// stiffnessFromGradients in their order: Eigen evaluates a Gᵀ T G as
+// ((a Gᵀ) T) G, each inner sum in index order, and the build contracts
+// nothing (-ffp-contract=off). So a lane's bits are its face's alone, and the
+// lanes are independent loops the compiler can vectorize.
+constexpr int kStiffnessLanes = 4;
+
+struct StiffnessLanes {
+  double density[9][kStiffnessLanes];  // K(k, l) at 3k + l
+  double velocity[9][kStiffnessLanes];
+};
+
+// K = ((a Gᵀ) T) G for every lane, T(r, c) at t[2r + c].
+void stiffnessOfLanes(const double (&area)[kStiffnessLanes], const double (&g)[2][3][kStiffnessLanes],
+                      const double (&t)[4][kStiffnessLanes], double (&K)[9][kStiffnessLanes]) {
+  for (int k = 0; k < 3; ++k) {
+    double m0[kStiffnessLanes], m1[kStiffnessLanes];
+    for (int j = 0; j < kStiffnessLanes; ++j) {
+      const double a0 = area[j] * g[0][k][j], a1 = area[j] * g[1][k][j];
+      m0[j] = a0 * t[0][j] + a1 * t[2][j];
+      m1[j] = a0 * t[1][j] + a1 * t[3][j];
+    }
+    for (int l = 0; l < 3; ++l)
+      for (int j = 0; j < kStiffnessLanes; ++j) K[3 * k + l][j] = m0[j] * g[0][l][j] + m1[j] * g[1][l][j];
+  }
+}
+
+void stiffnessLanes(const SurfaceTopology& topology, const Vector& edgeLengths, const Vector& faceAreas,
+                    const Eigen::MatrixX3d& densityTensors, const Eigen::MatrixX3d& velocityTensors,
+                    const Eigen::MatrixX2d& faceWeftCoefficients, int first, int count, StiffnessLanes& out) {
+  constexpr int L = kStiffnessLanes;
+  const Eigen::MatrixX3i& fe = topology.faceEdges();
+  double l0[L], l1[L], l2[L], area[L];
+  for (int j = 0; j < L; ++j) {
+    const int f = first + std::min(j, count - 1);
+    l0[j] = edgeLengths(fe(f, 0));
+    l1[j] = edgeLengths(fe(f, 1));
+    l2[j] = edgeLengths(fe(f, 2));
+    const double given = faceAreas(f);
+    area[j] = given >= 0.0 ? given : triangleArea(l0[j], l1[j], l2[j]);  // intrinsicCorners' rule
+  }
+  // intrinsicCorners: (0, 0), (l0, 0), (x, y).
+  double x[L], y[L];
+  for (int j = 0; j < L; ++j) {
+    x[j] = (l0[j] * l0[j] + (l2[j] - l1[j]) * (l2[j] + l1[j])) / (2.0 * l0[j]);
+    y[j] = 2.0 * area[j] / l0[j];
+  }
+  // The tensors in each face's frame (its weft needs the corners).
+  double td[4][L], tv[4][L];
+  for (int j = 0; j < L; ++j) {
+    const int f = first + std::min(j, count - 1);
+    const Vector2 corners[3] = {Vector2::Zero(), Vector2(l0[j], 0.0), Vector2(x[j], y[j])};
+    std::optional<Vector2> weft;  // one unit weft for both tensors
+    const Matrix2 Td = intrinsicTensor(corners, densityTensors, faceWeftCoefficients, f, weft);
+    const Matrix2 Tv = intrinsicTensor(corners, velocityTensors, faceWeftCoefficients, f, weft);
+    for (int r = 0; r < 2; ++r)
+      for (int c = 0; c < 2; ++c) {
+        td[2 * r + c][j] = Td(r, c);
+        tv[2 * r + c][j] = Tv(r, c);
+      }
+  }
+  // triangleGradients: column k is the edge p[k + 2] − p[k + 1] turned by
+  // +90°, over twice the signed area; the area its half magnitude.
+  double g[2][3][L], stiffnessArea[L];
+  for (int j = 0; j < L; ++j) {
+    const double twiceSignedArea = (l0[j] - 0.0) * (y[j] - 0.0) - (0.0 - 0.0) * (x[j] - 0.0);
+    g[0][0][j] = -(y[j] - 0.0) / twiceSignedArea;  // p2 − p1
+    g[1][0][j] = (x[j] - l0[j]) / twiceSignedArea;
+    g[0][1][j] = -(0.0 - y[j]) / twiceSignedArea;  // p0 − p2
+    g[1][1][j] = (0.0 - x[j]) / twiceSignedArea;
+    g[0][2][j] = -(0.0 - 0.0) / twiceSignedArea;  // p1 − p0
+    g[1][2][j] = (l0[j] - 0.0) / twiceSignedArea;
+    stiffnessArea[j] = 0.5 * std::abs(twiceSignedArea);
+  }
+  stiffnessOfLanes(stiffnessArea, g, td, out.density);
+  stiffnessOfLanes(stiffnessArea, g, tv, out.velocity);
 }
 
 }  // namespace
@@ -408,22 +491,23 @@ void refillStiffnessAndConnectionFromLengths(const SurfaceTopology& topology, co
   // connectionLaplacianFromLengths (intrinsicFaceStiffness's layout and
   // kernel), face by face in the same order: the same bits, the layout and
   // the gradients computed once for both.
+  // The blocks four faces at a time (stiffnessLanes: each face's own bits),
+  // added face by face in face order.
   FacePhases phases(faceTransportAngles, nullptr, topology.faceCount());
-  for (int f = 0; f < topology.faceCount(); ++f) {
-    Vector2 corners[3];
-    intrinsicCorners(topology, edgeLengths, f, corners, faceAreas(f));
-    const TriangleGradients gradients = triangleGradients(corners[0], corners[1], corners[2]);
-    const int* at = entry + 9 * static_cast<size_t>(f);
-    std::optional<Vector2> weft;  // one unit weft for both tensors
-    const Matrix3 Kd =
-        stiffnessFromGradients(gradients, intrinsicTensor(corners, densityTensors, faceWeftCoefficients, f, weft));
-    for (int k = 0; k < 3; ++k)
-      for (int l = 0; l < 3; ++l) stiffnessValues[at[3 * k + l]] += Kd(k, l);
-    const Matrix3 Kv =
-        stiffnessFromGradients(gradients, intrinsicTensor(corners, velocityTensors, faceWeftCoefficients, f, weft));
-    const Complex* r = phases.at(f);
-    for (int k = 0; k < 3; ++k)
-      for (int l = 0; l < 3; ++l) connectionValues[at[3 * k + l]] += connectionEntry(Kv, r, k, l);
+  StiffnessLanes lanes;
+  for (int first = 0; first < topology.faceCount(); first += kStiffnessLanes) {
+    const int count = std::min(kStiffnessLanes, topology.faceCount() - first);
+    stiffnessLanes(topology, edgeLengths, faceAreas, densityTensors, velocityTensors, faceWeftCoefficients, first,
+                   count, lanes);
+    for (int j = 0; j < count; ++j) {
+      const int f = first + j;
+      const int* at = entry + 9 * static_cast<size_t>(f);
+      for (int m = 0; m < 9; ++m) stiffnessValues[at[m]] += lanes.density[m][j];
+      const Complex* r = phases.at(f);
+      for (int k = 0; k < 3; ++k)
+        for (int l = 0; l < 3; ++l)
+          connectionValues[at[3 * k + l]] += connectionEntry(lanes.velocity[3 * k + l][j], r, k, l);
+    }
   }
 }
 
