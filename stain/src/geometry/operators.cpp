@@ -489,10 +489,9 @@ void refillStiffnessAndConnectionFromLengths(const SurfaceTopology& topology, co
   const int* entry = entries.index.data();
   // The terms of anisotropicStiffnessFromLengths and
   // connectionLaplacianFromLengths (intrinsicFaceStiffness's layout and
-  // kernel), face by face in the same order: the same bits, the layout and
-  // the gradients computed once for both.
-  // The blocks four faces at a time (stiffnessLanes: each face's own bits),
-  // added face by face in face order.
+  // kernel), each face's layout and gradients computed once for both, four
+  // faces at a time (stiffnessLanes: each face's own bits), then added face
+  // by face in face order: the same bits as those assemblies.
   FacePhases phases(faceTransportAngles, nullptr, topology.faceCount());
   StiffnessLanes lanes;
   for (int first = 0; first < topology.faceCount(); first += kStiffnessLanes) {
