@@ -94,6 +94,8 @@ double planarAngle(const Eigen::RowVector3d& d) { return std::atan2(d.y(), d.x()
 // wrapAngle is std::remainder(angle, 2π) to the bit: random angles over
 // [−20, 20] (both of its fast paths and the fallback) and the edges of each
 // path (±π and their neighbours, ±3π, ±9.4, exact ties at ±π), ±0 and NaN.
+// Qualified: this file's unqualified wrapAngle is the test support's
+// std::remainder, the reference.
 TEST(Transport, WrapAngleIsBitwiseTheRemainder) {
   const double pi = std::acos(-1.0);
   const double twoPi = 2.0 * pi;
@@ -108,10 +110,10 @@ TEST(Transport, WrapAngleIsBitwiseTheRemainder) {
   std::uniform_real_distribution<double> uniform(-20.0, 20.0);
   for (int k = 0; k < 200000; ++k) angles.push_back(uniform(random));
   for (const double a : angles) {
-    const double expected = std::remainder(a, twoPi), got = wrapAngle(a);
+    const double expected = std::remainder(a, twoPi), got = blot::stain::wrapAngle(a);
     ASSERT_EQ(std::memcmp(&expected, &got, sizeof(double)), 0) << std::hexfloat << a << ": " << got << " vs " << expected;
   }
-  EXPECT_TRUE(std::isnan(wrapAngle(std::numeric_limits<double>::quiet_NaN())));
+  EXPECT_TRUE(std::isnan(blot::stain::wrapAngle(std::numeric_limits<double>::quiet_NaN())));
 }
 
 TEST(Transport, PolarMapConventionsInteriorAndBoundary) {
