@@ -12,6 +12,10 @@
 #include <complex>
 #include <cstddef>
 
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
+
 #include "numerics/compensated_sum.h"
 #include "numerics/krylov_solver.h"
 #include "numerics/threads.h"
@@ -33,6 +37,34 @@ inline double boundModulus(const std::complex<double>& value) {
   return std::sqrt(value.real() * value.real() + value.imag() * value.imag());
 }
 
+// Σ boundModulus over values[begin, end), added in index order.
+inline double columnModulusSum(const double* values, int begin, int end) {
+  double sum = 0.0;
+  for (int p = begin; p < end; ++p) sum += boundModulus(values[p]);
+  return sum;
+}
+inline double columnModulusSum(const std::complex<double>* values, int begin, int end) {
+  double sum = 0.0;
+  int p = begin;
+#ifdef __SSE2__
+  // Two entries' moduli in one vector square root (correctly rounded per
+  // lane, as the scalar one), then added one by one in index order: the same
+  // bits as the scalar loop below, at about half the cost of its square
+  // roots (the bound's share of a metric rebuild).
+  const double* raw = reinterpret_cast<const double*>(values);
+  for (; p + 1 < end; p += 2) {
+    const __m128d a = _mm_loadu_pd(raw + 2 * p), b = _mm_loadu_pd(raw + 2 * p + 2);
+    const __m128d squaresA = _mm_mul_pd(a, a), squaresB = _mm_mul_pd(b, b);
+    const __m128d moduli =
+        _mm_sqrt_pd(_mm_add_pd(_mm_unpacklo_pd(squaresA, squaresB), _mm_unpackhi_pd(squaresA, squaresB)));
+    sum += _mm_cvtsd_f64(moduli);
+    sum += _mm_cvtsd_f64(_mm_unpackhi_pd(moduli, moduli));
+  }
+#endif
+  for (; p < end; ++p) sum += boundModulus(values[p]);
+  return sum;
+}
+
 template <typename Scalar>
 double spectralBound(const Eigen::SparseMatrix<Scalar>& stiffness, const Vector& areas) {
   const int n = static_cast<int>(stiffness.cols());
@@ -42,8 +74,7 @@ double spectralBound(const Eigen::SparseMatrix<Scalar>& stiffness, const Vector&
   double bound = 0.0;
   for (int j = 0; j < n; ++j) {
     const int end = nonZeros ? outer[j] + nonZeros[j] : outer[j + 1];
-    double sum = 0.0;
-    for (int p = outer[j]; p < end; ++p) sum += boundModulus(values[p]);
+    const double sum = columnModulusSum(values, outer[j], end);
     if (areas[j] > 0.0) bound = std::max(bound, sum / areas[j]);
   }
   return bound;
