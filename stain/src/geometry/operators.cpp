@@ -331,19 +331,41 @@ void stiffnessLanes(const SurfaceTopology& topology, const Vector& edgeLengths, 
     x[j] = (l0[j] * l0[j] + (l2[j] - l1[j]) * (l2[j] + l1[j])) / (2.0 * l0[j]);
     y[j] = 2.0 * area[j] / l0[j];
   }
-  // The tensors in each face's frame (its weft needs the corners).
+  // The tensors in each face's frame (its weft needs the corners):
+  // intrinsicTensor's arithmetic written out, without its Matrix2 and
+  // optional (it was a call per face and tensor).
   double td[4][L], tv[4][L];
   for (int j = 0; j < L; ++j) {
     const int f = first + std::min(j, count - 1);
-    const Vector2 corners[3] = {Vector2::Zero(), Vector2(l0[j], 0.0), Vector2(x[j], y[j])};
-    std::optional<Vector2> weft;  // one unit weft for both tensors
-    const Matrix2 Td = intrinsicTensor(corners, densityTensors, faceWeftCoefficients, f, weft);
-    const Matrix2 Tv = intrinsicTensor(corners, velocityTensors, faceWeftCoefficients, f, weft);
-    for (int r = 0; r < 2; ++r)
-      for (int c = 0; c < 2; ++c) {
-        td[2 * r + c][j] = Td(r, c);
-        tv[2 * r + c][j] = Tv(r, c);
+    double ex = 0.0, ey = 0.0;
+    bool haveWeft = false;  // one unit weft for both tensors
+    const auto tensor = [&](const Eigen::MatrixX3d& tensors, double (&entries)[4][L]) {
+      const double sww = tensors(f, 0), swp = tensors(f, 1), spp = tensors(f, 2);
+      if (swp == 0.0 && sww == spp) {  // isotropic: sww · I, as intrinsicTensor
+        entries[0][j] = sww * 1.0;
+        entries[1][j] = entries[2][j] = sww * 0.0;
+        entries[3][j] = sww * 1.0;
+        return;
       }
+      if (!haveWeft) {
+        const Vector2 corners[3] = {Vector2::Zero(), Vector2(l0[j], 0.0), Vector2(x[j], y[j])};
+        const Vector2 e = intrinsicWeft(corners, faceWeftCoefficients, f);
+        ex = e.x();
+        ey = e.y();
+        haveWeft = true;
+      }
+      // tensorInFace: B S Bᵀ with B = [e e⊥] = [ex −ey; ey ex], the products
+      // evaluated as Eigen does, (B S) first, each entry's terms in index order.
+      const double b[2][2] = {{ex, -ey}, {ey, ex}};
+      const double fabric[2][2] = {{sww, swp}, {swp, spp}};
+      double bs[2][2];
+      for (int r = 0; r < 2; ++r)
+        for (int c = 0; c < 2; ++c) bs[r][c] = b[r][0] * fabric[0][c] + b[r][1] * fabric[1][c];
+      for (int r = 0; r < 2; ++r)
+        for (int c = 0; c < 2; ++c) entries[2 * r + c][j] = bs[r][0] * b[c][0] + bs[r][1] * b[c][1];
+    };
+    tensor(densityTensors, td);
+    tensor(velocityTensors, tv);
   }
   // triangleGradients: column k is the edge p[k + 2] − p[k + 1] turned by
   // +90°, over twice the signed area; the area its half magnitude.
