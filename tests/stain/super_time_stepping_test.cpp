@@ -102,7 +102,7 @@ struct ExactSemiDiscrete {
 double massNorm(const Vector& areas, const Vector& v) { return std::sqrt(areas.dot(v.cwiseAbs2())); }
 
 // The complex bound's vector square roots (two entries at a time) give the
-// scalar loop's bits: random Hermitian-like patterns whose columns hold 0 to 9
+// scalar loop's bits: random complex patterns whose columns hold 0 to 9
 // entries (odd and even counts, so the pairs' tail runs too), moduli from
 // 1e-3 to 1e3, compressed and not.
 TEST(SuperTimeStepping, ComplexBoundIsBitwiseTheScalarSum) {
@@ -132,7 +132,7 @@ TEST(SuperTimeStepping, ComplexBoundIsBitwiseTheScalarSum) {
     }
     return bound;
   };
-  double sumsChecked = 0;
+  int sumsChecked = 0;
   for (const bool compressed : {true, false}) {
     ComplexSparseMatrix A = L;
     if (!compressed) A.uncompress();
