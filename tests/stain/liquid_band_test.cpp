@@ -290,7 +290,7 @@ TEST(LiquidBand, BandGrownWithAGrowingSpeedBoundStillHoldsTheReach) {
       if (nearest <= distance) {
         EXPECT_NE(band.reachMask[static_cast<size_t>(v)], 0) << "step " << k << " vertex " << v;
       }
-      if (nearest <= 2 * distance) {
+      if (nearest <= 2 * distance && !band.footInStar) {  // the labels' band (a star band: FootPointsInTheirStars...)
         EXPECT_NE(band.bandMask[static_cast<size_t>(v)], 0) << "step " << k << " vertex " << v;
         ++checked;
       }
@@ -454,6 +454,7 @@ struct FirstBand {
   std::vector<int> levels;
   std::vector<char> reach;
   double distance = 0;  ///< h U (m)
+  bool footInStar = false;
 };
 FirstBand firstBand(const TriangleMesh& mesh, double x) {
   const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
@@ -466,7 +467,7 @@ FirstBand firstBand(const TriangleMesh& mesh, double x) {
   solver.addDrop(drop);
   EXPECT_EQ(solver.step(0.05, mesh.vertexPositions).status, StepStatus::Ok);
   const LiquidBand& band = solver.band();
-  return {band.size(), band.rings, band.levels, band.reachMask, 0.05 * band.speedBound};
+  return {band.size(), band.rings, band.levels, band.reachMask, 0.05 * band.speedBound, band.footInStar};
 }
 
 // The band is as wide as the distance the liquid can go, measured with the
@@ -505,6 +506,7 @@ TEST(LiquidBand, BandHoldsEveryVertexTheLiquidAndItsFootPointsCanReach) {
     for (const double x : {0.3, 0.45, 0.55, 0.6}) {
       const FirstBand band = firstBand(*mesh, x);
       ASSERT_GT(band.distance, 0.05);
+      ASSERT_FALSE(band.footInStar);  // d is several edges: the labels decide this band
       const int n = static_cast<int>(mesh->vertexPositions.rows());
       for (int v = 0; v < n; ++v) {
         double nearest = std::numeric_limits<double>::infinity();
@@ -563,6 +565,131 @@ TEST(LiquidBand, BandHoldsEveryVertexTheLiquidAndItsFootPointsCanReach) {
   EXPECT_GT(checked, 1000);
 }
 
+
+/// Every corner with a nonzero weight of each reach vertex's velocity foot
+/// point (the last step's backtrack) is in the band; returns how many reach
+/// vertices were checked.
+int expectFootPointsInBand(const StainSolver& solver, int step) {
+  const LiquidBand& band = solver.band();
+  const FootVertices& feet = solver.velocityFootVertices();
+  const FootWeights& weights = solver.velocityFootWeights();
+  int checked = 0;
+  for (const int i : band.vertices) {
+    if (band.reachMask[static_cast<size_t>(i)] == 0) continue;
+    for (int c = 0; c < 3; ++c) {
+      if (weights(i, c) == 0.0) continue;
+      EXPECT_GE(band.levels[static_cast<size_t>(feet(i, c))], 0)
+          << "step " << step << ": the foot point of reach vertex " << i << " reads vertex " << feet(i, c)
+          << ", outside the band";
+    }
+    ++checked;
+  }
+  return checked;
+}
+
+/// The least altitude from vertex v of its triangles (flat positions).
+double leastAltitude(const TriangleMesh& mesh, int v) {
+  double least = std::numeric_limits<double>::infinity();
+  for (int f = 0; f < mesh.faces.rows(); ++f) {
+    for (int c = 0; c < 3; ++c) {
+      if (mesh.faces(f, c) != v) continue;
+      const Vector3 p = mesh.vertexPositions.row(v).transpose();
+      const Vector3 a = mesh.vertexPositions.row(mesh.faces(f, (c + 1) % 3)).transpose();
+      const Vector3 b = mesh.vertexPositions.row(mesh.faces(f, (c + 2) % 3)).transpose();
+      least = std::min(least, (a - p).cross(b - p).norm() / (b - a).norm());
+    }
+  }
+  return least;
+}
+
+// A slow drop's foot points stay in their vertices' stars: the band stops at
+// the reach set's one ring, the reach set is the velocity solve's rows, and
+// every foot point read is in the band, step after step, on a regular grid
+// and a jittered one, with and without viscosity. A fast drop's band is the
+// labels' (footInStar false), its foot points in the band as well.
+TEST(LiquidBand, FootPointsInTheirStarsStopTheBandAtTheReachSetsRing) {
+  TriangleMesh jittered = gridMesh(40, 40, 1.0, 1.0);
+  std::uint32_t seed = 777;
+  const auto uniform01 = [&] {
+    seed = seed * 1664525u + 1013904223u;
+    return (seed >> 8) / double(1u << 24);
+  };
+  for (int i = 0; i < jittered.vertexPositions.rows(); ++i) {
+    const double x = jittered.vertexPositions(i, 0), y = jittered.vertexPositions(i, 1);
+    if (x <= 0 || x >= 1 || y <= 0 || y >= 1) continue;
+    jittered.vertexPositions(i, 0) += 0.3 / 40 * (2 * uniform01() - 1);
+    jittered.vertexPositions(i, 1) += 0.3 / 40 * (2 * uniform01() - 1);
+  }
+  const TriangleMesh regular = gridMesh(40, 40, 1.0, 1.0);
+  int starSteps = 0, labelSteps = 0, feet = 0;
+  for (const TriangleMesh* mesh : {&regular, static_cast<const TriangleMesh*>(&jittered)}) {
+    for (const bool viscous : {false, true}) {
+      for (const double speed : {0.1, 1.5}) {
+        const int n = static_cast<int>(mesh->vertexPositions.rows());
+        const SurfaceTopology topology(mesh->faces, n);
+        StainSolver solver(topology, mesh->vertexPositions,
+                           isotropicFabricField(static_cast<int>(mesh->faces.rows()), 1e-4, 1e-4),
+                           transportOnly(viscous));
+        DropDef drop;
+        drop.centerPoint = Vector3(0.4, 0.5, 0.0);
+        drop.radius = 0.08;
+        drop.velocity = Vector3(speed, 0.3 * speed, 0.0);
+        solver.addDrop(drop);
+        const double h = 0.02;
+        for (int step = 1; step <= 8; ++step) {
+          const StepReport report = solver.step(h, mesh->vertexPositions);
+          ASSERT_EQ(report.status, StepStatus::Ok) << report.message;
+          const LiquidBand& band = solver.band();
+          feet += expectFootPointsInBand(solver, step);
+          if (speed > 1.0) {
+            EXPECT_FALSE(band.footInStar) << "speed " << speed << " step " << step;
+            labelSteps += band.footInStar ? 0 : 1;
+            continue;
+          }
+          ASSERT_TRUE(band.footInStar) << "viscous " << viscous << " step " << step;
+          ++starSteps;
+          // The claim, measured independently: h U below every reach vertex's least altitude.
+          for (const int i : band.vertices) {
+            if (band.reachMask[static_cast<size_t>(i)] != 0) {
+              EXPECT_LT(h * band.speedBound, leastAltitude(*mesh, i)) << "step " << step << " vertex " << i;
+            }
+          }
+          // The band is exactly the reach set and its one ring. The velocity
+          // solve's rows: the band vertices whose neighbours are all in it
+          // (the reach set, and a ring vertex enclosed by the band).
+          const auto ring = [&](int i) {
+            return std::make_pair(topology.ringOffsets()[static_cast<size_t>(i)],
+                                  topology.ringOffsets()[static_cast<size_t>(i) + 1]);
+          };
+          const std::vector<int>& neighbors = topology.ringNeighbors();
+          std::vector<char> expected(static_cast<size_t>(n), 0);
+          for (int i = 0; i < n; ++i) {
+            if (band.reachMask[static_cast<size_t>(i)] == 0) continue;
+            expected[static_cast<size_t>(i)] = 1;
+            for (int m = ring(i).first; m < ring(i).second; ++m) expected[static_cast<size_t>(neighbors[static_cast<size_t>(m)])] = 1;
+          }
+          for (int i = 0; i < n; ++i) {
+            EXPECT_EQ(band.levels[static_cast<size_t>(i)] >= 0, expected[static_cast<size_t>(i)] != 0)
+                << "step " << step << " vertex " << i;
+            if (expected[static_cast<size_t>(i)] == 0) continue;
+            bool enclosed = true;
+            for (int m = ring(i).first; m < ring(i).second; ++m)
+              enclosed = enclosed && expected[static_cast<size_t>(neighbors[static_cast<size_t>(m)])] != 0;
+            EXPECT_EQ(band.diffusionMask[static_cast<size_t>(i)] != 0, enclosed) << "step " << step << " vertex " << i;
+            if (band.reachMask[static_cast<size_t>(i)] != 0) {
+              EXPECT_TRUE(enclosed) << "step " << step << " vertex " << i;
+            }
+          }
+          EXPECT_EQ(band.rings, band.reachRings + 1) << "step " << step;
+          if (HasFailure()) return;
+        }
+      }
+    }
+  }
+  EXPECT_EQ(starSteps, 32);
+  EXPECT_EQ(labelSteps, 32);
+  EXPECT_GT(feet, 5000);
+}
 
 // ------------------------------------------- geometry on the band only
 
@@ -632,7 +759,7 @@ TEST(LiquidBand, BandRestrictedGeometryGivesTheFullGeometryStepOnADeformingFlag)
   expectSameState(band.state(), full.state(), 0);
 
   std::vector<char> firstBand(static_cast<size_t>(n), 0);
-  int rebuilds = 0, firstShare = 0, tracesOutsideBand = 0;
+  int rebuilds = 0, firstShare = 0, tracesOutsideBand = 0, footChecks = 0, starSteps = 0;
   bool leftFirstBand = false;
   for (int step = 1; step <= 40; ++step) {
     if (step == 25) {  // a drop far from the first, onto vertices the band never reached
@@ -655,6 +782,8 @@ TEST(LiquidBand, BandRestrictedGeometryGivesTheFullGeometryStepOnADeformingFlag)
     expectSameState(traces.state(), full.state(), step);
     expectSameBandGeometry(band, full, step);
     expectSameBandGeometry(traces, full, step);
+    footChecks += expectFootPointsInBand(band, step);
+    starSteps += band.band().footInStar ? 1 : 0;
     if (HasFatalFailure()) return;
     // The band only; with framesOnDampVertices every trace as well.
     EXPECT_EQ(band.profile().geometryVertices, band.profile().bandVertices) << "step " << step;
@@ -675,6 +804,9 @@ TEST(LiquidBand, BandRestrictedGeometryGivesTheFullGeometryStepOnADeformingFlag)
       leftFirstBand |= firstBand[static_cast<size_t>(band.bandVertices()[static_cast<size_t>(k)])] == 0;
   }
   EXPECT_TRUE(leftFirstBand) << "the liquid never left the first step's band";
+  EXPECT_GT(footChecks, 1000);
+  std::printf("deforming flag: %d of 40 bands with the foot points in their stars, %d foot points checked\n", starSteps,
+              footChecks);
   EXPECT_GT(tracesOutsideBand, 0) << "no trace of liquid outside the band: framesOnDampVertices was not exercised";
   EXPECT_GT(rebuilds, 0) << "the waving flag should trip the strain test";
   EXPECT_LT(firstShare, n / 5) << "the first step's band-restricted geometry covered a fifth of the mesh";

@@ -26,6 +26,7 @@ void clearBand(LiquidBand& band) {
   band.soakedVertices.clear();
   band.rings = band.reachRings = band.haloCount = band.regrowths = band.interiorCount = 0;
   band.speedBound = 0;
+  band.footInStar = false;
 }
 
 }  // namespace
@@ -57,6 +58,7 @@ void LiquidBand::resize(int vertexCount, int ringEntries) {
   distances.assign(n, Distances());
   rings = reachRings = haloCount = regrowths = interiorCount = 0;
   speedBound = 0;
+  footInStar = false;
   if (ringEntries > 0) {
     ringTransports.setZero(ringEntries);
     ringRebuildCounts.assign(n, -1);  // no entry filled yet
@@ -155,7 +157,11 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
     band.ringRebuildCounts.assign(static_cast<size_t>(n), -1);
   }
   const std::vector<int>& ringEdges = topology.ringEdges();
+  const std::vector<int>& ringFaces = topology.ringFaces();
+  const Triangles& faces = topology.faces();
+  const Eigen::MatrixX3i& faceEdges = topology.faceEdges();
   const bool haveLengths = intrinsic.edgeLengths.size() > 0;
+  const bool haveAreas = haveLengths && intrinsic.faceAreas.size() == topology.faceCount();
   // Vertex v's ring entries of ringTransports and its shortest edge (m,
   // intrinsic; 0 without a metric, whose band then covers the component: the
   // distance to cover is infinite), filled once per rebuild (the velocity
@@ -165,10 +171,21 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
     if (filledFrom == intrinsic.rebuildCount) return;
     double shortest = haveLengths ? std::numeric_limits<double>::infinity() : 0.0;
     fillRingTransports(topology, intrinsic.edgeTransportAngles, v, band.ringTransports.data());
-    if (haveLengths)
-      for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m)
+    // Each triangle's altitude from v, twice its area over the edge opposite
+    // v (without areas 0: no foot point is then taken to be in its star).
+    double starRadius = haveAreas ? std::numeric_limits<double>::infinity() : 0.0;
+    if (haveLengths) {
+      for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m) {
         shortest = std::min(shortest, intrinsic.edgeLengths[ringEdges[static_cast<size_t>(m)]]);
+        const int f = ringFaces[static_cast<size_t>(m)];
+        if (!haveAreas || f < 0) continue;
+        const int corner = faces(f, 0) == v ? 0 : faces(f, 1) == v ? 1 : 2;
+        const double opposite = intrinsic.edgeLengths[faceEdges(f, (corner + 1) % 3)];
+        starRadius = std::min(starRadius, opposite > 0.0 ? 2.0 * intrinsic.faceAreas[f] / opposite : 0.0);
+      }
+    }
     band.distances[static_cast<size_t>(v)].shortestEdge = shortest;
+    band.distances[static_cast<size_t>(v)].starRadius = starRadius;
     filledFrom = intrinsic.rebuildCount;
   };
   const int wetCount = band.wetCount();
@@ -198,6 +215,7 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
   // per vertex (glibc's hypot, with its rounding-mode guard, was a tenth of
   // this function's time on a 10K cloth).
   double speedSquared = 0.0, acceleration = 0.0;
+  double wetStarRadius = std::numeric_limits<double>::infinity();  // the wet set's least
   for (int k = 0; k < wetCount; ++k) {
     const int i = band.vertices[static_cast<size_t>(k)];
     const size_t ii = static_cast<size_t>(i);
@@ -207,7 +225,9 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
     fillVertexTables(i);
     LiquidBand::Distances& labels = band.distances[ii];
     labels.fromWet = labels.fromReach = labels.nearestWet = labels.nearestReach = 0.0;
+    wetStarRadius = std::min(wetStarRadius, labels.starRadius);
   }
+  const double wetSpeedSquared = speedSquared, wetAcceleration = acceleration;
 
   // Distance labels (growLiquidBand's comment in the header): a vertex is a
   // reach centre if wet or nearestWet < d, in the reach set if wet or next to
@@ -221,12 +241,17 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
     return haveLengths && std::isfinite(d) ? d : std::numeric_limits<double>::infinity();
   };
   bool everything = inputs.coverComponent;
+  // First with the foot points in their stars (the reach set's one ring),
+  // kept if the final d is below the reach set's least star radius.
+  bool inStars = !everything;
+  band.footInStar = false;
   double distance = 0.0;
   for (int attempt = 0;; ++attempt) {
     distance = distanceFor(std::sqrt(speedSquared) + inputs.h * acceleration);
     // The least label a "no" compared against d: the answer changes only if
     // the final d exceeds it.
     double rejected = std::numeric_limits<double>::infinity();
+    double starLimit = wetStarRadius;  // the reach set's least star radius so far
     const auto isReachCentre = [&](int v) {
       const size_t vv = static_cast<size_t>(v);
       if (band.levels[vv] == 0 || band.distances[vv].nearestWet < distance) return true;
@@ -235,7 +260,9 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
     };
     const auto letsGrow = [&](int v) {
       const size_t vv = static_cast<size_t>(v);
-      if (everything || band.reachMask[vv] != 0 || band.distances[vv].nearestReach < distance) return true;
+      if (everything || band.reachMask[vv] != 0) return true;
+      if (inStars) return false;  // holds while d < starLimit (checked at the end)
+      if (band.distances[vv].nearestReach < distance) return true;
       rejected = std::min(rejected, band.distances[vv].nearestReach);
       return false;
     };
@@ -322,6 +349,7 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
         band.weights[i] = soaked ? 0.0 : weightSum / static_cast<double>(count);
         band.reachMask[ii] = inReach ? 1 : 0;
         LiquidBand::Distances& labels = band.distances[ii];
+        if (inReach) starLimit = std::min(starLimit, labels.starRadius);
         labels.fromWet = fromWet;
         labels.fromReach = inReach ? 0.0 : fromReach;
         labels.nearestWet = nearestWet;
@@ -332,6 +360,20 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
       band.ringEnds.push_back(ringEnd);
       band.rings = level;
       distance = distanceFor(std::sqrt(speedSquared) + inputs.h * acceleration);
+    }
+    if (inStars) {
+      if (!(rejected < distance) && distance < starLimit) {
+        band.footInStar = true;
+        break;
+      }
+      // Grown again by the labels from the wet set's speed bound: what the
+      // band would have been without the star rule.
+      shrinkBandToWetSet(band);  // not counted in regrowths: those are the labels'
+      inStars = false;
+      speedSquared = wetSpeedSquared;
+      acceleration = wetAcceleration;
+      --attempt;  // not a try towards covering the component
+      continue;
     }
     // Every "no" holds with the final d: the band is complete. Otherwise grow
     // it again with the final d (the speed bound is kept); after two tries,

@@ -222,6 +222,10 @@ class StainSolver {
   /// Valid until the next step.
   const std::vector<int>& bandVertices() const { return band_.vertices; }
   const LiquidBand& band() const { return band_; }
+  /// The last step's velocity foot points (VelocityAdvectionScratch): rows of
+  /// the reach set's vertices are that step's, other rows are stale.
+  const FootVertices& velocityFootVertices() const { return velocityScratch_.footVertices; }
+  const FootWeights& velocityFootWeights() const { return velocityScratch_.footWeights; }
   /// The state for writing from outside a step (tests, tools). The next
   /// step then validates and scans every vertex and copies the whole state
   /// as its rollback point: write through the reference before the next

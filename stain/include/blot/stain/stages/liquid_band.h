@@ -42,6 +42,10 @@ struct LiquidBand {
   /// label a "stop here" was decided on (0 on most steps).
   int regrowths = 0;
   double speedBound = 0;  ///< U (m/s): bound on |u| over the band after this step's forces
+  /// d = h U was below the star radius of every reach vertex, so every foot
+  /// point lies in its vertex's star, and the band is the reach set and its
+  /// one ring (growLiquidBand, "Foot points in their stars").
+  bool footInStar = false;
   /// #V extension weights: liquid mass A(σ_f + σ_s) on wet vertices, and on
   /// an extended vertex the mean weight of the neighbours it was built from.
   Vector weights;
@@ -90,8 +94,11 @@ struct LiquidBand {
   /// covers to reach the vertex, and the least such label among its
   /// neighbours at the level below. One record per vertex: the band's sweep
   /// reads all of a neighbour's at once.
+  /// starRadius (m, intrinsic, filled with shortestEdge): the least altitude
+  /// from the vertex of its triangles; a path from the vertex shorter than it
+  /// stays in the vertex's star.
   struct Distances {
-    double shortestEdge = 0, fromWet = 0, fromReach = 0, nearestWet = 0, nearestReach = 0;
+    double shortestEdge = 0, fromWet = 0, fromReach = 0, nearestWet = 0, nearestReach = 0, starRadius = 0;
   };
   std::vector<Distances> distances;  ///< #V
 
@@ -198,6 +205,17 @@ void settleSoakedVelocities(const LiquidBand& band, StainState& state, const Cha
 /// would have passed (a rejected label below it) is grown again from the wet
 /// set (LiquidBand::regrowths; after two tries it covers the component). coverComponent: the whole
 /// component, reach set as above.
+///
+/// Foot points in their stars: the backtrack from a reach vertex x walks
+/// h |u_x| ≤ d from x along the surface, so while d is below the least
+/// altitude from x of x's triangles (Distances::starRadius) the foot point
+/// lies in x's star, whose corners are x and its neighbours. The band is
+/// first grown so, stopping at the reach set's one ring; when the final d is
+/// below the least star radius of the reach set (LiquidBand::footInStar),
+/// that band is kept: the reach vertices are the velocity solve's rows and
+/// their ring its boundary data. Otherwise it is grown again by the labels
+/// above from the wet set's speed bound, which is the band without this rule,
+/// to the bit (regrowths counts the labels' attempts only).
 ///
 /// Extension (breadth-first, level by level): vertex i at level k gets
 ///   u_i = Σ_j w_j (e^{iθ_ij} u_j + P_i (v_j − v_i)) / Σ_j w_j
