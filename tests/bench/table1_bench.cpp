@@ -220,7 +220,7 @@ void BM_Table1(benchmark::State& state) {
     bare.advance(def.timeStep);
   }
   const EngineStatistics before = engine.statistics();
-  double fits = 0, newton = 0, bandVertices = 0, wetVertices = 0;  // sums over the timed steps
+  double fits = 0, newton = 0, bandVertices = 0, wetVertices = 0, starBands = 0;  // sums over the timed steps
   double bareMs = 0;
   long refreshes = 0, substeps = 0;
   unsigned terms = 0;  // StepTerm bits of the terms that ran in any timed step
@@ -242,6 +242,7 @@ void BM_Table1(benchmark::State& state) {
     newton += static_cast<double>(engine.surface().stain().geometry().rotationFitStats().newtonIterations);
     bandVertices += engine.surface().stain().profile().bandVertices;
     wetVertices += engine.surface().stain().profile().wetVertices;
+    starBands += engine.surface().stain().band().footInStar ? 1 : 0;
   }
   const EngineStatistics after = engine.statistics();
   const double n = static_cast<double>(after.steps - before.steps);
@@ -287,6 +288,9 @@ void BM_Table1(benchmark::State& state) {
   state.counters["wet_vertices_per_step"] = wetVertices / n;
   state.counters["fits_per_step"] = fits / n;
   state.counters["newton_per_fit"] = fits > 0 ? newton / fits : 0.0;
+  // Share of the timed steps whose band stopped at the reach set's ring (its
+  // foot points in their stars, docs/transport.md).
+  state.counters["star_band_share"] = starBands / n;
   // "scene: terms that ran (vertex counts of the last step)"; scripts/table1
   // keys the rows by the scene name before the colon.
   stain::StepProfile last = engine.surface().stain().profile();
