@@ -483,23 +483,29 @@ TEST(LiquidBand, ShortEdgesAwayFromTheLiquidDoNotWidenTheBand) {
   EXPECT_TRUE(graded.reach == uniform.reach);
 }
 
+/// A 40 x 40 grid over the unit square whose interior vertices are moved by
+/// up to `amplitude` cells in x and y (a fixed LCG from `seed`).
+TriangleMesh jitteredGrid(double amplitude, std::uint32_t seed) {
+  TriangleMesh mesh = gridMesh(40, 40, 1.0, 1.0);
+  const auto uniform01 = [&] {
+    seed = seed * 1664525u + 1013904223u;
+    return (seed >> 8) / double(1u << 24);
+  };
+  for (int i = 0; i < mesh.vertexPositions.rows(); ++i) {
+    const double x = mesh.vertexPositions(i, 0), y = mesh.vertexPositions(i, 1);
+    if (x <= 0 || x >= 1 || y <= 0 || y >= 1) continue;
+    mesh.vertexPositions(i, 0) += amplitude / 40 * (2 * uniform01() - 1);
+    mesh.vertexPositions(i, 1) += amplitude / 40 * (2 * uniform01() - 1);
+  }
+  return mesh;
+}
+
 // Whatever the edges, the band holds every vertex within h U of the wet set
 // in its reach set and every vertex within 2 h U in the band (flat sheets,
 // so the distance is Euclidean), for drops on coarse edges, on fine ones and
 // across the change of resolution, on a squeezed grid and on a jittered one.
 TEST(LiquidBand, BandHoldsEveryVertexTheLiquidAndItsFootPointsCanReach) {
-  TriangleMesh jittered = gridMesh(40, 40, 1.0, 1.0);
-  std::uint32_t seed = 12345;
-  const auto uniform01 = [&] {
-    seed = seed * 1664525u + 1013904223u;
-    return (seed >> 8) / double(1u << 24);
-  };
-  for (int i = 0; i < jittered.vertexPositions.rows(); ++i) {
-    const double x = jittered.vertexPositions(i, 0), y = jittered.vertexPositions(i, 1);
-    if (x <= 0 || x >= 1 || y <= 0 || y >= 1) continue;
-    jittered.vertexPositions(i, 0) += 0.35 / 40 * (2 * uniform01() - 1);
-    jittered.vertexPositions(i, 1) += 0.35 / 40 * (2 * uniform01() - 1);
-  }
+  const TriangleMesh jittered = jitteredGrid(0.35, 12345);
   const TriangleMesh graded = gradedGrid();
   int checked = 0;
   for (const TriangleMesh* mesh : {&graded, static_cast<const TriangleMesh*>(&jittered)}) {
@@ -608,18 +614,7 @@ double leastAltitude(const TriangleMesh& mesh, int v) {
 // and a jittered one, with and without viscosity. A fast drop's band is the
 // labels' (footInStar false), its foot points in the band as well.
 TEST(LiquidBand, FootPointsInTheirStarsStopTheBandAtTheReachSetsRing) {
-  TriangleMesh jittered = gridMesh(40, 40, 1.0, 1.0);
-  std::uint32_t seed = 777;
-  const auto uniform01 = [&] {
-    seed = seed * 1664525u + 1013904223u;
-    return (seed >> 8) / double(1u << 24);
-  };
-  for (int i = 0; i < jittered.vertexPositions.rows(); ++i) {
-    const double x = jittered.vertexPositions(i, 0), y = jittered.vertexPositions(i, 1);
-    if (x <= 0 || x >= 1 || y <= 0 || y >= 1) continue;
-    jittered.vertexPositions(i, 0) += 0.3 / 40 * (2 * uniform01() - 1);
-    jittered.vertexPositions(i, 1) += 0.3 / 40 * (2 * uniform01() - 1);
-  }
+  const TriangleMesh jittered = jitteredGrid(0.3, 777);
   const TriangleMesh regular = gridMesh(40, 40, 1.0, 1.0);
   int starSteps = 0, labelSteps = 0, feet = 0;
   for (const TriangleMesh* mesh : {&regular, static_cast<const TriangleMesh*>(&jittered)}) {
