@@ -242,8 +242,10 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
   };
   bool everything = inputs.coverComponent;
   // First with the foot points in their stars (the reach set's one ring),
-  // kept if the final d is below the reach set's least star radius.
-  bool inStars = !everything;
+  // kept if the final d is below the reach set's least star radius; not tried
+  // where the wet set's own d already reaches its least star radius (d only
+  // grows and the radius only shrinks as the band grows).
+  bool inStars = !everything && distanceFor(std::sqrt(speedSquared) + inputs.h * acceleration) < wetStarRadius;
   band.footInStar = false;
   double distance = 0.0;
   for (int attempt = 0;; ++attempt) {
@@ -360,6 +362,7 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
       band.ringEnds.push_back(ringEnd);
       band.rings = level;
       distance = distanceFor(std::sqrt(speedSquared) + inputs.h * acceleration);
+      if (inStars && !(distance < starLimit)) break;  // the stars cannot hold: to the labels
     }
     if (inStars) {
       if (!(rejected < distance) && distance < starLimit) {
