@@ -215,7 +215,10 @@ void settleSoakedVelocities(const LiquidBand& band, StainState& state, const Cha
 /// that band is kept: the reach vertices are the velocity solve's rows and
 /// their ring its boundary data. Otherwise it is grown again by the labels
 /// above from the wet set's speed bound, which is the band without this rule,
-/// to the bit (regrowths counts the labels' attempts only).
+/// to the bit (regrowths counts the labels' attempts only). The star attempt
+/// is skipped where the wet set's own d already reaches the wet set's least
+/// star radius, and abandoned at the first ring whose d reaches the reach
+/// set's: d only grows and that radius only shrinks as the band grows.
 ///
 /// Extension (breadth-first, level by level): vertex i at level k gets
 ///   u_i = Σ_j w_j (e^{iθ_ij} u_j + P_i (v_j − v_i)) / Σ_j w_j
