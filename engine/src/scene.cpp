@@ -15,6 +15,7 @@
 #include <blot/stain/io/mesh_io.h>
 #include <blot/stain/io/strict_json.h>
 #include <blot/stain/fabric/homogenization.h>
+#include <blot/stain/geometry/mesh_order.h>
 #include <blot/stain/geometry/mesh_primitives.h>
 #include <blot/stain/fabric/weave_pattern.h>
 
@@ -93,6 +94,19 @@ class Context {
   }
   const std::string& source() const { return source_; }
   const SceneLoadOptions& options() const { return options_; }
+  /// The mesh's renumbering (mesh.vertex_order "locality"; empty lists: the
+  /// file's own numbering). Indices in the scene name the file's elements;
+  /// these map them to the engine's, and back for messages.
+  void setMeshOrder(const stain::MeshOrder& order) {
+    order_ = order;
+    vertexOf_ = order.vertices.empty() ? std::vector<int>() : stain::inversePermutation(order.vertices);
+    faceOf_ = order.faces.empty() ? std::vector<int>() : stain::inversePermutation(order.faces);
+  }
+  int engineVertex(int fileVertex) const { return vertexOf_.empty() ? fileVertex : vertexOf_[size_t(fileVertex)]; }
+  int engineFace(int fileFace) const { return faceOf_.empty() ? fileFace : faceOf_[size_t(fileFace)]; }
+  int fileVertex(int engineVertex) const {
+    return order_.vertices.empty() ? engineVertex : order_.vertices[size_t(engineVertex)];
+  }
   /// Vertex and face indices name other elements on a re-meshed patch: refused.
   void refuseIndexUnderOverride(const std::string& path, const char* instead) const {
     if (options_.patchResolution > 0)
@@ -104,6 +118,8 @@ class Context {
   std::string source_;
   std::filesystem::path base_;
   SceneLoadOptions options_;
+  stain::MeshOrder order_;
+  std::vector<int> vertexOf_, faceOf_;
 };
 
 double numberValue(const Context& ctx, const json& v, const std::string& path, const Range& range) {
@@ -237,7 +253,7 @@ void placePatch(stain::TriangleMesh& mesh, int plane, const Eigen::Vector3d& cen
   }
 }
 
-stain::TriangleMesh parseMesh(ObjectReader& r, std::string& description) {
+stain::TriangleMesh parseMesh(ObjectReader& r, std::string& description, stain::MeshOrder& order) {
   const char* kinds[] = {"file", "patch", "icosphere", "disc"};
   int count = 0;
   for (const char* k : kinds) count += r.has(k) ? 1 : 0;
@@ -302,6 +318,7 @@ stain::TriangleMesh parseMesh(ObjectReader& r, std::string& description) {
   }
   const double scale = r.number("scale", 1.0, positive());
   const Eigen::Vector3d translate = r.vector3("translate", Eigen::Vector3d::Zero());
+  const bool locality = r.choice("vertex_order", 0, {"file", "locality"}) == 1;
   r.finish();
   mesh.vertexPositions *= scale;
   mesh.vertexPositions.rowwise() += translate.transpose();
@@ -318,6 +335,13 @@ stain::TriangleMesh parseMesh(ObjectReader& r, std::string& description) {
   }
   description += " (" + std::to_string(mesh.vertexPositions.rows()) + " vertices, " +
                  std::to_string(mesh.faces.rows()) + " faces)";
+  // Renumbered for memory locality (stain/geometry/mesh_order.h); the scene's
+  // indices keep naming the file's elements (Context::engineVertex).
+  if (locality) {
+    order = stain::localityOrder(mesh);
+    stain::reorderMesh(mesh, order);
+    description += ", renumbered for locality";
+  }
   return mesh;
 }
 
@@ -328,13 +352,18 @@ int vertexOrPoint(ObjectReader& r, const stain::TriangleMesh& mesh, bool require
   if (hasVertex && hasPoint) r.context().fail(r.path("point"), "give either \"vertex\" or \"point\", not both");
   if (hasVertex) {
     r.context().refuseIndexUnderOverride(r.path("vertex"), "\"point\"");
-    return r.integer("vertex", -1, indices(0, n));
+    return r.context().engineVertex(r.integer("vertex", -1, indices(0, n)));
   }
   if (hasPoint) {
+    // The nearest vertex; of equally near ones the file's first (whatever
+    // the engine's numbering).
     const Eigen::Vector3d p = r.vector3("point", Eigen::Vector3d::Zero());
-    Eigen::Index best = 0;
-    (mesh.vertexPositions.rowwise() - p.transpose()).rowwise().squaredNorm().minCoeff(&best);
-    return static_cast<int>(best);
+    const Eigen::VectorXd distances = (mesh.vertexPositions.rowwise() - p.transpose()).rowwise().squaredNorm();
+    const double nearest = distances.minCoeff();
+    int best = -1;
+    for (int i = 0; i < n; ++i)
+      if (distances[i] == nearest && (best < 0 || r.context().fileVertex(i) < r.context().fileVertex(best))) best = i;
+    return best;
   }
   if (required) r.context().fail(r.path("vertex"), "required: give \"vertex\" (an index) or \"point\" ([x, y, z])");
   return -1;
@@ -399,7 +428,7 @@ void parseBullet(ObjectReader& r, const stain::TriangleMesh& mesh, cloth::ClothD
     parsePin(p, mesh, pin);
     int& owner = pinOf[static_cast<size_t>(pin.vertex)];
     if (owner >= 0)
-      ctx.fail(p.path("vertex"), "vertex " + std::to_string(pin.vertex) + " is already pinned by " +
+      ctx.fail(p.path("vertex"), "vertex " + std::to_string(ctx.fileVertex(pin.vertex)) + " is already pinned by " +
                                      indexPath(r.path("pins"), size_t(owner)));
     owner = static_cast<int>(i);
     d.pins.push_back(pin);
@@ -503,7 +532,8 @@ void parseFabric(ObjectReader& r, const stain::TriangleMesh& mesh, EngineDef& de
     } else if (faces->is_array()) {
       ctx.refuseIndexUnderOverride(p.path("faces"), "\"all\"");
       for (std::size_t k = 0; k < faces->size(); ++k)
-        patch.faces.push_back(integerValue(ctx, (*faces)[k], indexPath(p.path("faces"), k), indices(0, faceCount)));
+        patch.faces.push_back(
+            ctx.engineFace(integerValue(ctx, (*faces)[k], indexPath(p.path("faces"), k), indices(0, faceCount))));
     } else {
       ctx.fail(p.path("faces"), "expected \"all\", {\"label\": L} or an array of face indices, got " + describe(*faces));
     }
@@ -564,7 +594,7 @@ void parseFabric(ObjectReader& r, const stain::TriangleMesh& mesh, EngineDef& de
         ObjectReader c(ctx, list[k], indexPath(p.path("weft_constraints"), k));
         stain::WeftConstraint w;
         ctx.refuseIndexUnderOverride(c.path("face"), "\"weft\"");
-        w.face = c.integer("face", -1, indices(0, faceCount));
+        w.face = c.has("face") ? ctx.engineFace(c.integer("face", -1, indices(0, faceCount))) : -1;
         if (!c.has("face")) ctx.fail(c.path("face"), "required key is missing");
         w.direction = c.vector3("direction", Eigen::Vector3d::UnitX());
         c.finish();
@@ -700,7 +730,8 @@ stain::HeldRegion parseHeldRegion(ObjectReader& r, const stain::TriangleMesh& me
     r.context().refuseIndexUnderOverride(r.path("vertices"), "\"center\" and \"radius\"");
     const json& list = r.array("vertices");
     for (std::size_t k = 0; k < list.size(); ++k)
-      h.vertices.push_back(integerValue(r.context(), list[k], indexPath(r.path("vertices"), k), indices(0, n)));
+      h.vertices.push_back(r.context().engineVertex(
+          integerValue(r.context(), list[k], indexPath(r.path("vertices"), k), indices(0, n))));
     if (h.vertices.empty()) r.context().fail(r.path("vertices"), "expected at least one vertex");
   } else {
     const Eigen::Vector3d c = r.vector3("center", Eigen::Vector3d::Zero());
@@ -805,7 +836,7 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
   if (options.patchResolution < 0 || options.patchResolution > 2000)
     throw SceneError(sourceName + ": patch resolution override: expected an integer in [1, 2000] (or 0: none), got " +
                      std::to_string(options.patchResolution));
-  const Context ctx(sourceName, baseDirectory.empty() ? std::filesystem::path(".") : std::filesystem::path(baseDirectory),
+  Context ctx(sourceName, baseDirectory.empty() ? std::filesystem::path(".") : std::filesystem::path(baseDirectory),
                     options);
   json root;
   try {
@@ -832,7 +863,8 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
   if (clothJson == nullptr) ctx.fail("cloth", "required key is missing (an object with \"source\")");
   if (const json* mesh = r.find("mesh")) {
     ObjectReader m(ctx, *mesh, "mesh");
-    def.mesh = parseMesh(m, scene.meshDescription);
+    def.mesh = parseMesh(m, scene.meshDescription, scene.meshOrder);
+    ctx.setMeshOrder(scene.meshOrder);
   } else {
     ctx.fail("mesh", "required key is missing (\"file\", \"patch\", \"icosphere\" or \"disc\")");
   }
@@ -840,6 +872,10 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
     ObjectReader c(ctx, *clothJson, "cloth");
     parseCloth(c, def.mesh, def);
   }
+  // A sequence's frames are read in the file's numbering as the engine steps.
+  if (!scene.meshOrder.vertices.empty() && def.source == MotionSource::Sequence)
+    ctx.fail("mesh.vertex_order", "\"locality\" cannot be used with a \"sequence\" cloth (its frames number the "
+                                  "vertices as the file does); use \"file\"");
   if (const json* fabric = r.find("fabric")) {
     ObjectReader f(ctx, *fabric, "fabric");
     parseFabric(f, def.mesh, def);

@@ -11,6 +11,7 @@
 /// fabric layout happen when the Engine is built.
 #include <blot/engine/engine.h>
 #include <blot/engine/output_options.h>
+#include <blot/stain/geometry/mesh_order.h>
 
 #include <stdexcept>
 #include <string>
@@ -73,6 +74,11 @@ struct SceneDef {
   std::string name;             ///< "name" key, or the file stem
   std::string description;      ///< "description" key (free text)
   std::string meshDescription;  ///< e.g. "patch 1 x 1 m, 50 x 50 quads (2601 vertices)"
+  /// mesh.vertex_order "locality": engine vertex k is the file's vertex
+  /// meshOrder.vertices[k], engine face k its face meshOrder.faces[k]
+  /// (everything the engine writes uses the engine's numbering; the scene's
+  /// own indices name the file's). Empty: the file's numbering.
+  stain::MeshOrder meshOrder;
   EngineDef engine;
   SceneOutputs outputs;
 };
