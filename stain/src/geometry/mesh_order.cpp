@@ -7,7 +7,7 @@
 // pseudo-peripheral one: any start keeps neighbours within about one
 // level of each other. Measured on the Table 1 bunny (37.7K vertices, the
 // CGAL file's numbering: median index distance of an edge's ends 8,700):
-// 313 after the vertex order, and the stain step 10.3 -> 7.6 ms, 7.2 ms
+// 321 after the vertex order, and the stain step 10.3 -> 7.6 ms, 7.2 ms
 // with the faces sorted too (docs/performance.md, "Mesh order").
 #include <blot/stain/geometry/mesh_order.h>
 
