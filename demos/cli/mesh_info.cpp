@@ -15,6 +15,7 @@
 #include <blot/engine/output_options.h>
 #include <blot/engine/renderer.h>
 #include <blot/stain/geometry/intrinsic_geometry.h>
+#include <blot/stain/geometry/mesh_order.h>
 #include <blot/stain/io/mesh_io.h>
 #include <blot/stain/geometry/surface_topology.h>
 
@@ -77,6 +78,31 @@ Eigen::Vector3d vectorOption(const std::vector<double>& values, const char* name
   return {values[0], values[1], values[2]};
 }
 
+// Median over face edges of |i − j|: how far apart in memory the solver
+// finds a vertex's neighbours (each interior edge counted twice, once per face).
+int medianEdgeSpan(const stain::Triangles& faces) {
+  std::vector<int> spans;
+  spans.reserve(static_cast<std::size_t>(3 * faces.rows()));
+  for (Eigen::Index f = 0; f < faces.rows(); ++f)
+    for (int c = 0; c < 3; ++c) spans.push_back(std::abs(faces(f, c) - faces(f, (c + 1) % 3)));
+  if (spans.empty()) return 0;
+  std::nth_element(spans.begin(), spans.begin() + static_cast<long>(spans.size() / 2), spans.end());
+  return spans[spans.size() / 2];
+}
+
+/// How spread out the file's numbering is, against the locality order's
+/// (scene key mesh.vertex_order, docs/scene-format.md); "locality_suggested"
+/// where the file's spans are 8x the renumbered mesh's or more (the Table 1
+/// bunny: 8,700 against 313, its stain step 0.7x as long renumbered).
+nlohmann::json vertexOrderSummary(const stain::TriangleMesh& mesh) {
+  stain::TriangleMesh renumbered = mesh;
+  stain::reorderMesh(renumbered, stain::localityOrder(mesh));
+  const int file = medianEdgeSpan(mesh.faces), locality = medianEdgeSpan(renumbered.faces);
+  return {{"median_edge_index_span", file},
+          {"median_edge_index_span_locality", locality},
+          {"locality_suggested", file >= 8 * std::max(locality, 1)}};
+}
+
 nlohmann::json meshSummary(const std::string& path, const stain::TriangleMesh& mesh) {
   const int vertexCount = static_cast<int>(mesh.vertexPositions.rows());
   const stain::SurfaceTopology topology(mesh.faces, vertexCount, path);
@@ -119,6 +145,7 @@ nlohmann::json meshSummary(const std::string& path, const stain::TriangleMesh& m
   summary["negative_cotan_weight_edges"] = negativeWeights;
   summary["face_labels"] = labels.size();
   summary["has_uvs"] = mesh.vertexUVs.rows() == vertexCount && vertexCount > 0;
+  summary["vertex_order"] = vertexOrderSummary(mesh);
   return summary;
 }
 
