@@ -24,6 +24,8 @@
 
 struct blotEngine {
   std::unique_ptr<blot::engine::Engine> engine;
+  /// The scene's mesh renumbering (SceneDef::meshOrder.vertices; empty: the file's numbering).
+  std::vector<int> fileVertices;
 };
 
 namespace {
@@ -367,7 +369,9 @@ blotStatus blotCreateEngineFromSceneFile(const char* path, blotEngine** outEngin
   if (blotStatus status; !checkReadable("blotCreateEngineFromSceneFile", path, status)) return status;
   return guarded("blotCreateEngineFromSceneFile", [&] {
     auto handle = std::make_unique<blotEngine>();
-    handle->engine = blot::engine::Engine::fromSceneFile(path);
+    blot::engine::SceneDef scene = blot::engine::loadScene(path);
+    handle->fileVertices = std::move(scene.meshOrder.vertices);
+    handle->engine = std::make_unique<blot::engine::Engine>(scene.engine);
     *outEngine = handle.release();
     return BLOT_OK;
   });
@@ -378,7 +382,10 @@ blotStatus blotCreateEngineFromSceneJson(const char* json, const char* baseDirec
     return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotCreateEngineFromSceneJson: null argument");
   return guarded("blotCreateEngineFromSceneJson", [&] {
     auto handle = std::make_unique<blotEngine>();
-    handle->engine = blot::engine::Engine::fromSceneJson(json, baseDirectory != nullptr ? baseDirectory : ".", "<json>");
+    blot::engine::SceneDef scene =
+        blot::engine::parseScene(json, "<json>", baseDirectory != nullptr ? baseDirectory : ".");
+    handle->fileVertices = std::move(scene.meshOrder.vertices);
+    handle->engine = std::make_unique<blot::engine::Engine>(scene.engine);
     *outEngine = handle.release();
     return BLOT_OK;
   });
@@ -528,6 +535,17 @@ blotStatus blotEngine_CopyFaces(const blotEngine* engine, int32_t* out, int capa
                                                  std::to_string(3 * f.rows()));
   for (Eigen::Index k = 0; k < f.rows(); ++k)
     for (int c = 0; c < 3; ++c) out[3 * k + c] = f(k, c);
+  return BLOT_OK;
+}
+
+blotStatus blotEngine_CopyFileVertexIndices(const blotEngine* engine, int32_t* out, int capacity) {
+  if (engine == nullptr || out == nullptr)
+    return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_CopyFileVertexIndices: null argument");
+  const int n = engine->engine->vertexCount();
+  if (capacity < n)
+    return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_CopyFileVertexIndices: capacity " + std::to_string(capacity) +
+                                                 ", need " + std::to_string(n));
+  for (int k = 0; k < n; ++k) out[k] = engine->fileVertices.empty() ? k : engine->fileVertices[size_t(k)];
   return BLOT_OK;
 }
 

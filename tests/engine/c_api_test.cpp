@@ -85,6 +85,43 @@ TEST(CApiTest, CopiesMatchTheEngineAndBadArgumentsAreStatuses) {
   blotDestroyEngine(nullptr);
 }
 
+TEST(CApiTest, FileVertexIndicesMapARenumberedMeshBackToItsFile) {
+  const std::string scene = R"({"mesh": {"patch": {"size": [1, 1], "resolution": [10, 10]}ORDER},
+                                "cloth": {"source": "static"}})";
+  const auto create = [&](const std::string& order) {
+    std::string json = scene;
+    json.replace(json.find("ORDER"), 5, order);
+    blotEngine* engine = nullptr;
+    EXPECT_EQ(blotCreateEngineFromSceneJson(json.c_str(), nullptr, &engine), BLOT_OK) << blotGetLastError();
+    return engine;
+  };
+  blotEngine* file = create("");
+  blotEngine* renumbered = create(R"(, "vertex_order": "locality")");
+  const int n = blotEngine_GetVertexCount(renumbered);
+  ASSERT_EQ(n, 121);
+  std::vector<int32_t> identity(static_cast<size_t>(n)), fileIndex(static_cast<size_t>(n));
+  ASSERT_EQ(blotEngine_CopyFileVertexIndices(file, identity.data(), n), BLOT_OK);
+  for (int k = 0; k < n; ++k) EXPECT_EQ(identity[size_t(k)], k);
+  ASSERT_EQ(blotEngine_CopyFileVertexIndices(renumbered, fileIndex.data(), n), BLOT_OK);
+  std::vector<float> a(static_cast<size_t>(3 * n)), b(static_cast<size_t>(3 * n));
+  ASSERT_EQ(blotEngine_CopyPositions(file, a.data(), 3 * n), BLOT_OK);
+  ASSERT_EQ(blotEngine_CopyPositions(renumbered, b.data(), 3 * n), BLOT_OK);
+  int moved = 0;
+  std::vector<int32_t> sorted = fileIndex;
+  std::sort(sorted.begin(), sorted.end());
+  EXPECT_EQ(sorted, identity);  // a permutation
+  for (int k = 0; k < n; ++k) {
+    moved += fileIndex[size_t(k)] != k;
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(b[size_t(3 * k + c)], a[size_t(3 * fileIndex[size_t(k)] + c)]) << k;
+  }
+  EXPECT_GT(moved, n / 2);
+  EXPECT_EQ(blotEngine_CopyFileVertexIndices(renumbered, fileIndex.data(), n - 1), BLOT_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(blotGetLastError()).find("capacity 120, need 121"), std::string::npos) << blotGetLastError();
+  EXPECT_EQ(blotEngine_CopyFileVertexIndices(nullptr, fileIndex.data(), n), BLOT_ERROR_INVALID_ARGUMENT);
+  blotDestroyEngine(file);
+  blotDestroyEngine(renumbered);
+}
+
 // Every finite gravity is accepted, so a liquid's speed can pass float's
 // range (1e45 m/s^2 for 0.01 s: 1e43 m/s) while the engine's doubles stay
 // finite. Found by fuzz_capi in CI (docs/reliability.md, finding 9): the copy

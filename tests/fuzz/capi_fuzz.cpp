@@ -183,8 +183,8 @@ blotDropDef drop(Bytes& in) {
 
 void copyOut(Bytes& in, blotEngine* engine) {
   const int vertices = blotEngine_GetVertexCount(engine), faces = blotEngine_GetFaceCount(engine);
-  const unsigned what = in.byte() % 8;
-  const int need = what == 6 ? vertices : what == 7 ? 3 * faces : 3 * vertices;
+  const unsigned what = in.byte() % 9;
+  const int need = what == 6 || what == 8 ? vertices : what == 7 ? 3 * faces : 3 * vertices;
   const int capacities[] = {need, need, need + 5, need - 1, 0, -1, INT_MIN};
   const int capacity = in.pick(capacities);
   const bool null = in.byte() % 16 == 0;
@@ -205,11 +205,12 @@ void copyOut(Bytes& in, blotEngine* engine) {
       break;
     }
     case 7: status = blotEngine_CopyFaces(engine, null ? nullptr : ints.data(), capacity); break;
+    case 8: status = blotEngine_CopyFileVertexIndices(engine, null ? nullptr : ints.data(), capacity); break;
   }
   check(status);
   if (status != BLOT_OK) return;
   if (capacity < need) std::abort();  // a too-small buffer was written to
-  if (what == 7) {
+  if (what == 7 || what == 8) {
     for (int k = 0; k < need; ++k)
       if (ints[static_cast<std::size_t>(k)] < 0 || ints[static_cast<std::size_t>(k)] >= vertices) std::abort();
   } else if (!finite(floats.data(), static_cast<std::size_t>(need))) {

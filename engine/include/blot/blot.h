@@ -210,6 +210,11 @@ blotStatus blotEngine_CopyColors(const blotEngine* engine, float* out, int capac
 blotStatus blotEngine_CopyDensities(const blotEngine* engine, blotDensity which, float* out, int capacity);
 /** Copies #F x 3 vertex indices of the triangles (capacity >= 3 #F). */
 blotStatus blotEngine_CopyFaces(const blotEngine* engine, int32_t* out, int capacity);
+/** Copies, per engine vertex k, the index that vertex has in the scene's mesh file (capacity >= #V).
+ *  The identity, except for an engine made from a scene whose mesh sets "vertex_order": "locality"
+ *  (docs/scene-format.md): that engine renumbers the mesh, and every array copied from it, every face
+ *  and blotEngine_AddDropAtVertex use its own numbering; out[k] names the file's vertex. */
+blotStatus blotEngine_CopyFileVertexIndices(const blotEngine* engine, int32_t* out, int capacity);
 /** Copies #V x 3 liquid velocities in the world (inertial) frame (m/s): the cloth's velocity plus the relative one. */
 blotStatus blotEngine_CopyLiquidWorldVelocities(const blotEngine* engine, float* out, int capacity);
 /** Copies #V x 3 liquid velocities relative to the cloth, tangential, in world axes (m/s); 0 at vertices
