@@ -107,6 +107,8 @@ class Context {
   int fileVertex(int engineVertex) const {
     return order_.vertices.empty() ? engineVertex : order_.vertices[size_t(engineVertex)];
   }
+  bool renumbered() const { return !order_.vertices.empty(); }
+  int fileFace(int engineFace) const { return order_.faces.empty() ? engineFace : order_.faces[size_t(engineFace)]; }
   /// Vertex and face indices name other elements on a re-meshed patch: refused.
   void refuseIndexUnderOverride(const std::string& path, const char* instead) const {
     if (options_.patchResolution > 0)
@@ -513,6 +515,11 @@ void parseFabric(ObjectReader& r, const stain::TriangleMesh& mesh, EngineDef& de
   const bool acceptUnconverged = r.boolean("accept_unconverged", false);
   const int faceCount = static_cast<int>(mesh.faces.rows());
   const json& patches = r.array("patches");
+  // On a renumbered mesh, which patch holds each face so far: a face listed
+  // twice, or in two patches, is named here by its index in the file (the
+  // layout's own check, at Engine construction, names the engine's).
+  std::vector<int> patchOfFace(static_cast<size_t>(faceCount), -1);
+  std::vector<std::string> names;
   for (std::size_t i = 0; i < patches.size(); ++i) {
     ObjectReader p(ctx, patches[i], indexPath(r.path("patches"), i));
     stain::FabricPatch patch;
@@ -537,6 +544,18 @@ void parseFabric(ObjectReader& r, const stain::TriangleMesh& mesh, EngineDef& de
     } else {
       ctx.fail(p.path("faces"), "expected \"all\", {\"label\": L} or an array of face indices, got " + describe(*faces));
     }
+    if (ctx.renumbered()) {
+      for (const int f : patch.faces) {
+        int& owner = patchOfFace[static_cast<size_t>(f)];
+        if (owner == static_cast<int>(i))
+          ctx.fail(p.path("faces"), "face " + std::to_string(ctx.fileFace(f)) + " listed twice");
+        if (owner >= 0)
+          ctx.fail(p.path("faces"), "face " + std::to_string(ctx.fileFace(f)) + " already belongs to patch \"" +
+                                        names[static_cast<size_t>(owner)] + "\"");
+        owner = static_cast<int>(i);
+      }
+    }
+    names.push_back(patch.name);
     const int materials = (p.has("pattern") ? 1 : 0) + (p.has("preset") ? 1 : 0) + (p.has("tensor") ? 1 : 0);
     if (materials != 1)
       ctx.fail(p.path(), "expected exactly one of \"pattern\" (file), \"preset\" (name) or \"tensor\", got " +

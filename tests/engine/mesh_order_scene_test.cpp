@@ -95,6 +95,13 @@ TEST(MeshOrderScene, BadUsesAreRefusedByName) {
   const std::string twice = errorOf(R"({"mesh": {"patch": {}, "vertex_order": "locality"},
       "cloth": {"source": "bullet", "pins": [{"vertex": 40}, {"vertex": 40}]}})");
   EXPECT_NE(twice.find("vertex 40 is already pinned"), std::string::npos) << twice;
+  const std::string face = errorOf(R"({"mesh": {"patch": {}, "vertex_order": "locality"}, "cloth": {"source": "static"},
+      "fabric": {"patches": [{"name": "a", "faces": [0, 1, 2], "tensor": [[1e-3, 0], [0, 1e-3]], "weft": [1, 0, 0]},
+                             {"name": "b", "faces": [5, 2], "tensor": [[1e-3, 0], [0, 1e-3]], "weft": [1, 0, 0]}]}})");
+  EXPECT_NE(face.find("fabric.patches[1].faces: face 2 already belongs to patch \"a\""), std::string::npos) << face;
+  const std::string repeated = errorOf(R"({"mesh": {"patch": {}, "vertex_order": "locality"}, "cloth": {"source": "static"},
+      "fabric": {"patches": [{"faces": [7, 3, 7], "tensor": [[1e-3, 0], [0, 1e-3]], "weft": [1, 0, 0]}]}})");
+  EXPECT_NE(repeated.find("fabric.patches[0].faces: face 7 listed twice"), std::string::npos) << repeated;
 }
 
 /// A tilted plate turning about y, the liquid running under gravity: the
