@@ -1,6 +1,6 @@
 // mesh.vertex_order "locality": the engine works on the renumbered mesh, the
 // scene's indices keep naming the file's elements, and the stain is the same
-// stain (to rounding) on the renumbered vertices.
+// stain on the renumbered vertices, to about 1e-8 (sums run in another order).
 #include <blot/engine/engine.h>
 #include <blot/engine/scene.h>
 
@@ -72,36 +72,6 @@ TEST(MeshOrderScene, SceneIndicesNameTheFilesElements) {
               cornersOf(plain, plain.engine.fabricPatches.at(size_t(k)).faces));
   EXPECT_EQ(cornersOf(ordered, {ordered.engine.fabricPatches[0].weftConstraints.at(0).face}),
             cornersOf(plain, {plain.engine.fabricPatches[0].weftConstraints.at(0).face}));
-}
-
-std::string errorOf(const std::string& json) {
-  try {
-    parseScene(json, "scene.json");
-  } catch (const SceneError& e) {
-    return e.what();
-  }
-  return "";
-}
-
-TEST(MeshOrderScene, BadUsesAreRefusedByName) {
-  const std::string bad = errorOf(R"({"mesh": {"patch": {}, "vertex_order": "zigzag"}, "cloth": {"source": "static"}})");
-  EXPECT_NE(bad.find("mesh.vertex_order"), std::string::npos) << bad;
-  EXPECT_NE(bad.find("locality"), std::string::npos) << bad;
-  const std::string sequence = errorOf(
-      R"({"mesh": {"patch": {}, "vertex_order": "locality"}, "cloth": {"source": "sequence", "pattern": "f_%04d.obj"}})");
-  EXPECT_NE(sequence.find("mesh.vertex_order"), std::string::npos) << sequence;
-  EXPECT_NE(sequence.find("sequence"), std::string::npos) << sequence;
-  // A message names the file's vertex, not the engine's.
-  const std::string twice = errorOf(R"({"mesh": {"patch": {}, "vertex_order": "locality"},
-      "cloth": {"source": "bullet", "pins": [{"vertex": 40}, {"vertex": 40}]}})");
-  EXPECT_NE(twice.find("vertex 40 is already pinned"), std::string::npos) << twice;
-  const std::string face = errorOf(R"({"mesh": {"patch": {}, "vertex_order": "locality"}, "cloth": {"source": "static"},
-      "fabric": {"patches": [{"name": "a", "faces": [0, 1, 2], "tensor": [[1e-3, 0], [0, 1e-3]], "weft": [1, 0, 0]},
-                             {"name": "b", "faces": [5, 2], "tensor": [[1e-3, 0], [0, 1e-3]], "weft": [1, 0, 0]}]}})");
-  EXPECT_NE(face.find("fabric.patches[1].faces: face 2 already belongs to patch \"a\""), std::string::npos) << face;
-  const std::string repeated = errorOf(R"({"mesh": {"patch": {}, "vertex_order": "locality"}, "cloth": {"source": "static"},
-      "fabric": {"patches": [{"faces": [7, 3, 7], "tensor": [[1e-3, 0], [0, 1e-3]], "weft": [1, 0, 0]}]}})");
-  EXPECT_NE(repeated.find("fabric.patches[0].faces: face 7 listed twice"), std::string::npos) << repeated;
 }
 
 /// A tilted plate turning about y, the liquid running under gravity: the

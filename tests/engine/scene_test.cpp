@@ -353,6 +353,30 @@ TEST(SceneTest, PatchResolutionOverrideRemeshesThePatchAndRefusesIndices) {
   EXPECT_NE(error(kMinimal).find("expected an integer in [1, 2000] (or 0: none), got -1"), std::string::npos);
 }
 
+// mesh.vertex_order: a bad value, a sequence cloth, and messages that name the
+// file's indices on a renumbered mesh (tests/engine/mesh_order_scene_test.cpp
+// has the renumbering itself).
+TEST(SceneTest, VertexOrderMisusesAreRefusedNamingTheFilesIndices) {
+  const std::string bad = errorOf(R"({"mesh": {"patch": {}, "vertex_order": "zigzag"}, "cloth": {"source": "static"}})");
+  EXPECT_NE(bad.find("mesh.vertex_order"), std::string::npos) << bad;
+  EXPECT_NE(bad.find("locality"), std::string::npos) << bad;
+  const std::string sequence = errorOf(
+      R"({"mesh": {"patch": {}, "vertex_order": "locality"}, "cloth": {"source": "sequence", "pattern": "f_%04d.obj"}})");
+  EXPECT_NE(sequence.find("mesh.vertex_order"), std::string::npos) << sequence;
+  EXPECT_NE(sequence.find("sequence"), std::string::npos) << sequence;
+  // A message names the file's vertex, not the engine's.
+  const std::string twice = errorOf(R"({"mesh": {"patch": {}, "vertex_order": "locality"},
+      "cloth": {"source": "bullet", "pins": [{"vertex": 40}, {"vertex": 40}]}})");
+  EXPECT_NE(twice.find("vertex 40 is already pinned"), std::string::npos) << twice;
+  const std::string face = errorOf(R"({"mesh": {"patch": {}, "vertex_order": "locality"}, "cloth": {"source": "static"},
+      "fabric": {"patches": [{"name": "a", "faces": [0, 1, 2], "tensor": [[1e-3, 0], [0, 1e-3]], "weft": [1, 0, 0]},
+                             {"name": "b", "faces": [5, 2], "tensor": [[1e-3, 0], [0, 1e-3]], "weft": [1, 0, 0]}]}})");
+  EXPECT_NE(face.find("fabric.patches[1].faces: face 2 already belongs to patch \"a\""), std::string::npos) << face;
+  const std::string repeated = errorOf(R"({"mesh": {"patch": {}, "vertex_order": "locality"}, "cloth": {"source": "static"},
+      "fabric": {"patches": [{"faces": [7, 3, 7], "tensor": [[1e-3, 0], [0, 1e-3]], "weft": [1, 0, 0]}]}})");
+  EXPECT_NE(repeated.find("fabric.patches[0].faces: face 7 listed twice"), std::string::npos) << repeated;
+}
+
 TEST(SceneTest, InvalidJsonNamesTheSource) {
   const std::string message = errorOf("{\"mesh\": ");
   EXPECT_EQ(message.rfind("scene.json: invalid JSON", 0), 0u) << message;
