@@ -9,17 +9,18 @@
 Arrays (python/README.md, "Arrays: views or copies"): positions, normals,
 the five densities, velocities, world_velocities, colors, rest_positions and
 uvs are read-only views of the engine's own buffers; each keeps the engine
-alive. faces, vertex_areas, load_mesh() and homogenize() return copies.
+alive. faces, vertex_areas, load_mesh(), scene_mesh_order() and homogenize()
+return copies.
 
 blot.sweep(...) (blot.sweeps) runs parameter sweeps (docs/sweeps.md).
 """
 import json as _json
 
 from ._blot import (AUTO_SUBDIVISIONS, Engine, MeshError, PatternError, SceneError, StepError,  # noqa: F401
-                    homogenize, load_mesh)
+                    homogenize, load_mesh, scene_mesh_order)
 
-__all__ = ["Engine", "SceneError", "MeshError", "StepError", "PatternError", "load_mesh", "homogenize", "AUTO_SUBDIVISIONS",
-           "sweep"]
+__all__ = ["Engine", "SceneError", "MeshError", "StepError", "PatternError", "load_mesh", "scene_mesh_order",
+           "homogenize", "AUTO_SUBDIVISIONS", "sweep"]
 
 
 def _from_dict(scene, base_directory=".", source_name="<dict>", patch_resolution=0):

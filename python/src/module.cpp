@@ -370,6 +370,34 @@ keep the engine alive; read them again after a step (docs: python/README.md).
            "Testing only: a NaN after that stage of that internal step (1-based), to exercise StepError.");
 
   m.def(
+      "scene_mesh_order",
+      [](const std::string& path, int patchResolution) {
+        blot::engine::SceneLoadOptions options;
+        options.patchResolution = patchResolution;
+        blot::engine::SceneDef scene;
+        {
+          py::gil_scoped_release release;
+          scene = blot::engine::loadScene(path, options);
+        }
+        const auto identity = [](Eigen::Index n) {
+          std::vector<int> v(static_cast<size_t>(n));
+          for (size_t k = 0; k < v.size(); ++k) v[k] = static_cast<int>(k);
+          return v;
+        };
+        const blot::stain::MeshOrder& order = scene.meshOrder;
+        py::dict d;
+        d["vertices"] = py::array_t<int>(py::cast(
+            order.vertices.empty() ? identity(scene.engine.mesh.vertexPositions.rows()) : order.vertices));
+        d["faces"] =
+            py::array_t<int>(py::cast(order.faces.empty() ? identity(scene.engine.mesh.faces.rows()) : order.faces));
+        return d;
+      },
+      py::arg("path"), py::arg("patch_resolution") = 0,
+      "The scene's mesh numbering against its file's (mesh.vertex_order, docs/scene-format.md): dict of vertices "
+      "(#V int32: the file's index of each engine vertex) and faces (#F, the same for faces); the identity unless "
+      "the scene renumbers its mesh. Reads the scene again. Raises SceneError naming the key.");
+
+  m.def(
       "load_mesh",
       [](const std::string& path) {
         const blot::stain::TriangleMesh mesh = blot::stain::loadMesh(path);

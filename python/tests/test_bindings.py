@@ -231,6 +231,28 @@ class MeshesAndPatterns(unittest.TestCase):
                 blot.load_mesh(bad)
             self.assertTrue(str(caught.exception).startswith(bad), str(caught.exception))
 
+    def test_scene_mesh_order_maps_a_renumbered_mesh_to_its_file(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            scene = {"mesh": {"patch": {"size": [1, 1], "resolution": [10, 10]}},
+                     "cloth": {"source": "static"}}
+            plain, renumbered = (os.path.join(tmp, n) for n in ("plain.json", "renumbered.json"))
+            with open(plain, "w") as fh:
+                json.dump(scene, fh)
+            scene["mesh"]["vertex_order"] = "locality"
+            with open(renumbered, "w") as fh:
+                json.dump(scene, fh)
+            identity = blot.scene_mesh_order(plain)
+            self.assertEqual(identity["vertices"].tolist(), list(range(121)))
+            self.assertEqual(identity["faces"].tolist(), list(range(200)))
+            order = blot.scene_mesh_order(renumbered)
+            self.assertEqual(sorted(order["vertices"].tolist()), list(range(121)))
+            self.assertNotEqual(order["vertices"].tolist(), list(range(121)))
+            file_positions = blot.Engine.from_scene_file(plain).positions
+            engine_positions = blot.Engine.from_scene_file(renumbered).positions
+            self.assertTrue(np.array_equal(engine_positions, file_positions[order["vertices"]]))
+            with self.assertRaises(blot.SceneError):
+                blot.scene_mesh_order(os.path.join(tmp, "missing.json"))
+
     def test_homogenize_equals_the_command_line(self):
         r = blot.homogenize("twill-2-1", subdivisions=8)
         cli = json.loads(subprocess.run([BLOT, "homogenize", "--preset", "twill-2-1", "-k", "8"],
