@@ -4,8 +4,10 @@
 //   time step h up to 1 s, anisotropy ratio up to 1e6, mesh quality (slivers
 //   with smallest angles down to 0.1°), rotation speed up to 50 rad/s;
 //
-// for ours and its naive alternative: implicit diffusion + positivity limiter
-// vs explicit diffusion σ ← σ − h M⁻¹Lσ and vs implicit without the limiter;
+// for ours and its naive alternative: diffusion by the solver's Auto choice
+// (RKL2 or backward Euler on the support, or the factor) + positivity limiter
+// vs explicit diffusion σ ← σ − h M⁻¹Lσ and vs each scheme without the
+// limiter, beside the three methods Auto chooses from, each forced;
 // sub-stepped upwind vs one sub-step (cap 1) vs the naive un-limited upwind;
 // Coriolis as the discrete frame change (ours) vs the split exact rotation
 // exp(−2iωh) after advection vs explicit u += −2hω×u.
@@ -26,6 +28,7 @@
 #include <cmath>
 #include <cstdio>
 #include <string>
+#include <utility>
 
 #include "stain_fixture.h"
 #include "study_runs.h"
@@ -46,7 +49,7 @@ double capped(double v) { return std::isfinite(v) ? std::min(v, kCeiling) : kCei
 void record(CsvWriter& csv, double parameter, const std::string& method, double amplification, double negativity,
             double massError, const std::string& note = "") {
   const bool blewUp = !std::isfinite(amplification) || amplification > 1e3;
-  std::printf("  %10.4g  %-42s amp %10.3e  neg %10.3e  mass %9.2e  %s %s\n", parameter, method.c_str(),
+  std::printf("  %10.4g  %-56s amp %10.3e  neg %10.3e  mass %9.2e  %s %s\n", parameter, method.c_str(),
               amplification, negativity, massError, blewUp ? "BLOW-UP" : "", note.c_str());
   csv << parameter << method << capped(amplification) << capped(std::max(0.0, negativity)) << (blewUp ? 1 : 0)
       << capped(massError) << note;
@@ -63,17 +66,34 @@ Vector squareBump(const LiquidMesh& g) {
 struct DiffusionOutcome {
   test::FieldHealth health;
   double massError = 0;
+  std::string methods;  ///< the density method each implicit-path step took, e.g. "RKL2 (6 stages) x50"
 };
 
-/// `steps` steps of size h: implicit (diffuse(), limiter as given) or explicit,
-/// the latter optionally split into `explicitSubsteps` equal sub-steps.
+const char* methodName(DiffusionMethod method) {
+  switch (method) {
+    case DiffusionMethod::None: return "none";
+    case DiffusionMethod::Direct: return "factor";
+    case DiffusionMethod::ConjugateGradient: return "CG";
+    case DiffusionMethod::SuperTimeStepping: return "RKL2";
+  }
+  return "?";
+}
+
+/// `steps` steps of size h: through diffuse() (the solver `choice`, the
+/// limiter as given: Auto is ours, Direct backward Euler by the factor,
+/// Iterative backward Euler by CG on the support, SuperTimeStepping RKL2 on
+/// the support) or explicit, the latter optionally split into
+/// `explicitSubsteps` equal sub-steps.
 DiffusionOutcome runDiffusion(const LiquidMesh& g, double h, int steps, bool implicit, bool limiter,
-                              int explicitSubsteps = 1) {
+                              int explicitSubsteps = 1,
+                              DiffusionSolverChoice choice = DiffusionSolverChoice::Auto) {
   const Vector initial = squareBump(g);
   const double mass0 = totalMass(g.areas(), initial);
   Vector sigma = initial;
+  DiffusionOutcome out;
   if (implicit) {
     DiffusionSystems systems;
+    systems.setSolverChoice(choice);
     if (systems.factorize(g.intrinsic, h) != SolverStatus::Ok) throw std::runtime_error("factorize failed");
     DiffusionScratch scratch;
     scratch.resize(g.vertexCount());
@@ -83,24 +103,62 @@ DiffusionOutcome runDiffusion(const LiquidMesh& g, double h, int steps, bool imp
     switches.velocityDiffusion = false;
     switches.positivityLimiter = limiter;
     const StepContext ctx = makeStepContext(h, Vector3(0, 0, -9.8), switches, LiquidParameters{});
+    // Runs of equal (method, stages, CG iterations), in step order.
+    std::string last;
+    int run = 0;
+    const auto flush = [&] {
+      if (run > 0) out.methods += (out.methods.empty() ? "" : ", ") + last + " x" + std::to_string(run);
+    };
     for (int k = 0; k < steps; ++k) {
-      if (diffuse(ctx, g.intrinsic, systems, scratch, state).status != SolverStatus::Ok)
-        throw std::runtime_error("diffuse failed");
+      const DiffusionReport report = diffuse(ctx, g.intrinsic, systems, scratch, state);
+      if (report.status != SolverStatus::Ok) throw std::runtime_error("diffuse failed");
+      std::string method = methodName(report.densityMethod);
+      if (report.densityMethod == DiffusionMethod::SuperTimeStepping)
+        method += " (" + std::to_string(report.densityStages) + " stages)";
+      if (report.fallbacks > 0) method += " (CG stalled: factor)";
+      if (method != last) {
+        flush();
+        last = method;
+        run = 0;
+      }
+      ++run;
     }
+    flush();
     sigma = state.solvent;
   } else {
     for (int k = 0; k < steps * explicitSubsteps && sigma.allFinite(); ++k)
       test::explicitDiffusionStep(g.intrinsic.densityStiffness, g.areas(), h / explicitSubsteps, sigma);
   }
-  DiffusionOutcome out;
   out.health = test::fieldHealth(sigma, initial.maxCoeff());
   out.massError = std::abs(totalMass(g.areas(), sigma) - mass0) / mass0;
   return out;
 }
 
+/// The density solves behind ours, each forced, limiter on (the methods
+/// Auto chooses among), with `prefix` before each label; each is asserted
+/// stable, non-negative and mass-conserving, as ours is.
+void recordForcedDiffusion(CsvWriter& csv, double parameter, const LiquidMesh& g, double h, int steps,
+                           const std::string& prefix);
+
 void recordDiffusion(CsvWriter& csv, double parameter, const std::string& method, const DiffusionOutcome& o,
                      const std::string& note = "") {
-  record(csv, parameter, method, o.health.growth, -o.health.minOverMax, o.massError, note);
+  const std::string both = o.methods.empty() ? note : note.empty() ? o.methods : note + "; " + o.methods;
+  record(csv, parameter, method, o.health.growth, -o.health.minOverMax, o.massError, both);
+}
+
+void recordForcedDiffusion(CsvWriter& csv, double parameter, const LiquidMesh& g, double h, int steps,
+                           const std::string& prefix) {
+  const std::pair<DiffusionSolverChoice, const char*> forced[] = {
+      {DiffusionSolverChoice::Direct, "backward Euler by the factor + limiter"},
+      {DiffusionSolverChoice::Iterative, "backward Euler by CG on the support + limiter"},
+      {DiffusionSolverChoice::SuperTimeStepping, "RKL2 on the support + limiter"}};
+  for (const auto& [choice, label] : forced) {
+    const DiffusionOutcome o = runDiffusion(g, h, steps, true, true, 1, choice);
+    recordDiffusion(csv, parameter, prefix + label, o);
+    EXPECT_FALSE(o.health.blewUp()) << label << " at " << parameter;
+    EXPECT_GE(o.health.minOverMax, 0.0) << label << " at " << parameter;
+    EXPECT_LT(o.massError, 1e-12) << label << " at " << parameter;
+  }
 }
 
 void recordAdvection(CsvWriter& csv, double parameter, test::AdvectionMethod method,
@@ -151,7 +209,8 @@ TEST(StabilityStudy, TimeStepSweep) {
   const int steps = 50;
   for (const double h : {1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 0.1, 0.3, 1.0}) {
     const DiffusionOutcome ours = runDiffusion(square, h, steps, true, true);
-    recordDiffusion(csv, h, "diffusion: ours (implicit + limiter)", ours);
+    recordDiffusion(csv, h, "diffusion: ours (Auto + limiter)", ours);
+    recordForcedDiffusion(csv, h, square, h, steps, "diffusion: ");
     recordDiffusion(csv, h, "diffusion: explicit", runDiffusion(square, h, steps, false, false));
     EXPECT_FALSE(ours.health.blewUp());
     EXPECT_GE(ours.health.minOverMax, 0.0);
@@ -228,8 +287,12 @@ TEST(StabilityStudy, AnisotropySweep) {
     const double lambda = test::largestDiffusionEigenvalue(g.intrinsic.densityStiffness, g.areas());
     const int substeps = static_cast<int>(std::ceil(h * lambda / 1.9));
     const DiffusionOutcome ours = runDiffusion(g, h, steps, true, true);
-    recordDiffusion(csv, ratio, "ours (implicit + limiter)", ours);
-    recordDiffusion(csv, ratio, "implicit without positivity limiter", runDiffusion(g, h, steps, true, false));
+    recordDiffusion(csv, ratio, "ours (Auto + limiter)", ours);
+    recordForcedDiffusion(csv, ratio, g, h, steps, "");
+    recordDiffusion(csv, ratio, "backward Euler without positivity limiter",
+                    runDiffusion(g, h, steps, true, false, 1, DiffusionSolverChoice::Direct));
+    recordDiffusion(csv, ratio, "RKL2 without positivity limiter",
+                    runDiffusion(g, h, steps, true, false, 1, DiffusionSolverChoice::SuperTimeStepping));
     recordDiffusion(csv, ratio, "explicit", runDiffusion(g, h, steps, false, false));
     recordDiffusion(csv, ratio, "explicit with stable sub-steps", runDiffusion(g, h, steps, false, false, substeps),
                     std::to_string(substeps) + " sub-steps per step");
@@ -256,8 +319,12 @@ TEST(StabilityStudy, MeshQualitySweep) {
     const int faces = static_cast<int>(mesh.faces.rows());
     const LiquidMesh g(mesh, uniformFabric(faces, fabricTensor(1e-3, 1e-3), fabricTensor(1e-3, 1e-3), 0.0));
     const DiffusionOutcome ours = runDiffusion(g, h, steps, true, true);
-    recordDiffusion(csv, angle, "diffusion: ours (implicit + limiter)", ours);
-    recordDiffusion(csv, angle, "diffusion: implicit without limiter", runDiffusion(g, h, steps, true, false));
+    recordDiffusion(csv, angle, "diffusion: ours (Auto + limiter)", ours);
+    recordForcedDiffusion(csv, angle, g, h, steps, "diffusion: ");
+    recordDiffusion(csv, angle, "diffusion: backward Euler without limiter",
+                    runDiffusion(g, h, steps, true, false, 1, DiffusionSolverChoice::Direct));
+    recordDiffusion(csv, angle, "diffusion: RKL2 without limiter",
+                    runDiffusion(g, h, steps, true, false, 1, DiffusionSolverChoice::SuperTimeStepping));
     recordDiffusion(csv, angle, "diffusion: explicit", runDiffusion(g, h, steps, false, false));
     EXPECT_FALSE(ours.health.blewUp());
     EXPECT_GE(ours.health.minOverMax, 0.0);
