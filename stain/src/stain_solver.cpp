@@ -675,8 +675,24 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
     systems_.releaseFactors();  // the stale factors are not kept while new operators are assembled
     if (def_.intrinsicRefresh == IntrinsicRefresh::Region)
       geometry_.setRefreshRegion(strainTestVertices_.data(), static_cast<int>(strainTestVertices_.size()));
-    geometry_.refreshIntrinsic();
-    rebuiltInStep_ = true;
+    rebuiltInStep_ = true;  // from here on, a failure gives the old tier back (restoreBackup)
+    try {
+      geometry_.refreshIntrinsic();
+    } catch (const std::invalid_argument& error) {
+      // An anisotropic face whose weft cannot be laid out in the rebuilt
+      // metric: a face with a zero-length edge (a collapsed face) has no
+      // plane to lay it out in. The areas are computed before the operators,
+      // so the report names the collapsed face as for an isotropic fabric.
+      StepReport failed = checkRebuiltAreas();
+      restoreBackup();
+      if (failed.ok()) {
+        failed.status = StepStatus::NonFinite;
+        failed.stage = Stage::Geometry;
+        failed.message = "intrinsic rebuild of step " + std::to_string(steps_ + 1) + ": " + error.what() +
+                         "; state restored";
+      }
+      return failed;
+    }
     if (const StepReport collapsed = checkRebuiltAreas(); !collapsed.ok()) {
       restoreBackup();  // the old tier back, before any density is rescaled by a zero area
       return collapsed;

@@ -39,15 +39,24 @@ struct Scene {
   /// default strain tolerance keeps the metric (no rebuild: a rolled-back
   /// state is then bit-identical; with a rebuild it keeps each vertex's mass).
   std::unique_ptr<StainSolver> solver(double strainTolerance = 0.5,
-                                      DiffusionSolverChoice diffusion = DiffusionSolverChoice::Auto) const {
+                                      DiffusionSolverChoice diffusion = DiffusionSolverChoice::Auto,
+                                      bool anisotropic = false) const {
     StainSolverDef def;
     def.diffusionSolver = diffusion;
     def.gravity = Vector3(0.3, -9.8, 0);
     def.switches.filmPressure = true;
     def.liquid.evaporationRate = 0.002;
     def.strainTolerance = strainTolerance;
-    auto s = std::make_unique<StainSolver>(
-        topology, mesh.vertexPositions, isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-3, 1e-3), def);
+    const int faces = static_cast<int>(mesh.faces.rows());
+    // Anisotropic: 4:1 tensors for both fields, the weft at 30° (every face
+    // then lays its weft out in the rebuilt metric).
+    FabricField fabric = isotropicFabricField(faces, 1e-3, 1e-3);
+    if (anisotropic) {
+      fabric.densityTensors = Eigen::RowVector3d(2e-3, 0.0, 5e-4).replicate(faces, 1);
+      fabric.velocityTensors = fabric.densityTensors;
+      fabric.weftDirections = Eigen::RowVector3d(std::sqrt(3.0) / 2, 0.5, 0.0).replicate(faces, 1);
+    }
+    auto s = std::make_unique<StainSolver>(topology, mesh.vertexPositions, fabric, def);
     DropDef drop;
     drop.centerVertex = centre;
     drop.radius = 0.15;
@@ -208,6 +217,34 @@ TEST(StageFault, ARebuildOnACollapsedFaceFailsAtGeometryAndKeepsTheTier) {
   const StepReport again = solver->step(kH, wavingPositions(scene.mesh, 4 * kH));
   EXPECT_EQ(again.status, StepStatus::Ok) << again.message;
   EXPECT_EQ(solver->stepCount(), 4);
+}
+
+// The same on an anisotropic fabric, each of the face's three corners moved
+// onto the next: laying the weft out in a face of a zero-length edge must
+// fail the step with the same report, not throw out of it.
+TEST(StageFault, ARebuildOnACollapsedAnisotropicFaceFailsAtGeometryAndKeepsTheTier) {
+  const Scene scene;
+  for (int corner = 0; corner < 3; ++corner) {
+    SCOPED_TRACE("corner " + std::to_string(corner));
+    auto solver = scene.solver(1e-4, DiffusionSolverChoice::Auto, true);
+    for (int k = 1; k <= 3; ++k)
+      ASSERT_EQ(solver->step(kH, wavingPositions(scene.mesh, k * kH)).status, StepStatus::Ok);
+    const StainState before = solver->state();
+    const IntrinsicGeometry tierBefore = solver->geometry().intrinsic();
+    RowVectors3 collapsed = wavingPositions(scene.mesh, 4 * kH);
+    collapsed.row(scene.mesh.faces(7, corner)) = collapsed.row(scene.mesh.faces(7, (corner + 1) % 3));
+    StepReport r;
+    ASSERT_NO_THROW(r = solver->step(kH, collapsed));
+    EXPECT_EQ(r.status, StepStatus::NonFinite);
+    EXPECT_EQ(r.stage, Stage::Geometry);
+    // Face 7 or a neighbour sharing the two corners: the first collapsed face.
+    EXPECT_NE(r.message.find("has area 0 m^2 at this step's positions"), std::string::npos) << r.message;
+    EXPECT_TRUE(sameState(solver->state(), before));
+    EXPECT_TRUE(sameTier(solver->geometry().intrinsic(), tierBefore));
+    solver->abandonStep(wavingPositions(scene.mesh, 3 * kH), RowVectors3::Zero(scene.mesh.vertexPositions.rows(), 3));
+    const StepReport again = solver->step(kH, wavingPositions(scene.mesh, 4 * kH));
+    EXPECT_EQ(again.status, StepStatus::Ok) << again.message;
+  }
 }
 
 TEST(StageFault, AbandonStepReturnsToTheStateBeforeTheLastStep) {
