@@ -374,7 +374,13 @@ void StainSolver::restoreBackup() {
     // the next rebuild repeats with another metric (as after restore()).
     velocityScratch_.invalidate();
     band_.invalidateIntrinsic();
-    if (systems_.assembledStep() > 0) systems_.assemble(geometry_.intrinsic(), systems_.assembledStep());
+    // At the step size of the moment, or, where the rebuild released the
+    // systems before they were assembled again (a failure at stage
+    // geometry), at the one the step found: left unassembled, the next
+    // restartMotion would take the solver for one that never stepped, and
+    // its next step for a first step (u in the frames at t).
+    const double h = systems_.assembledStep() > 0 ? systems_.assembledStep() : backupAssembledStep_;
+    if (h > 0) systems_.assemble(geometry_.intrinsic(), h);
     rebuiltInStep_ = false;
     band_.scanAll = true;
   }
@@ -649,6 +655,7 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
   undoable_ = false;
   rebuiltInStep_ = false;
   backupTime_ = time_;
+  backupAssembledStep_ = systems_.assembledStep();
   ScopedTimer t(profile_.milliseconds[static_cast<size_t>(Stage::Geometry)]);
   report.stage = Stage::Geometry;
 
@@ -1012,6 +1019,7 @@ void StainSolver::restore(const StainSolverSnapshot& s) {
                           &state_.adsorbedSolute})
     writtenOutside_ = writtenOutside_ || (f->array() != 0.0).any();
   backup_.commit(state_);  // the rollback point is the restored state (as a full backup of it was)
+  backupAssembledStep_ = systems_.assembledStep();
   heldRegions_ = s.heldRegions;
   initialVelocities_ = s.initialVelocities;
   time_ = s.time;

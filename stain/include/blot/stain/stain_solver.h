@@ -348,6 +348,9 @@ class StainSolver {
   // may be on the surface though nothing was added (everHeldLiquid).
   bool writtenOutside_ = false;
   double backupTime_ = 0;   // time_ when backup_ was taken
+  // The step size M + hL was assembled for when backup_ was taken (0: none):
+  // a rebuild releases the systems, and restoreBackup assembles them again.
+  double backupAssembledStep_ = 0;
   InjectedFault fault_;      // testing; armed when set
   StepContext ctx_;          // this step's constants and active terms (refreshGeometry)
   bool undoable_ = false;   // the last step succeeded and no abandonStep has undone it
