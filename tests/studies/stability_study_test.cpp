@@ -81,6 +81,39 @@ const char* methodName(DiffusionMethod method) {
   return "?";
 }
 
+/// One step's method as the notes write it: "RKL2 (5 stages)", "CG", "factor".
+std::string methodLabel(DiffusionMethod method, int stages, bool fellBack) {
+  std::string label = methodName(method);
+  if (method == DiffusionMethod::SuperTimeStepping) label += " (" + std::to_string(stages) + " stages)";
+  if (fellBack) label += " (CG stalled: factor)";
+  return label;
+}
+
+/// The methods of a run's steps as runs of equal labels, in step order:
+/// "RKL2 (5 stages) x20, factor x30".
+struct MethodRuns {
+  std::string text, last;
+  int run = 0;
+  void add(const std::string& label) {
+    if (label != last) {
+      flush();
+      last = label;
+      run = 0;
+    }
+    ++run;
+  }
+  const std::string& finish() {
+    flush();
+    run = 0;
+    return text;
+  }
+
+ private:
+  void flush() {
+    if (run > 0) text += (text.empty() ? "" : ", ") + last + " x" + std::to_string(run);
+  }
+};
+
 /// `steps` steps of size h: through diffuse() (the solver `choice`, the
 /// limiter as given: Auto is ours, Direct backward Euler by the factor,
 /// Iterative backward Euler by CG on the support, SuperTimeStepping RKL2 on
@@ -105,27 +138,13 @@ DiffusionOutcome runDiffusion(const LiquidMesh& g, double h, int steps, bool imp
     switches.velocityDiffusion = false;
     switches.positivityLimiter = limiter;
     const StepContext ctx = makeStepContext(h, Vector3(0, 0, -9.8), switches, LiquidParameters{});
-    // Runs of equal (method, stages, CG iterations), in step order.
-    std::string last;
-    int run = 0;
-    const auto flush = [&] {
-      if (run > 0) out.methods += (out.methods.empty() ? "" : ", ") + last + " x" + std::to_string(run);
-    };
+    MethodRuns methods;
     for (int k = 0; k < steps; ++k) {
       const DiffusionReport report = diffuse(ctx, g.intrinsic, systems, scratch, state);
       if (report.status != SolverStatus::Ok) throw std::runtime_error("diffuse failed");
-      std::string method = methodName(report.densityMethod);
-      if (report.densityMethod == DiffusionMethod::SuperTimeStepping)
-        method += " (" + std::to_string(report.densityStages) + " stages)";
-      if (report.fallbacks > 0) method += " (CG stalled: factor)";
-      if (method != last) {
-        flush();
-        last = method;
-        run = 0;
-      }
-      ++run;
+      methods.add(methodLabel(report.densityMethod, report.densityStages, report.fallbacks > 0));
     }
-    flush();
+    out.methods = methods.finish();
     sigma = state.solvent;
   } else {
     for (int k = 0; k < steps * explicitSubsteps && sigma.allFinite(); ++k)
@@ -146,6 +165,16 @@ void recordDiffusion(CsvWriter& csv, double parameter, const std::string& method
                      const std::string& note = "") {
   const std::string both = o.methods.empty() ? note : note.empty() ? o.methods : note + "; " + o.methods;
   record(csv, parameter, method, o.health.growth, -o.health.minOverMax, o.massError, both);
+}
+
+/// Both schemes ours chooses from without the limiter: backward Euler (the
+/// factor) and RKL2, labelled prefix + scheme + " without " + limiterName.
+void recordWithoutLimiter(CsvWriter& csv, double parameter, const LiquidMesh& g, double h, int steps,
+                          const std::string& prefix, const std::string& limiterName) {
+  recordDiffusion(csv, parameter, prefix + "backward Euler without " + limiterName,
+                  runDiffusion(g, h, steps, true, false, 1, DiffusionSolverChoice::Direct));
+  recordDiffusion(csv, parameter, prefix + "RKL2 without " + limiterName,
+                  runDiffusion(g, h, steps, true, false, 1, DiffusionSolverChoice::SuperTimeStepping));
 }
 
 void recordForcedDiffusion(CsvWriter& csv, double parameter, const LiquidMesh& g, double h, int steps,
@@ -332,11 +361,7 @@ VelocityOutcome runVelocity(const LiquidMesh& g, double h, int steps, VelocityMo
     const StepContext ctx = makeStepContext(h, Vector3(0, 0, -9.8), switches, LiquidParameters{});
     const bool whole = mode == VelocityMode::WholeMeshFactor || mode == VelocityMode::WholeMeshRkl2;
     const std::vector<char>* band = whole ? nullptr : &rows;
-    std::string last;
-    int run = 0;
-    const auto flush = [&] {
-      if (run > 0) out.methods += (out.methods.empty() ? "" : ", ") + last + " x" + std::to_string(run);
-    };
+    MethodRuns methods;
     for (int k = 0; k < steps; ++k) {
       const DiffusionReport report = diffuse(ctx, g.intrinsic, systems, scratch, state, band);
       if (report.status != SolverStatus::Ok) throw std::runtime_error("diffuse failed");
@@ -344,17 +369,9 @@ VelocityOutcome runVelocity(const LiquidMesh& g, double h, int steps, VelocityMo
         out.first = state.velocities;
         out.firstMethod = report.velocityMethod;
       }
-      std::string method = methodName(report.velocityMethod);
-      if (report.velocityMethod == DiffusionMethod::SuperTimeStepping)
-        method += " (" + std::to_string(report.velocityStages) + " stages)";
-      if (method != last) {
-        flush();
-        last = method;
-        run = 0;
-      }
-      ++run;
+      methods.add(methodLabel(report.velocityMethod, report.velocityStages, report.fallbacks > 0));
     }
-    flush();
+    out.methods = methods.finish();
     u = state.velocities;
   }
   const double largest = u.allFinite() ? u.cwiseAbs().maxCoeff() : std::numeric_limits<double>::infinity();
@@ -434,10 +451,7 @@ TEST(StabilityStudy, AnisotropySweep) {
     const DiffusionOutcome ours = runDiffusion(g, h, steps, true, true);
     recordDiffusion(csv, ratio, "ours (Auto + limiter)", ours);
     recordForcedDiffusion(csv, ratio, g, h, steps, "");
-    recordDiffusion(csv, ratio, "backward Euler without positivity limiter",
-                    runDiffusion(g, h, steps, true, false, 1, DiffusionSolverChoice::Direct));
-    recordDiffusion(csv, ratio, "RKL2 without positivity limiter",
-                    runDiffusion(g, h, steps, true, false, 1, DiffusionSolverChoice::SuperTimeStepping));
+    recordWithoutLimiter(csv, ratio, g, h, steps, "", "positivity limiter");
     recordDiffusion(csv, ratio, "explicit", runDiffusion(g, h, steps, false, false));
     recordDiffusion(csv, ratio, "explicit with stable sub-steps", runDiffusion(g, h, steps, false, false, substeps),
                     std::to_string(substeps) + " sub-steps per step");
@@ -466,10 +480,7 @@ TEST(StabilityStudy, MeshQualitySweep) {
     const DiffusionOutcome ours = runDiffusion(g, h, steps, true, true);
     recordDiffusion(csv, angle, "diffusion: ours (Auto + limiter)", ours);
     recordForcedDiffusion(csv, angle, g, h, steps, "diffusion: ");
-    recordDiffusion(csv, angle, "diffusion: backward Euler without limiter",
-                    runDiffusion(g, h, steps, true, false, 1, DiffusionSolverChoice::Direct));
-    recordDiffusion(csv, angle, "diffusion: RKL2 without limiter",
-                    runDiffusion(g, h, steps, true, false, 1, DiffusionSolverChoice::SuperTimeStepping));
+    recordWithoutLimiter(csv, angle, g, h, steps, "diffusion: ", "limiter");
     recordDiffusion(csv, angle, "diffusion: explicit", runDiffusion(g, h, steps, false, false));
     EXPECT_FALSE(ours.health.blewUp());
     EXPECT_GE(ours.health.minOverMax, 0.0);
