@@ -469,6 +469,66 @@ TEST(SparseSolver, RepeatedRunsAreBitwiseIdentical) {
   }
 }
 
+// The simplicial solves read L's row indices as 16 bits where every index
+// fits (n ≤ 65,536): the same operations in the same order as with CHOLMOD's
+// 32-bit indices, so the same bits, for one right-hand side and a pair, a
+// dense and a local one, real and complex. Above 65,536 rows the 32-bit
+// indices are read.
+template <typename Scalar, typename Matrix>
+void expectShortRowsBitwise(const Matrix& A) {
+  using VectorType = Eigen::Matrix<Scalar, Eigen::Dynamic, 1>;
+  const int n = static_cast<int>(A.rows());
+  CholeskySolver<Scalar> wide(FactorKind::Simplicial), narrow(FactorKind::Simplicial);
+  wide.setShortRowIndices(false);
+  ASSERT_EQ(wide.compute(A), SolverStatus::Ok);
+  ASSERT_EQ(narrow.compute(A), SolverStatus::Ok);
+  ASSERT_FALSE(wide.usesShortRowIndices());
+  ASSERT_TRUE(narrow.usesShortRowIndices());
+  VectorType dense = randomVector<Scalar>(n, 21), local = VectorType::Zero(n);
+  local[n / 3] = dense[0];
+  local[n / 3 + 1] = dense[1];
+  for (const VectorType* b : {&dense, &local}) {
+    VectorType x, y;
+    ASSERT_EQ(wide.solve(*b, x), SolverStatus::Ok);
+    ASSERT_EQ(narrow.solve(*b, y), SolverStatus::Ok);
+    for (int i = 0; i < n; ++i) ASSERT_EQ(x[i], y[i]) << "row " << i;
+    EXPECT_LT(relativeResidual(A, y, *b), 1e-12);
+    VectorType wa = *b, wb = dense, na = *b, nb = dense;
+    ASSERT_EQ(wide.solveInPlacePair(wa, wb), SolverStatus::Ok);
+    ASSERT_EQ(narrow.solveInPlacePair(na, nb), SolverStatus::Ok);
+    for (int i = 0; i < n; ++i) {
+      ASSERT_EQ(wa[i], na[i]) << "row " << i;
+      ASSERT_EQ(wb[i], nb[i]) << "row " << i;
+    }
+  }
+  // Switched off, the next factorization reads the 32-bit indices again.
+  narrow.setShortRowIndices(false);
+  ASSERT_EQ(narrow.factorize(A), SolverStatus::Ok);
+  EXPECT_FALSE(narrow.usesShortRowIndices());
+  narrow.releaseFactor();
+  EXPECT_FALSE(narrow.usesShortRowIndices());
+}
+
+TEST(SparseSolver, ShortRowIndicesGiveTheBitsOfCholmodsOwn) {
+  expectShortRowsBitwise<double>(gridLaplacianPlusShift(150, 0.05));
+  expectShortRowsBitwise<Complex>(gridConnectionPlusShift(90, 0.05, 9));
+  // 256² = 65,536 rows: the largest index, 65,535, still fits; 257² does not.
+  for (const int m : {256, 257}) {
+    const SparseMatrix A = gridLaplacianPlusShift(m, 0.5);
+    RealCholeskySolver solver;
+    ASSERT_EQ(solver.compute(A), SolverStatus::Ok);
+    EXPECT_EQ(solver.usesShortRowIndices(), m == 256) << m << " x " << m;
+    const Vector b = randomVector<double>(m * m, 23);
+    Vector x;
+    ASSERT_EQ(solver.solve(b, x), SolverStatus::Ok);
+    EXPECT_LT(relativeResidual(A, x, b), 1e-12) << m << " x " << m;
+  }
+  // Supernodal factors go through CHOLMOD's solve.
+  RealCholeskySolver supernodal(FactorKind::Supernodal);
+  ASSERT_EQ(supernodal.compute(gridLaplacianPlusShift(40, 0.5)), SolverStatus::Ok);
+  EXPECT_FALSE(supernodal.usesShortRowIndices());
+}
+
 TEST(SparseSolver, LargeSystemsUseAReproducibleOrdering) {
   // 22,500 unknowns: above the size where nested dissection (METIS bisection)
   // is tried beside AMD. Two independent solvers must agree bit for bit.

@@ -6,6 +6,7 @@
 #include <cholmod.h>
 
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <vector>
 
@@ -262,14 +263,16 @@ inline Complex divideByDiagonal(const Complex& value, const Complex& diagonal) {
 // substitution (a gather), each one pass over L in a fixed order:
 // deterministic and allocation-free. Each right-hand side gets the same
 // operations in the same order whatever K is, so K = 2 gives bitwise two
-// K = 1 solves, and reads L once.
-template <int K, typename Scalar>
-void simplicialSolve(const cholmod_factor& L, const Scalar* const b[K], Scalar* const x[K], Scalar* work) {
+// K = 1 solves, and reads L once. `rows` is L's row indices, CHOLMOD's own
+// (int) or their 16-bit copy (shortRowIndices): the same values, so the same
+// operations in the same order, and 2 bytes less read per entry of L.
+template <int K, typename Scalar, typename RowIndex>
+void simplicialSolve(const cholmod_factor& L, const RowIndex* rows, const Scalar* const b[K], Scalar* const x[K],
+                     Scalar* work) {
   const int n = static_cast<int>(L.n);
   const int* perm = static_cast<const int*>(L.Perm);
   const int* columnStarts = static_cast<const int*>(L.p);
   const int* columnCounts = static_cast<const int*>(L.nz);
-  const int* rows = static_cast<const int*>(L.i);
   const Scalar* values = static_cast<const Scalar*>(L.x);
   for (int k = 0; k < n; ++k)
     for (int c = 0; c < K; ++c) work[K * k + c] = b[c][perm[k]];
@@ -311,6 +314,38 @@ template <typename Scalar>
 struct CholeskySolver<Scalar>::Impl : cholmod_detail::SolverCore {
   using SolverCore::SolverCore;
   std::vector<Scalar> solveWork;  // 2n: simplicialSolve for up to two right-hand sides (sized at factorize)
+  // L's row indices as 16 bits (filled at factorize where every index fits;
+  // empty otherwise). The back substitution reads every entry of L once a
+  // solve and is bound by those reads (docs/performance.md, "Stop 48"):
+  // 10 bytes an entry instead of 12.
+  std::vector<std::uint16_t> shortRows;
+  bool shortRowsAllowed = true;  // setShortRowIndices
+
+  // Our own substitution applies (the rest goes through cholmod_solve2).
+  bool ownSolve() const {
+    const cholmod_factor& L = *factor;
+    return !L.is_super && L.is_ll && L.itype == CHOLMOD_INT &&
+           L.xtype == cholmod_detail::ScalarTraits<Scalar>::xtype && L.Perm != nullptr && L.nz != nullptr;
+  }
+  // shortRows from the numeric factor: its row indices, when all are below
+  // 2^16 (n ≤ 65,536) and the columns sit packed in index order without
+  // slack (CHOLMOD's final_pack, its default), so entry q of column j is
+  // entry q of the copy; otherwise none.
+  void storeShortRows() {
+    shortRows.clear();
+    const cholmod_factor& L = *factor;
+    if (!shortRowsAllowed || !ownSolve() || L.n > kShortRowLimit) return;
+    const int* starts = static_cast<const int*>(L.p);
+    const int* counts = static_cast<const int*>(L.nz);
+    if (L.n > 0 && starts[0] != 0) return;
+    for (size_t j = 0; j + 1 < L.n; ++j)
+      if (counts[j] < 0 || starts[j] + counts[j] != starts[j + 1]) return;
+    const size_t entries = L.n == 0 ? 0 : static_cast<size_t>(starts[L.n - 1]) + static_cast<size_t>(counts[L.n - 1]);
+    const int* rows = static_cast<const int*>(L.i);
+    shortRows.resize(entries);
+    for (size_t q = 0; q < entries; ++q) shortRows[q] = static_cast<std::uint16_t>(rows[q]);
+  }
+  static constexpr size_t kShortRowLimit = size_t{1} << 16;
 };
 
 template <typename Scalar>
@@ -374,6 +409,7 @@ SolverStatus CholeskySolver<Scalar>::factorize(const Matrix& A) {
     return SolverStatus::NotPositiveDefinite;
   }
   if (s.solveWork.size() != 2 * static_cast<size_t>(s.n)) s.solveWork.resize(2 * static_cast<size_t>(s.n));
+  s.storeShortRows();
   s.factorized = true;
   return SolverStatus::Ok;
 }
@@ -382,6 +418,7 @@ template <typename Scalar>
 void CholeskySolver<Scalar>::releaseFactor() {
   if (!impl_) return;
   impl_->freeNumeric();
+  std::vector<std::uint16_t>().swap(impl_->shortRows);  // released with the factor it copies
   cholmod_free_work(&impl_->common);
 }
 
@@ -401,15 +438,18 @@ SolverStatus CholeskySolver<Scalar>::solve(const VectorType& rhs, VectorType& x)
     if (!cholmod_detail::ScalarTraits<Scalar>::isFinite(rhs[i])) return SolverStatus::NonFinite;
   }
   const cholmod_factor& L = *s.factor;
-  if (!L.is_super && L.is_ll && L.itype == CHOLMOD_INT && L.xtype == cholmod_detail::ScalarTraits<Scalar>::xtype &&
-      L.Perm != nullptr && L.nz != nullptr) {
+  if (s.ownSolve()) {
     // Our own substitution: CHOLMOD's real simplicial solve allocates on every
     // call; this does not, and it writes x directly (work holds P b first, so
     // rhs and x may be the same vector).
     x.resize(s.n);
     const Scalar* in[1] = {rhs.data()};
     Scalar* out[1] = {x.data()};
-    cholmod_detail::simplicialSolve<1, Scalar>(L, in, out, s.solveWork.data());
+    if (!s.shortRows.empty()) {
+      cholmod_detail::simplicialSolve<1, Scalar>(L, s.shortRows.data(), in, out, s.solveWork.data());
+    } else {
+      cholmod_detail::simplicialSolve<1, Scalar>(L, static_cast<const int*>(L.i), in, out, s.solveWork.data());
+    }
     return SolverStatus::Ok;
   }
   cholmod_dense b{};
@@ -440,11 +480,14 @@ SolverStatus CholeskySolver<Scalar>::solveInPlacePair(VectorType& a, VectorType&
     for (Eigen::Index i = 0; i < v->size(); ++i)
       if (!cholmod_detail::ScalarTraits<Scalar>::isFinite((*v)[i])) return SolverStatus::NonFinite;
   const cholmod_factor& L = *s.factor;
-  if (!L.is_super && L.is_ll && L.itype == CHOLMOD_INT && L.xtype == cholmod_detail::ScalarTraits<Scalar>::xtype &&
-      L.Perm != nullptr && L.nz != nullptr) {
+  if (s.ownSolve()) {
     const Scalar* in[2] = {a.data(), b.data()};
     Scalar* out[2] = {a.data(), b.data()};
-    cholmod_detail::simplicialSolve<2, Scalar>(L, in, out, s.solveWork.data());
+    if (!s.shortRows.empty()) {
+      cholmod_detail::simplicialSolve<2, Scalar>(L, s.shortRows.data(), in, out, s.solveWork.data());
+    } else {
+      cholmod_detail::simplicialSolve<2, Scalar>(L, static_cast<const int*>(L.i), in, out, s.solveWork.data());
+    }
     return SolverStatus::Ok;
   }
   const SolverStatus status = solve(a, a);
@@ -474,6 +517,17 @@ int CholeskySolver<Scalar>::analysisCount() const {
 template <typename Scalar>
 int CholeskySolver<Scalar>::factorizationCount() const {
   return impl_ ? impl_->factorizationCount : 0;
+}
+
+template <typename Scalar>
+void CholeskySolver<Scalar>::setShortRowIndices(bool on) {
+  if (!impl_) impl_ = std::make_unique<Impl>(FactorKind::Simplicial);  // moved-from
+  impl_->shortRowsAllowed = on;
+}
+
+template <typename Scalar>
+bool CholeskySolver<Scalar>::usesShortRowIndices() const {
+  return impl_ && impl_->factorized && !impl_->shortRows.empty();
 }
 
 template <typename Scalar>
