@@ -277,6 +277,13 @@ void simplicialSolve(const cholmod_factor& L, const RowIndex* rows, const Scalar
   for (int k = 0; k < n; ++k)
     for (int c = 0; c < K; ++c) work[K * k + c] = b[c][perm[k]];
   for (int j = 0; j < n; ++j) {
+    // A zero over the positive diagonal is that zero, sign and all, so a
+    // column whose entries are all zero is left as it is without reading its
+    // diagonal: on a right-hand side held by a few vertices, most columns are
+    // such, and the diagonals of the rest of L are a cache miss each.
+    bool zeroIn = true;
+    for (int c = 0; c < K; ++c) zeroIn = zeroIn && work[K * j + c] == Scalar(0);
+    if (zeroIn) continue;
     const int begin = columnStarts[j], end = begin + columnCounts[j];
     Scalar z[K];
     bool zero = true;
