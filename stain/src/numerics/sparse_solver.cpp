@@ -353,6 +353,17 @@ struct CholeskySolver<Scalar>::Impl : cholmod_detail::SolverCore {
     for (size_t q = 0; q < entries; ++q) shortRows[q] = static_cast<std::uint16_t>(rows[q]);
   }
   static constexpr size_t kShortRowLimit = size_t{1} << 16;
+
+  // simplicialSolve over the factor, with the 16-bit row indices where stored.
+  template <int K>
+  void substitute(const Scalar* const (&in)[K], Scalar* const (&out)[K]) {
+    const cholmod_factor& L = *factor;
+    if (!shortRows.empty()) {
+      cholmod_detail::simplicialSolve<K, Scalar>(L, shortRows.data(), in, out, solveWork.data());
+    } else {
+      cholmod_detail::simplicialSolve<K, Scalar>(L, static_cast<const int*>(L.i), in, out, solveWork.data());
+    }
+  }
 };
 
 template <typename Scalar>
@@ -444,19 +455,14 @@ SolverStatus CholeskySolver<Scalar>::solve(const VectorType& rhs, VectorType& x)
   for (Eigen::Index i = 0; i < rhs.size(); ++i) {
     if (!cholmod_detail::ScalarTraits<Scalar>::isFinite(rhs[i])) return SolverStatus::NonFinite;
   }
-  const cholmod_factor& L = *s.factor;
   if (s.ownSolve()) {
     // Our own substitution: CHOLMOD's real simplicial solve allocates on every
     // call; this does not, and it writes x directly (work holds P b first, so
     // rhs and x may be the same vector).
     x.resize(s.n);
     const Scalar* in[1] = {rhs.data()};
-    Scalar* out[1] = {x.data()};
-    if (!s.shortRows.empty()) {
-      cholmod_detail::simplicialSolve<1, Scalar>(L, s.shortRows.data(), in, out, s.solveWork.data());
-    } else {
-      cholmod_detail::simplicialSolve<1, Scalar>(L, static_cast<const int*>(L.i), in, out, s.solveWork.data());
-    }
+    Scalar* const out[1] = {x.data()};
+    s.substitute<1>(in, out);
     return SolverStatus::Ok;
   }
   cholmod_dense b{};
@@ -486,15 +492,10 @@ SolverStatus CholeskySolver<Scalar>::solveInPlacePair(VectorType& a, VectorType&
   for (const VectorType* v : {&a, &b})
     for (Eigen::Index i = 0; i < v->size(); ++i)
       if (!cholmod_detail::ScalarTraits<Scalar>::isFinite((*v)[i])) return SolverStatus::NonFinite;
-  const cholmod_factor& L = *s.factor;
   if (s.ownSolve()) {
     const Scalar* in[2] = {a.data(), b.data()};
-    Scalar* out[2] = {a.data(), b.data()};
-    if (!s.shortRows.empty()) {
-      cholmod_detail::simplicialSolve<2, Scalar>(L, s.shortRows.data(), in, out, s.solveWork.data());
-    } else {
-      cholmod_detail::simplicialSolve<2, Scalar>(L, static_cast<const int*>(L.i), in, out, s.solveWork.data());
-    }
+    Scalar* const out[2] = {a.data(), b.data()};
+    s.substitute<2>(in, out);
     return SolverStatus::Ok;
   }
   const SolverStatus status = solve(a, a);
