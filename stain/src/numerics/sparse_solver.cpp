@@ -462,7 +462,7 @@ SolverStatus CholeskySolver<Scalar>::solve(const VectorType& rhs, VectorType& x)
     x.resize(s.n);
     const Scalar* in[1] = {rhs.data()};
     Scalar* const out[1] = {x.data()};
-    s.substitute<1>(in, out);
+    s.template substitute<1>(in, out);
     return SolverStatus::Ok;
   }
   cholmod_dense b{};
@@ -495,7 +495,7 @@ SolverStatus CholeskySolver<Scalar>::solveInPlacePair(VectorType& a, VectorType&
   if (s.ownSolve()) {
     const Scalar* in[2] = {a.data(), b.data()};
     Scalar* const out[2] = {a.data(), b.data()};
-    s.substitute<2>(in, out);
+    s.template substitute<2>(in, out);
     return SolverStatus::Ok;
   }
   const SolverStatus status = solve(a, a);
