@@ -444,7 +444,18 @@ void SurfaceGeometry::setRefreshRegion(const int* vertices, int count) {
 void SurfaceGeometry::refreshIntrinsic() {
   const RowVectors3& positions = dynamic_.extrinsic.nextPositions;
   IntrinsicGeometry& in = dynamic_.intrinsic;
-  if (intrinsicRefresh_ == IntrinsicRefresh::Full) {
+  kept_.maxEdgeStrain = dynamic_.maxEdgeStrain;
+  kept_.strainMeasured = strainMeasured_;
+  // Partial and Region choose their edges first (reading the tier, writing
+  // none of it): only a refresh that stays partial keeps a copy of the tier
+  // and updates it in place. Full, and a choice past kPartialRefreshMaxShare,
+  // rebuild the whole tier from the current lengths into the kept tier's
+  // arrays (swapped in, the old tier kept by the swap: no copy, no
+  // allocation), the same bits as intrinsicGeometryFromLengths.
+  const bool partial = intrinsicRefresh_ != IntrinsicRefresh::Full && in.rebuildCount > 0 &&
+                       chooseRefreshedEdges(positions);
+  const bool whole = !partial && (intrinsicRefresh_ == IntrinsicRefresh::Full || in.rebuildCount > 0);
+  if (whole) {
     swap(kept_.intrinsic, in);
     kept_.inverseBuiltSquaredLengths.swap(dynamic_.inverseBuiltSquaredLengths);
     in.rebuildCount = kept_.intrinsic.rebuildCount;
@@ -452,14 +463,15 @@ void SurfaceGeometry::refreshIntrinsic() {
     kept_.intrinsic = in;
     kept_.inverseBuiltSquaredLengths = dynamic_.inverseBuiltSquaredLengths;
   }
-  kept_.maxEdgeStrain = dynamic_.maxEdgeStrain;
-  kept_.strainMeasured = strainMeasured_;
+  // The undo point is set before anything below can throw (a face that
+  // cannot be laid out): the caller gives the old tier back with it.
   kept_.valid = true;
-  if (intrinsicRefresh_ == IntrinsicRefresh::Full) {
+  if (partial) {
+    refreshChosenEdges(positions);
+  } else if (whole) {
     refreshIntrinsicFromPositions(positions);
-  } else if (dynamic_.intrinsic.rebuildCount == 0 || !refreshIntrinsicPartially(positions)) {
-    // The first build of a Partial geometry, or too much changed: every
-    // edge re-measured, the tier from the lengths.
+  } else {
+    // The first build of a Partial geometry: every edge measured, the tier from the lengths.
     intrinsicGeometryFromLengths(*topology_, edgeLengths(*topology_, positions), fabric_.densityTensors,
                                  fabric_.velocityTensors, faceWeftCoefficients_, in);
     dynamic_.inverseBuiltSquaredLengths = in.edgeLengths.array().square().inverse().matrix();
@@ -562,17 +574,11 @@ void SurfaceGeometry::markRegionEdges() {
   }
 }
 
-bool SurfaceGeometry::refreshIntrinsicPartially(const RowVectors3& positions) {
+bool SurfaceGeometry::chooseRefreshedEdges(const RowVectors3& positions) {
   const SurfaceTopology& topology = *topology_;
-  const int n = topology.vertexCount(), edgeCount = topology.edgeCount(), faceCount = topology.faceCount();
-  const Triangles& faces = topology.faces();
-  const Eigen::MatrixX3i& faceEdges = topology.faceEdges();
+  const int edgeCount = topology.edgeCount();
   const Eigen::MatrixX2i& edges = topology.edgeVertices();
-  const std::vector<int>& offsets = topology.ringOffsets();
-  const std::vector<int>& ringFaces = topology.ringFaces();
-  const std::vector<int>& ringEdges = topology.ringEdges();
-  IntrinsicGeometry& in = dynamic_.intrinsic;
-  double* inverseBuilt = dynamic_.inverseBuiltSquaredLengths.data();
+  const double* inverseBuilt = dynamic_.inverseBuiltSquaredLengths.data();
 
   // Chosen edges: r_e = ℓ_e² / ℓ̂_e² outside [(1 − t)², (1 + t)²], t the
   // fraction of the tolerance (the strain test's ratio, so no root per edge).
@@ -596,6 +602,21 @@ bool SurfaceGeometry::refreshIntrinsicPartially(const RowVectors3& positions) {
     for (const int e : chosenEdges_) edgeMarks_[static_cast<size_t>(e)] = 0;
     return false;
   }
+  unchosenStrain_ = strainFromSquaredRatios(maxRatio, minRatio);
+  return true;
+}
+
+void SurfaceGeometry::refreshChosenEdges(const RowVectors3& positions) {
+  const SurfaceTopology& topology = *topology_;
+  const int n = topology.vertexCount(), edgeCount = topology.edgeCount(), faceCount = topology.faceCount();
+  const Triangles& faces = topology.faces();
+  const Eigen::MatrixX3i& faceEdges = topology.faceEdges();
+  const Eigen::MatrixX2i& edges = topology.edgeVertices();
+  const std::vector<int>& offsets = topology.ringOffsets();
+  const std::vector<int>& ringFaces = topology.ringFaces();
+  const std::vector<int>& ringEdges = topology.ringEdges();
+  IntrinsicGeometry& in = dynamic_.intrinsic;
+  double* inverseBuilt = dynamic_.inverseBuiltSquaredLengths.data();
   for (const int e : chosenEdges_) {
     // What edgeLengths() computes for this edge, and 1 / ℓ̂² as the whole path does.
     in.edgeLengths(e) = (positions.row(edges(e, 1)) - positions.row(edges(e, 0))).norm();
@@ -667,11 +688,10 @@ bool SurfaceGeometry::refreshIntrinsicPartially(const RowVectors3& positions) {
                                   faces3_.data(), size(faces3_), in.velocityStiffness);
   for (const int v : vertices1_) vertexMarks_[static_cast<size_t>(v)] = 0;
   for (const int v : vertices2_) vertexMarks2_[static_cast<size_t>(v)] = 0;
-  dynamic_.maxEdgeStrain = strainFromSquaredRatios(maxRatio, minRatio);
+  dynamic_.maxEdgeStrain = unchosenStrain_;
   strainMeasured_ = true;
   refreshedEdges_ = size(chosenEdges_);
   refreshedFaces_ = size(faces3_);
-  return true;
 }
 
 bool SurfaceGeometry::refreshExtrinsic(const RowVectors3& nextPositions, double h, bool strainTest) {

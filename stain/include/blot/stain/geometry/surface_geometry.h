@@ -210,8 +210,7 @@ enum class IntrinsicRefresh {
   /// accurate as the whole rebuild at the same trigger, at about 0.7 of its
   /// cost on the two-way flag (docs/accuracy.md, "Strain tolerance"). More
   /// than kPartialRefreshMaxShare of the edges: the whole tier from the
-  /// current lengths, as Partial (intrinsicGeometryFromLengths, which
-  /// allocates: the whole rebuild of Full refills in place).
+  /// current lengths, as Partial (Full's whole rebuild, refilled in place).
   Region
 };
 /// Rings around the refresh region's vertices whose faces a Region refresh
@@ -508,7 +507,12 @@ class SurfaceGeometry {
   // the ring faces of V1 (F2) and edges at V1; the vertices of F2 (V2) and
   // their ring faces (F3).
   void refreshIntrinsicFromPositions(const RowVectors3& positions);
-  bool refreshIntrinsicPartially(const RowVectors3& positions);
+  // Partial and Region in two parts: the edges chosen (false, nothing
+  // chosen, when more than kPartialRefreshMaxShare of them would be), then
+  // their lengths and what depends on them updated in place.
+  bool chooseRefreshedEdges(const RowVectors3& positions);
+  void refreshChosenEdges(const RowVectors3& positions);
+  double unchosenStrain_ = 0;  // the largest strain among the edges not chosen
   // Region mode: marks (edgeMarks_) the edges of the faces within
   // kRegionRefreshRings rings of regionVertices_, the chosen edges.
   void markRegionEdges();
