@@ -721,6 +721,35 @@ TEST(SurfaceGeometry, PartialRefreshKeepsTheOperatorInvariants) {
   EXPECT_GT(in.vertexDualAreas.minCoeff(), 0.0);
 }
 
+// A partial refresh that throws (an anisotropic face collapsed: its weft has
+// no plane to be laid out in) leaves no vertex marked. After the undo the
+// next refresh, a bump far from that face, re-measures and re-assembles what
+// a twin that never failed does: the same tier and the same counts (before
+// stop 50 the failed refresh's marks stayed set, and the next refresh
+// re-assembled around those vertices too).
+TEST(SurfaceGeometry, APartialRefreshThatThrowsLeavesNothingMarked) {
+  const TriangleMesh mesh = wavySheet();
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  const FabricField fabric = anisotropicFabric(topology.faceCount(), 5);
+  SurfaceGeometry failed(topology, mesh.vertexPositions, fabric), twin(topology, mesh.vertexPositions, fabric);
+  for (SurfaceGeometry* g : {&failed, &twin}) g->setIntrinsicRefresh(IntrinsicRefresh::Partial);
+  RowVectors3 collapsed = mesh.vertexPositions;
+  collapsed.row(mesh.faces(7, 0)) = collapsed.row(mesh.faces(7, 1));
+  ASSERT_TRUE(failed.refreshExtrinsic(collapsed, 0.01));
+  EXPECT_THROW(failed.refreshIntrinsic(), std::invalid_argument);
+  failed.undoIntrinsicRefresh();
+  expectSameIntrinsic(failed.intrinsic(), twin.intrinsic());
+  const RowVectors3 bumped = bumpedSheet(mesh.vertexPositions, 0.8, 0.6, 0.01, 3);
+  ASSERT_TRUE(failed.refreshExtrinsic(bumped, 0.01));
+  ASSERT_TRUE(twin.refreshExtrinsic(bumped, 0.01));
+  failed.refreshIntrinsic();
+  twin.refreshIntrinsic();
+  ASSERT_LT(twin.refreshedEdgeCount(), topology.edgeCount());  // partial, not the whole fallback
+  EXPECT_EQ(failed.refreshedEdgeCount(), twin.refreshedEdgeCount());
+  EXPECT_EQ(failed.refreshedFaceCount(), twin.refreshedFaceCount());
+  expectSameIntrinsic(failed.intrinsic(), twin.intrinsic());
+}
+
 // A partial refresh allocates nothing; the same run takes the same bits with
 // one and two OpenMP threads (the strain test is parallel above 8192 edges).
 TEST(SurfaceGeometry, PartialRefreshAllocatesNothingAndIsThreadCountIndependent) {

@@ -678,16 +678,27 @@ void SurfaceGeometry::refreshChosenEdges(const RowVectors3& positions) {
   updateEdgeTransportAngles(topology, in.polarMap, edges2_.data(), size(edges2_), in.edgeTransportAngles);
   updateFaceTransportAngles(topology, in.faceCornerAngles, in.polarMap, vertices1_.data(), size(vertices1_),
                             in.faceTransportAngles);
-  // L_S: blocks of F1 changed; entries among V1, re-summed over F2 (every face at V1).
-  reassembleStiffnessFromLengths(topology, in.edgeLengths, fabric_.densityTensors, faceWeftCoefficients_,
-                                 vertexMarks_.data(), vertices1_.data(), size(vertices1_), faces2_.data(),
-                                 size(faces2_), in.densityStiffness);
-  // Connection: blocks of F2 changed (transport angles); entries among V2, over F3.
-  reassembleConnectionFromLengths(topology, in.edgeLengths, in.faceTransportAngles, fabric_.velocityTensors,
-                                  faceWeftCoefficients_, vertexMarks2_.data(), vertices2_.data(), size(vertices2_),
-                                  faces3_.data(), size(faces3_), in.velocityStiffness);
-  for (const int v : vertices1_) vertexMarks_[static_cast<size_t>(v)] = 0;
-  for (const int v : vertices2_) vertexMarks2_[static_cast<size_t>(v)] = 0;
+  const auto clearVertexMarks = [&] {
+    for (const int v : vertices1_) vertexMarks_[static_cast<size_t>(v)] = 0;
+    for (const int v : vertices2_) vertexMarks2_[static_cast<size_t>(v)] = 0;
+  };
+  try {
+    // L_S: blocks of F1 changed; entries among V1, re-summed over F2 (every face at V1).
+    reassembleStiffnessFromLengths(topology, in.edgeLengths, fabric_.densityTensors, faceWeftCoefficients_,
+                                   vertexMarks_.data(), vertices1_.data(), size(vertices1_), faces2_.data(),
+                                   size(faces2_), in.densityStiffness);
+    // Connection: blocks of F2 changed (transport angles); entries among V2, over F3.
+    reassembleConnectionFromLengths(topology, in.edgeLengths, in.faceTransportAngles, fabric_.velocityTensors,
+                                    faceWeftCoefficients_, vertexMarks2_.data(), vertices2_.data(),
+                                    size(vertices2_), faces3_.data(), size(faces3_), in.velocityStiffness);
+  } catch (...) {
+    // A face whose weft cannot be laid out (a collapsed anisotropic face):
+    // the caller undoes the tier; the marks must not outlive this refresh,
+    // or the next one would re-assemble around these vertices too.
+    clearVertexMarks();
+    throw;
+  }
+  clearVertexMarks();
   dynamic_.maxEdgeStrain = unchosenStrain_;
   strainMeasured_ = true;
   refreshedEdges_ = size(chosenEdges_);
