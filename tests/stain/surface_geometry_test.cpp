@@ -750,6 +750,61 @@ TEST(SurfaceGeometry, APartialRefreshThatThrowsLeavesNothingMarked) {
   expectSameIntrinsic(failed.intrinsic(), twin.intrinsic());
 }
 
+// The undo of a partial refresh (Partial and Region) gives back the tier
+// before it to the bit, from the values the refresh journaled before writing
+// them; the undo of a refresh that fell back to the whole tier (a region past
+// kPartialRefreshMaxShare of the edges) swaps the old tier back. Neither the
+// refresh nor its undo allocates once the kept tier is sized
+// (prepareWholeRebuilds). Each refresh is then redone and the run goes on
+// from it, so the undo is tested on tiers that earlier refreshes changed.
+TEST(SurfaceGeometry, TheUndoOfAPartialRefreshGivesBackTheTierBitwise) {
+  TriangleMesh mesh = gridMesh(32, 24, 1.0, 0.75);  // wavySheet, finer: a region's rings stay local
+  for (Eigen::Index v = 0; v < mesh.vertexPositions.rows(); ++v)
+    mesh.vertexPositions(v, 2) = 0.2 * std::sin(2 * mesh.vertexPositions(v, 0)) * std::cos(3 * mesh.vertexPositions(v, 1));
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  const FabricField fabric = anisotropicFabric(topology.faceCount(), 5);
+  for (const IntrinsicRefresh mode : {IntrinsicRefresh::Partial, IntrinsicRefresh::Region}) {
+    SCOPED_TRACE(mode == IntrinsicRefresh::Partial ? "partial" : "region");
+    SurfaceGeometry geometry(topology, mesh.vertexPositions, fabric);
+    geometry.setIntrinsicRefresh(mode);
+    geometry.prepareWholeRebuilds();
+    int partial = 0, whole = 0;
+    long allocations = 0;
+    for (int step = 1; step <= 8; ++step) {
+      const double cx = 0.15 + 0.1 * step;
+      // A bump; every fourth step the sheet also stretched by 0.2 % and the
+      // region all of it: the whole fallback.
+      const bool everywhere = step % 4 == 0;
+      const RowVectors3 p = bumpedSheet(mesh.vertexPositions, cx, 0.35, 0.004 * step, step) * (everywhere ? 1.002 : 1.0);
+      std::vector<int> region;
+      for (int v = 0; v < topology.vertexCount(); ++v)
+        if (everywhere || std::hypot(mesh.vertexPositions(v, 0) - cx, mesh.vertexPositions(v, 1) - 0.35) < 0.03)
+          region.push_back(v);
+      geometry.setRefreshRegion(region.data(), static_cast<int>(region.size()));
+      if (!geometry.refreshExtrinsic(p, 0.01)) continue;
+      const IntrinsicGeometry before = geometry.intrinsic();
+      gAllocations = 0;
+      gCountAllocations = true;
+      geometry.refreshIntrinsic();
+      const bool wasPartial = geometry.refreshedEdgeCount() < topology.edgeCount();
+      geometry.undoIntrinsicRefresh();
+      gCountAllocations = false;
+      allocations += gAllocations.load();
+      expectSameIntrinsic(geometry.intrinsic(), before);
+      EXPECT_EQ(geometry.intrinsic().rebuildCount, before.rebuildCount);
+      EXPECT_THROW(geometry.undoIntrinsicRefresh(), std::logic_error);  // once
+      geometry.refreshIntrinsic();  // the refresh again, kept
+      partial += wasPartial;
+      whole += !wasPartial;
+    }
+    EXPECT_GE(partial, 3);
+    EXPECT_GE(whole, 1);
+    if (kCountsAllocations) {
+      EXPECT_EQ(allocations, 0);
+    }
+  }
+}
+
 // A partial refresh allocates nothing; the same run takes the same bits with
 // one and two OpenMP threads (the strain test is parallel above 8192 edges).
 TEST(SurfaceGeometry, PartialRefreshAllocatesNothingAndIsThreadCountIndependent) {

@@ -428,6 +428,16 @@ void SurfaceGeometry::setIntrinsicRefresh(IntrinsicRefresh mode) {
     kept_.valid = false;
   }
   intrinsicRefresh_ = mode;
+  if (mode != IntrinsicRefresh::Full) {
+    // The most a partial refresh can journal: every value forEachRefreshedValue reaches.
+    const IntrinsicGeometry& in = dynamic_.intrinsic;
+    const size_t edges = static_cast<size_t>(topology_->edgeCount());
+    const size_t faces = static_cast<size_t>(topology_->faceCount());
+    const size_t vertices = static_cast<size_t>(topology_->vertexCount());
+    kept_.journal.reserve(5 * edges + 7 * faces + 2 * vertices + topology_->ringNeighbors().size() +
+                          static_cast<size_t>(in.densityStiffness.nonZeros()) +
+                          2 * static_cast<size_t>(in.velocityStiffness.nonZeros()));
+  }
 }
 
 void SurfaceGeometry::setRefreshRegion(const int* vertices, int count) {
@@ -447,19 +457,22 @@ void SurfaceGeometry::refreshIntrinsic() {
   kept_.maxEdgeStrain = dynamic_.maxEdgeStrain;
   kept_.strainMeasured = strainMeasured_;
   // Partial and Region choose their edges first (reading the tier, writing
-  // none of it): only a refresh that stays partial keeps a copy of the tier
-  // and updates it in place. Full, and a choice past kPartialRefreshMaxShare,
+  // none of it): a refresh that stays partial journals the values it is
+  // about to write (refreshChosenEdges) and updates the tier in place. Full,
+  // and a choice past kPartialRefreshMaxShare,
   // rebuild the whole tier from the current lengths into the kept tier's
   // arrays (swapped in, the old tier kept by the swap: no copy, no
   // allocation), the same bits as intrinsicGeometryFromLengths.
   const bool partial = intrinsicRefresh_ != IntrinsicRefresh::Full && in.rebuildCount > 0 &&
                        chooseRefreshedEdges(positions);
   const bool whole = !partial && (intrinsicRefresh_ == IntrinsicRefresh::Full || in.rebuildCount > 0);
+  kept_.journaled = partial;
+  kept_.rebuildCount = in.rebuildCount;
   if (whole) {
     swap(kept_.intrinsic, in);
     kept_.inverseBuiltSquaredLengths.swap(dynamic_.inverseBuiltSquaredLengths);
     in.rebuildCount = kept_.intrinsic.rebuildCount;
-  } else {
+  } else if (!partial) {
     kept_.intrinsic = in;
     kept_.inverseBuiltSquaredLengths = dynamic_.inverseBuiltSquaredLengths;
   }
@@ -497,8 +510,19 @@ void SurfaceGeometry::prepareWholeRebuilds() {
 
 void SurfaceGeometry::undoIntrinsicRefresh() {
   if (!kept_.valid) throw std::logic_error("SurfaceGeometry::undoIntrinsicRefresh: no refresh to undo");
-  swap(kept_.intrinsic, dynamic_.intrinsic);
-  kept_.inverseBuiltSquaredLengths.swap(dynamic_.inverseBuiltSquaredLengths);
+  if (kept_.journaled) {
+    // The journal holds every value the refresh wrote (all of them saved
+    // before the first write, so also after a refresh that threw).
+    size_t k = 0;
+    const auto restore = [&](double& value) { value = kept_.journal[k++]; };
+    forEachRefreshedValue(0, restore);
+    forEachRefreshedValue(1, restore);
+    dynamic_.intrinsic.rebuildCount = kept_.rebuildCount;
+    kept_.journaled = false;
+  } else {
+    swap(kept_.intrinsic, dynamic_.intrinsic);
+    kept_.inverseBuiltSquaredLengths.swap(dynamic_.inverseBuiltSquaredLengths);
+  }
   dynamic_.maxEdgeStrain = kept_.maxEdgeStrain;
   strainMeasured_ = kept_.strainMeasured;
   kept_.valid = false;
@@ -606,6 +630,46 @@ bool SurfaceGeometry::chooseRefreshedEdges(const RowVectors3& positions) {
   return true;
 }
 
+template <class At>
+void SurfaceGeometry::forEachRefreshedValue(int part, const At& at) {
+  IntrinsicGeometry& in = dynamic_.intrinsic;
+  if (part == 0) {
+    for (const int e : chosenEdges_) {
+      at(in.edgeLengths(e));
+      at(dynamic_.inverseBuiltSquaredLengths(e));
+    }
+    return;
+  }
+  const std::vector<int>& offsets = topology_->ringOffsets();
+  for (const int f : faces1_) {
+    for (int k = 0; k < 3; ++k) at(in.faceCornerAngles(f, k));
+    at(in.faceAreas(f));
+  }
+  for (const int e : edges1_) at(in.edgeCotanWeights(e));
+  for (const int v : vertices1_) {
+    at(in.vertexDualAreas(v));
+    at(in.polarMap.vertexAngleScales(v));
+    for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m)
+      at(in.polarMap.ringAngles(m));
+  }
+  for (const int e : edges2_) at(in.edgeTransportAngles(e));
+  for (const int f : faces2_)  // every face updateFaceTransportAngles writes a corner of
+    for (int k = 0; k < 3; ++k) at(in.faceTransportAngles(f, k));
+  // The re-assemblies write entries in the columns of V1 (L_S) and V2 (connection) only.
+  const int* outer = in.densityStiffness.outerIndexPtr();
+  double* density = in.densityStiffness.valuePtr();
+  for (const int v : vertices1_)
+    for (int q = outer[v]; q < outer[v + 1]; ++q) at(density[q]);
+  const int* connectionOuter = in.velocityStiffness.outerIndexPtr();
+  // std::complex<double> is two doubles (re, im) by the standard's array rule.
+  double* connection = reinterpret_cast<double*>(in.velocityStiffness.valuePtr());
+  for (const int v : vertices2_)
+    for (int q = connectionOuter[v]; q < connectionOuter[v + 1]; ++q) {
+      at(connection[2 * q]);
+      at(connection[2 * q + 1]);
+    }
+}
+
 void SurfaceGeometry::refreshChosenEdges(const RowVectors3& positions) {
   const SurfaceTopology& topology = *topology_;
   const int n = topology.vertexCount(), edgeCount = topology.edgeCount(), faceCount = topology.faceCount();
@@ -617,6 +681,9 @@ void SurfaceGeometry::refreshChosenEdges(const RowVectors3& positions) {
   const std::vector<int>& ringEdges = topology.ringEdges();
   IntrinsicGeometry& in = dynamic_.intrinsic;
   double* inverseBuilt = dynamic_.inverseBuiltSquaredLengths.data();
+  kept_.journal.clear();
+  const auto save = [&](double& value) { kept_.journal.push_back(value); };
+  forEachRefreshedValue(0, save);
   for (const int e : chosenEdges_) {
     // What edgeLengths() computes for this edge, and 1 / ℓ̂² as the whole path does.
     in.edgeLengths(e) = (positions.row(edges(e, 1)) - positions.row(edges(e, 0))).norm();
@@ -667,6 +734,7 @@ void SurfaceGeometry::refreshChosenEdges(const RowVectors3& positions) {
       if (f >= 0) faceMarks_[static_cast<size_t>(f)] = 1;
     }
   collect(faceMarks_, faceCount, faces3_, false);
+  forEachRefreshedValue(1, save);
 
   // The values, in dependency order (each update writes what the whole
   // function writes for those elements).

@@ -525,16 +525,27 @@ class SurfaceGeometry {
   int refreshedEdges_ = 0, refreshedFaces_ = 0;
   // The tier the last refreshIntrinsic replaced (undoIntrinsicRefresh). A
   // whole rebuild assigns every field, so it swaps the tier away (no copy) and
-  // builds into the buffers of the one before; a partial one starts from the
-  // current values, so it copies them (the same sizes: no allocation after
-  // the first). Costs one more tier in memory.
+  // builds into the buffers of the one before. A partial one changes the
+  // values its lists reach and no other: it saves those in `journal` first
+  // (forEachRefreshedValue's order; capacity for every value of the tier,
+  // reserved when a partial mode is set, so no allocation), and the undo
+  // writes them back. Costs one more tier in memory.
   struct KeptIntrinsic {
     IntrinsicGeometry intrinsic;
     Vector inverseBuiltSquaredLengths;
+    std::vector<double> journal;
+    bool journaled = false;  // the last refresh was partial: undo from the journal
+    int rebuildCount = 0;    // the tier's count before a journaled refresh
     double maxEdgeStrain = 0;
     bool strainMeasured = false;
     bool valid = false;
   } kept_;
+  // Every value a partial refresh may write, in one fixed order: part 0 the
+  // chosen edges' lengths and 1 / ℓ̂² (written before the lists are made),
+  // part 1 what the lists reach (the blocks and entries of F1, V1, F2, E1, E2
+  // and the operators' columns of V1 and V2). `at` gets each value.
+  template <class At>
+  void forEachRefreshedValue(int part, const At& at);
   // Where each face's block lies in the operators' values (oneRingFaceEntries):
   // a whole rebuild after the first refills the two operators in place. Made
   // at the second build or by prepareWholeRebuilds, so a mesh that never
