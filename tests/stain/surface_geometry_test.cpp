@@ -1019,6 +1019,70 @@ TEST(SurfaceGeometry, RefilledOperatorsAreBitwiseANewAssembly) {
                std::invalid_argument);
 }
 
+// The partial re-assemblies put every entry where the whole assemblies from
+// the same lengths do, to the bit, whether they read the entries' positions
+// from the table (oneRingFaceEntries, what SurfaceGeometry passes) or search
+// for them; the entries outside the marked block are left as they were.
+TEST(SurfaceGeometry, PartialReassemblyIsTheWholeAssemblyWithOrWithoutTheEntryTable) {
+  const TriangleMesh mesh = wavySheet();
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  const FabricField fabric = anisotropicFabric(topology.faceCount(), 7);
+  const Eigen::MatrixX2d weft = faceWeftCoefficients(topology, mesh.vertexPositions, fabric.weftDirections);
+  const Vector before = edgeLengths(topology, mesh.vertexPositions);
+  const Vector after = edgeLengths(topology, bumpedSheet(mesh.vertexPositions, 0.5, 0.4, 0.05, 4));
+  const Eigen::MatrixX3d phi(Eigen::MatrixX3d::Random(topology.faceCount(), 3) * 3.0);
+  // Marked: the vertices within 0.15 of (0.5, 0.4); the faces: every face with a marked corner.
+  std::vector<char> marks(static_cast<size_t>(topology.vertexCount()), 0);
+  std::vector<int> vertices, faceList;
+  for (int v = 0; v < topology.vertexCount(); ++v) {
+    if (std::hypot(mesh.vertexPositions(v, 0) - 0.5, mesh.vertexPositions(v, 1) - 0.4) < 0.15) {
+      marks[static_cast<size_t>(v)] = 1;
+      vertices.push_back(v);
+    }
+  }
+  for (int f = 0; f < topology.faceCount(); ++f)
+    if (marks[static_cast<size_t>(mesh.faces(f, 0))] || marks[static_cast<size_t>(mesh.faces(f, 1))] ||
+        marks[static_cast<size_t>(mesh.faces(f, 2))])
+      faceList.push_back(f);
+  ASSERT_GE(vertices.size(), 10u);
+  ASSERT_LT(faceList.size(), static_cast<size_t>(topology.faceCount()) / 2);
+  const OneRingEntries table = oneRingFaceEntries(topology);
+  const SparseMatrix oldK = anisotropicStiffnessFromLengths(topology, before, fabric.densityTensors, weft);
+  const ComplexSparseMatrix oldC = connectionLaplacianFromLengths(topology, before, phi, fabric.velocityTensors, weft);
+  const SparseMatrix newK = anisotropicStiffnessFromLengths(topology, after, fabric.densityTensors, weft);
+  const ComplexSparseMatrix newC = connectionLaplacianFromLengths(topology, after, phi, fabric.velocityTensors, weft);
+  for (const OneRingEntries* entries : {static_cast<const OneRingEntries*>(nullptr), &table}) {
+    SCOPED_TRACE(entries == nullptr ? "searched" : "from the table");
+    SparseMatrix K = oldK;
+    ComplexSparseMatrix C = oldC;
+    gAllocations = 0;
+    gCountAllocations = true;
+    reassembleStiffnessFromLengths(topology, after, fabric.densityTensors, weft, marks.data(), vertices.data(),
+                                   static_cast<int>(vertices.size()), faceList.data(),
+                                   static_cast<int>(faceList.size()), K, entries);
+    reassembleConnectionFromLengths(topology, after, phi, fabric.velocityTensors, weft, marks.data(),
+                                    vertices.data(), static_cast<int>(vertices.size()), faceList.data(),
+                                    static_cast<int>(faceList.size()), C, entries);
+    gCountAllocations = false;
+    if (kCountsAllocations) {
+      EXPECT_EQ(gAllocations.load(), 0);
+    }
+    int marked = 0;
+    for (int j = 0; j < topology.vertexCount(); ++j) {
+      for (int q = K.outerIndexPtr()[j]; q < K.outerIndexPtr()[j + 1]; ++q) {
+        const int i = K.innerIndexPtr()[q];
+        const bool block = marks[static_cast<size_t>(i)] && marks[static_cast<size_t>(j)];
+        marked += block;
+        const double k = K.valuePtr()[q], expectedK = (block ? newK : oldK).valuePtr()[q];
+        const Complex c = C.valuePtr()[q], expectedC = (block ? newC : oldC).valuePtr()[q];
+        EXPECT_EQ(std::memcmp(&k, &expectedK, sizeof k), 0) << "L_S (" << i << ", " << j << ")";
+        EXPECT_EQ(std::memcmp(&c, &expectedC, sizeof c), 0) << "connection (" << i << ", " << j << ")";
+      }
+    }
+    EXPECT_GT(marked, 50);
+  }
+}
+
 // refillStiffnessAndConnectionFromLengths writes bitwise what the two
 // from-lengths assemblies return (anisotropic tensors and weft coefficients,
 // or isotropic ones as every Table 1 cloth has; transport angles of another

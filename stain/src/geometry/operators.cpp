@@ -258,6 +258,30 @@ inline void addEntry(Eigen::SparseMatrix<Scalar>& L, int row, int col, const Sca
   L.valuePtr()[entryPosition(L.outerIndexPtr(), L.innerIndexPtr(), row, col)] += value;
 }
 
+// Face f's block entry (k, l) added into L (a partial re-assembly): at the
+// position the entry table gives when it fits L, else found by a search
+// (addEntry). The same position either way, so the same sums.
+template <typename Scalar>
+class MarkedEntryAdder {
+ public:
+  MarkedEntryAdder(const SurfaceTopology& topology, const OneRingEntries* entries, Eigen::SparseMatrix<Scalar>& L)
+      : faces_(topology.faces()),
+        entry_(entries != nullptr && entries->fits(topology, L) ? entries->index.data() : nullptr),
+        L_(L) {}
+  void operator()(int f, int k, int l, const Scalar& value) const {
+    if (entry_ != nullptr) {
+      L_.valuePtr()[entry_[9 * static_cast<size_t>(f) + static_cast<size_t>(3 * k + l)]] += value;
+    } else {
+      addEntry(L_, faces_(f, k), faces_(f, l), value);
+    }
+  }
+
+ private:
+  const Triangles& faces_;
+  const int* entry_;
+  Eigen::SparseMatrix<Scalar>& L_;
+};
+
 // A triangle's P1 hat-function gradients (columns) and its area: what its
 // stiffness needs besides the tensor, so one face's two operators share them.
 struct TriangleGradients {
@@ -598,16 +622,17 @@ SparseMatrix anisotropicStiffnessFromLengths(const SurfaceTopology& topology, co
 void reassembleStiffnessFromLengths(const SurfaceTopology& topology, const Vector& edgeLengths,
                                     const Eigen::MatrixX3d& faceTensors, const Eigen::MatrixX2d& faceWeftCoefficients,
                                     const char* vertexMarks, const int* vertices, int vertexCount, const int* faceList,
-                                    int faceCount, SparseMatrix& L) {
+                                    int faceCount, SparseMatrix& L, const OneRingEntries* entries) {
   const Triangles& faces = topology.faces();
   zeroMarkedEntries(vertexMarks, vertices, vertexCount, L);
+  const MarkedEntryAdder<double> add(topology, entries, L);
   for (int n = 0; n < faceCount; ++n) {
     const int f = faceList[n];
     const Matrix3 K = intrinsicFaceStiffness(topology, edgeLengths, faceTensors, faceWeftCoefficients, f);
     for (int k = 0; k < 3; ++k) {
       if (!vertexMarks[faces(f, k)]) continue;
       for (int l = 0; l < 3; ++l)
-        if (vertexMarks[faces(f, l)]) addEntry(L, faces(f, k), faces(f, l), K(k, l));
+        if (vertexMarks[faces(f, l)]) add(f, k, l, K(k, l));
     }
   }
 }
@@ -633,9 +658,10 @@ void reassembleConnectionFromLengths(const SurfaceTopology& topology, const Vect
                                      const Eigen::MatrixX3d& faceTransportAngles, const Eigen::MatrixX3d& faceTensors,
                                      const Eigen::MatrixX2d& faceWeftCoefficients, const char* vertexMarks,
                                      const int* vertices, int vertexCount, const int* faceList, int faceCount,
-                                     ComplexSparseMatrix& L) {
+                                     ComplexSparseMatrix& L, const OneRingEntries* entries) {
   const Triangles& faces = topology.faces();
   zeroMarkedEntries(vertexMarks, vertices, vertexCount, L);
+  const MarkedEntryAdder<Complex> add(topology, entries, L);
   FacePhases phases(faceTransportAngles, faceList, faceCount);
   for (int n = 0; n < faceCount; ++n) {
     const int f = faceList[n];
@@ -644,7 +670,7 @@ void reassembleConnectionFromLengths(const SurfaceTopology& topology, const Vect
     for (int k = 0; k < 3; ++k) {
       if (!vertexMarks[faces(f, k)]) continue;
       for (int l = 0; l < 3; ++l)
-        if (vertexMarks[faces(f, l)]) addEntry(L, faces(f, k), faces(f, l), connectionEntry(K, r, k, l));
+        if (vertexMarks[faces(f, l)]) add(f, k, l, connectionEntry(K, r, k, l));
     }
   }
 }

@@ -429,6 +429,8 @@ void SurfaceGeometry::setIntrinsicRefresh(IntrinsicRefresh mode) {
   }
   intrinsicRefresh_ = mode;
   if (mode != IntrinsicRefresh::Full) {
+    // The table of the partial re-assemblies' entry positions.
+    if (faceEntries_.index.empty()) faceEntries_ = oneRingFaceEntries(*topology_);
     // The most a partial refresh can journal: every value forEachRefreshedValue reaches.
     const IntrinsicGeometry& in = dynamic_.intrinsic;
     const size_t edges = static_cast<size_t>(topology_->edgeCount());
@@ -754,11 +756,12 @@ void SurfaceGeometry::refreshChosenEdges(const RowVectors3& positions) {
     // L_S: blocks of F1 changed; entries among V1, re-summed over F2 (every face at V1).
     reassembleStiffnessFromLengths(topology, in.edgeLengths, fabric_.densityTensors, faceWeftCoefficients_,
                                    vertexMarks_.data(), vertices1_.data(), size(vertices1_), faces2_.data(),
-                                   size(faces2_), in.densityStiffness);
+                                   size(faces2_), in.densityStiffness, &faceEntries_);
     // Connection: blocks of F2 changed (transport angles); entries among V2, over F3.
     reassembleConnectionFromLengths(topology, in.edgeLengths, in.faceTransportAngles, fabric_.velocityTensors,
                                     faceWeftCoefficients_, vertexMarks2_.data(), vertices2_.data(),
-                                    size(vertices2_), faces3_.data(), size(faces3_), in.velocityStiffness);
+                                    size(vertices2_), faces3_.data(), size(faces3_), in.velocityStiffness,
+                                    &faceEntries_);
   } catch (...) {
     // A face whose weft cannot be laid out (a collapsed anisotropic face):
     // the caller undoes the tier; the marks must not outlive this refresh,

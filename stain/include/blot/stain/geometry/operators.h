@@ -127,16 +127,18 @@ void refillStiffnessAndConnectionFromLengths(const SurfaceTopology& topology, co
 /// faces[0, faceCount), which must list, ascending, every face with a marked
 /// vertex; the other entries are kept. `vertices` lists the marked vertices.
 /// The entries come out bitwise as a whole assembly from the same inputs
-/// gives them (same terms, same order). Allocates nothing.
+/// gives them (same terms, same order). Allocates nothing. With `entries`
+/// (oneRingFaceEntries of this topology, fitting L) each entry's position is
+/// read from the table instead of searched for in its column.
 void reassembleStiffnessFromLengths(const SurfaceTopology& topology, const Vector& edgeLengths,
                                     const Eigen::MatrixX3d& faceTensors, const Eigen::MatrixX2d& faceWeftCoefficients,
                                     const char* vertexMarks, const int* vertices, int vertexCount, const int* faces,
-                                    int faceCount, SparseMatrix& L);
+                                    int faceCount, SparseMatrix& L, const OneRingEntries* entries = nullptr);
 void reassembleConnectionFromLengths(const SurfaceTopology& topology, const Vector& edgeLengths,
                                      const Eigen::MatrixX3d& faceTransportAngles, const Eigen::MatrixX3d& faceTensors,
                                      const Eigen::MatrixX2d& faceWeftCoefficients, const char* vertexMarks,
                                      const int* vertices, int vertexCount, const int* faces, int faceCount,
-                                     ComplexSparseMatrix& L);
+                                     ComplexSparseMatrix& L, const OneRingEntries* entries = nullptr);
 /// #F by 2: the weft of each face (faceWeftDirections, rest shape) as
 /// a ē₁ + b ē₂ of its rest edges from corner 0 (least squares: the weft's
 /// projection onto the face plane). Rows whose in-plane weft is zero (or

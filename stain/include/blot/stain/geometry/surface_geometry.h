@@ -547,9 +547,10 @@ class SurfaceGeometry {
   template <class At>
   void forEachRefreshedValue(int part, const At& at);
   // Where each face's block lies in the operators' values (oneRingFaceEntries):
-  // a whole rebuild after the first refills the two operators in place. Made
-  // at the second build or by prepareWholeRebuilds, so a mesh that never
-  // deforms does not hold it.
+  // a whole rebuild after the first refills the two operators in place, a
+  // partial one re-assembles its entries at their positions. Made at the
+  // second build, by prepareWholeRebuilds or when a partial mode is set, so a
+  // mesh that never deforms does not hold it.
   OneRingEntries faceEntries_;
 };
 
