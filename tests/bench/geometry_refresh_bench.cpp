@@ -394,16 +394,24 @@ BENCHMARK(BM_IntrinsicRebuildPart)
 // The rebuilds of a whole run, replayed: the scene's positions step by step
 // into a SurfaceGeometry at the scene's tolerance, and on each trip
 // refreshIntrinsic plus DiffusionSystems::assemble timed (manual time: the
-// extrinsic refresh between is not). Args: scene, mode (0 Full, 1 Partial).
+// extrinsic refresh between is not). Args: scene, mode (0 Full, 1 Partial,
+// 2 Region around the vertices within 0.15 m of the mesh's centre, a stand-in
+// for a wet patch; the trips are still the whole-mesh test's, so the modes
+// rebuild on the same steps and us_per_rebuild compares their costs).
 // One iteration = one step of the run (wrapping around with a fresh geometry).
 // Counters: rebuilds_per_step, us_per_rebuild, faces_per_rebuild (share of
 // #F whose stiffness block was recomputed), edges_per_rebuild (share of #E re-measured).
 void BM_IntrinsicRefreshReplay(benchmark::State& state) {
   const RebuildCapture& c = rebuildCapture(static_cast<int>(state.range(0)));
-  const IntrinsicRefresh mode = state.range(1) == 0 ? IntrinsicRefresh::Full : IntrinsicRefresh::Partial;
+  const IntrinsicRefresh modes[3] = {IntrinsicRefresh::Full, IntrinsicRefresh::Partial, IntrinsicRefresh::Region};
+  const IntrinsicRefresh mode = modes[state.range(1)];
   const SurfaceTopology& topology = c.engine->topology();
   const FabricField& fabric = c.engine->surface().stain().geometry().fabric();
   const RowVectors3& rest = c.engine->definition().mesh.vertexPositions;
+  std::vector<int> region;
+  const Eigen::RowVector3d centre = rest.colwise().mean();
+  for (int v = 0; v < topology.vertexCount(); ++v)
+    if ((rest.row(v) - centre).norm() < 0.15) region.push_back(v);
   std::unique_ptr<SurfaceGeometry> geometry;
   DiffusionSystems systems;
   size_t k = 0;
@@ -413,6 +421,8 @@ void BM_IntrinsicRefreshReplay(benchmark::State& state) {
     if (k == 0) {
       geometry = std::make_unique<SurfaceGeometry>(topology, rest, fabric, c.tolerance);
       geometry->setIntrinsicRefresh(mode);
+      geometry->setRefreshRegion(region.data(), static_cast<int>(region.size()));
+      geometry->prepareWholeRebuilds();  // as the solver does on a deforming surface
       systems.assemble(geometry->intrinsic(), c.h);
     }
     const bool trip = geometry->refreshExtrinsic(c.sequence[k], c.h);
@@ -432,15 +442,16 @@ void BM_IntrinsicRefreshReplay(benchmark::State& state) {
     state.SetIterationTime(elapsed);
   }
   const double r = std::max<double>(1, static_cast<double>(rebuilds));
-  state.SetLabel(std::string(kRebuildScenes[state.range(0)]) + (mode == IntrinsicRefresh::Full ? ": full" : ": partial"));
+  const char* modeNames[3] = {": full", ": partial", ": region"};
+  state.SetLabel(std::string(kRebuildScenes[state.range(0)]) + modeNames[state.range(1)]);
   state.counters["rebuilds_per_step"] = static_cast<double>(rebuilds) / static_cast<double>(steps);
   state.counters["us_per_rebuild"] = 1e6 * seconds / r;
   state.counters["faces_per_rebuild"] = faces / r;
   state.counters["edges_per_rebuild"] = edges / r;
 }
 BENCHMARK(BM_IntrinsicRefreshReplay)
-    ->ArgNames({"scene", "partial"})
-    ->ArgsProduct({{0, 1}, {0, 1}})
+    ->ArgNames({"scene", "mode"})
+    ->ArgsProduct({{0, 1}, {0, 1, 2}})
     ->Iterations(4 * kRebuildSteps)
     ->UseManualTime()
     ->Unit(benchmark::kMicrosecond);
