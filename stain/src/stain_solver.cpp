@@ -380,7 +380,7 @@ void StainSolver::restoreBackup() {
     // restartMotion would take the solver for one that never stepped, and
     // its next step for a first step (u in the frames at t).
     const double h = systems_.assembledStep() > 0 ? systems_.assembledStep() : backupAssembledStep_;
-    if (h > 0) systems_.assemble(geometry_.intrinsic(), h);
+    systemsOfTier_ = h > 0 && systems_.assemble(geometry_.intrinsic(), h) == SolverStatus::Ok;
     rebuiltInStep_ = false;
     band_.scanAll = true;
   }
@@ -674,12 +674,16 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
   if (rigidRotation == nullptr && aroundLiquid && everHeldLiquid()) rebuild = strainExceededAroundLiquid();
   writtenSinceRefresh_ = false;  // new frames: a vertex without them is one no stage reads
   profile_.maxEdgeStrain = geometry_.maxEdgeStrain();
+  // A partial rebuild changes M + h L in the columns of the vertices it
+  // re-measured: those are refilled when the systems hold the old tier's values.
+  bool assembleColumns = false;
   if (rebuild) {
-    noteAllChanged();  // every density is rescaled
     // Densities are per area: when the dual areas change, rescale them so
     // each vertex keeps its mass (A_old σ_old = A_new σ_new).
     areaScratch_ = geometry_.intrinsic().vertexDualAreas;
+    const bool systemsOfOldTier = systemsOfTier_ && systems_.assembledStep() == h;
     systems_.releaseFactors();  // the stale factors are not kept while new operators are assembled
+    systemsOfTier_ = false;
     if (def_.intrinsicRefresh == IntrinsicRefresh::Region)
       geometry_.setRefreshRegion(strainTestVertices_.data(), static_cast<int>(strainTestVertices_.size()));
     rebuiltInStep_ = true;  // from here on, a failure gives the old tier back (restoreBackup)
@@ -704,10 +708,24 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
       restoreBackup();  // the old tier back, before any density is rescaled by a zero area
       return collapsed;
     }
-    areaScratch_.array() /= geometry_.intrinsic().vertexDualAreas.array();
-    for (Vector* f : {&state_.solvent, &state_.solute, &state_.absorbedSolvent, &state_.absorbedSolute,
-                      &state_.adsorbedSolute})
-      f->array() *= areaScratch_.array();
+    const Vector& areas = geometry_.intrinsic().vertexDualAreas;
+    Vector* const densities[] = {&state_.solvent, &state_.solute, &state_.absorbedSolvent, &state_.absorbedSolute,
+                                 &state_.adsorbedSolute};
+    if (geometry_.lastRefreshPartial()) {
+      // Only the re-measured vertices' dual areas changed: every other
+      // ratio is x / x = 1 and would leave its densities' bits as they are.
+      const std::vector<int>& changed = geometry_.refreshedVertices();
+      noteChanged(changed.data(), static_cast<int>(changed.size()));
+      for (const int i : changed) {
+        const double ratio = areaScratch_[i] / areas[i];
+        for (Vector* f : densities) (*f)[i] *= ratio;
+      }
+      assembleColumns = systemsOfOldTier;
+    } else {
+      noteAllChanged();  // every density is rescaled
+      areaScratch_.array() /= areas.array();
+      for (Vector* f : densities) f->array() *= areaScratch_.array();
+    }
     profile_.intrinsicRefreshes = 1;
     profile_.markRan(StepTerm::IntrinsicRebuild);
   }
@@ -715,13 +733,19 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
   // direct solve that needs one (a CG-only step factorizes nothing).
   if (rebuild || systems_.assembledStep() != h) {
     profile_.markRan(StepTerm::SystemAssembly);
-    const SolverStatus status = systems_.assemble(geometry_.intrinsic(), h);
+    const std::vector<int>& v1 = geometry_.refreshedVertices();
+    const std::vector<int>& v2 = geometry_.reassembledConnectionVertices();
+    const SolverStatus status =
+        assembleColumns ? systems_.assembleColumns(geometry_.intrinsic(), h, v1.data(), static_cast<int>(v1.size()),
+                                                   v2.data(), static_cast<int>(v2.size()))
+                        : systems_.assemble(geometry_.intrinsic(), h);
     if (status != SolverStatus::Ok) {
       restoreBackup();  // the densities, and the old tier when this step rebuilt it
       report.status = StepStatus::SolverFailure;
       report.message = std::string("diffusion system assembly failed: ") + toString(status);
       return report;
     }
+    systemsOfTier_ = true;
   }
   const bool surfaceMoved = geometry_.surfaceMoved();
   if (geometry_.fittedRefresh()) {
@@ -997,6 +1021,7 @@ void StainSolver::restore(const StainSolverSnapshot& s) {
                                     " out of range [0, " + std::to_string(n) + ")");
   const ThreadScope threads(threads_);
   geometry_.restoreDynamicState(s.geometry);
+  systemsOfTier_ = false;  // until assembled from the restored tier
   // Tables filled from the replaced intrinsic tier are stamped with its
   // rebuild count, which the restored tier may repeat with other values.
   velocityScratch_.invalidate();
@@ -1006,6 +1031,7 @@ void StainSolver::restore(const StainSolverSnapshot& s) {
     if (status != SolverStatus::Ok)
       throw std::runtime_error(std::string("StainSolver::restore: diffusion system assembly failed: ") +
                                toString(status));
+    systemsOfTier_ = true;
   }
   state_ = s.state;
   stateWrittenOutside();

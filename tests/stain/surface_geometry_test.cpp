@@ -2,6 +2,7 @@
 // uniform stretch, no motion), the strain test, intrinsic rebuilds, and the
 // rotation fits (exact Kabsch and the warm-started Newton path).
 #include <blot/stain/geometry/surface_geometry.h>
+#include <blot/stain/stages/diffusion.h>
 
 #include "geometry_test_support.h"
 
@@ -1080,6 +1081,79 @@ TEST(SurfaceGeometry, PartialReassemblyIsTheWholeAssemblyWithOrWithoutTheEntryTa
       }
     }
     EXPECT_GT(marked, 50);
+  }
+}
+
+// DiffusionSystems::assembleColumns after a partial refresh (Partial and
+// Region), refilling only the columns of the vertices it re-measured, gives
+// what assemble() gives on the refreshed tier, to the bit: M + h L, the
+// inverse diagonals, the stiffness ratios, the spectral bounds and the
+// methods chosen from them. At another h it assembles everything.
+TEST(SurfaceGeometry, SystemsRefilledInTheRefreshedColumnsAreTheWholeAssembly) {
+  TriangleMesh mesh = gridMesh(32, 24, 1.0, 0.75);
+  for (Eigen::Index v = 0; v < mesh.vertexPositions.rows(); ++v)
+    mesh.vertexPositions(v, 2) = 0.2 * std::sin(2 * mesh.vertexPositions(v, 0)) * std::cos(3 * mesh.vertexPositions(v, 1));
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  const FabricField fabric = anisotropicFabric(topology.faceCount(), 5);
+  const double h = 1.0 / 120;
+  const auto expectSameSystems = [](const DiffusionSystems& a, const DiffusionSystems& b) {
+    EXPECT_TRUE(sameValueBits(a.scalarSystem(), b.scalarSystem()));
+    EXPECT_TRUE(sameValueBits(a.vectorSystem(), b.vectorSystem()));
+    ASSERT_EQ(a.scalarInverseDiagonal().size(), b.scalarInverseDiagonal().size());
+    ASSERT_EQ(a.vectorInverseDiagonal().size(), b.vectorInverseDiagonal().size());
+    EXPECT_EQ(std::memcmp(a.scalarInverseDiagonal().data(), b.scalarInverseDiagonal().data(),
+                          sizeof(double) * static_cast<size_t>(a.scalarInverseDiagonal().size())), 0);
+    EXPECT_EQ(std::memcmp(a.vectorInverseDiagonal().data(), b.vectorInverseDiagonal().data(),
+                          sizeof(double) * static_cast<size_t>(a.vectorInverseDiagonal().size())), 0);
+    EXPECT_EQ(a.scalarStiffnessRatio(), b.scalarStiffnessRatio());
+    EXPECT_EQ(a.vectorStiffnessRatio(), b.vectorStiffnessRatio());
+    EXPECT_EQ(a.scalarSpectralBound(), b.scalarSpectralBound());
+    EXPECT_EQ(a.vectorSpectralBound(), b.vectorSpectralBound());
+    EXPECT_EQ(a.scalarStages(), b.scalarStages());
+    EXPECT_EQ(a.vectorStages(), b.vectorStages());
+    EXPECT_EQ(a.scalarCgAllowed(), b.scalarCgAllowed());
+    EXPECT_EQ(a.vectorCgAllowed(), b.vectorCgAllowed());
+    EXPECT_EQ(a.assembledStep(), b.assembledStep());
+  };
+  for (const IntrinsicRefresh mode : {IntrinsicRefresh::Partial, IntrinsicRefresh::Region}) {
+    SCOPED_TRACE(mode == IntrinsicRefresh::Partial ? "partial" : "region");
+    SurfaceGeometry geometry(topology, mesh.vertexPositions, fabric);
+    geometry.setIntrinsicRefresh(mode);
+    geometry.prepareWholeRebuilds();
+    DiffusionSystems systems;
+    ASSERT_EQ(systems.assemble(geometry.intrinsic(), h), SolverStatus::Ok);
+    int partial = 0;
+    for (int step = 1; step <= 6; ++step) {
+      const double cx = 0.15 + 0.12 * step;
+      const RowVectors3 p = bumpedSheet(mesh.vertexPositions, cx, 0.35, 0.004 * step, step);
+      std::vector<int> region;
+      for (int v = 0; v < topology.vertexCount(); ++v)
+        if (std::hypot(mesh.vertexPositions(v, 0) - cx, mesh.vertexPositions(v, 1) - 0.35) < 0.03) region.push_back(v);
+      geometry.setRefreshRegion(region.data(), static_cast<int>(region.size()));
+      if (!geometry.refreshExtrinsic(p, 0.01)) continue;
+      geometry.refreshIntrinsic();
+      if (geometry.lastRefreshPartial()) {
+        ++partial;
+        const std::vector<int>& v1 = geometry.refreshedVertices();
+        const std::vector<int>& v2 = geometry.reassembledConnectionVertices();
+        EXPECT_LT(v2.size(), static_cast<size_t>(topology.vertexCount()) / 2);
+        ASSERT_EQ(systems.assembleColumns(geometry.intrinsic(), h, v1.data(), static_cast<int>(v1.size()), v2.data(),
+                                          static_cast<int>(v2.size())),
+                  SolverStatus::Ok);
+      } else {
+        ASSERT_EQ(systems.assemble(geometry.intrinsic(), h), SolverStatus::Ok);
+      }
+      DiffusionSystems whole;
+      ASSERT_EQ(whole.assemble(geometry.intrinsic(), h), SolverStatus::Ok);
+      expectSameSystems(systems, whole);
+    }
+    EXPECT_GE(partial, 3);
+    // Another step size: every column again, whatever the lists say.
+    const std::vector<int> none;
+    ASSERT_EQ(systems.assembleColumns(geometry.intrinsic(), 2 * h, none.data(), 0, none.data(), 0), SolverStatus::Ok);
+    DiffusionSystems whole;
+    ASSERT_EQ(whole.assemble(geometry.intrinsic(), 2 * h), SolverStatus::Ok);
+    expectSameSystems(systems, whole);
   }
 }
 

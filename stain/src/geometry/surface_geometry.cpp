@@ -470,6 +470,7 @@ void SurfaceGeometry::refreshIntrinsic() {
   const bool whole = !partial && (intrinsicRefresh_ == IntrinsicRefresh::Full || in.rebuildCount > 0);
   kept_.journaled = partial;
   kept_.rebuildCount = in.rebuildCount;
+  lastRefreshPartial_ = false;  // until the partial refresh below completes
   if (whole) {
     swap(kept_.intrinsic, in);
     kept_.inverseBuiltSquaredLengths.swap(dynamic_.inverseBuiltSquaredLengths);
@@ -483,6 +484,7 @@ void SurfaceGeometry::refreshIntrinsic() {
   kept_.valid = true;
   if (partial) {
     refreshChosenEdges(positions);
+    lastRefreshPartial_ = true;
   } else if (whole) {
     refreshIntrinsicFromPositions(positions);
   } else {

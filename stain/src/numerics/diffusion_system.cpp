@@ -106,6 +106,67 @@ bool fillOrBuildSystem(const Eigen::SparseMatrix<Scalar>& stiffness, const Vecto
   return true;
 }
 
+// Column j's part of inverseDiagonal (krylov_solver.h): 1 / diag into
+// `inverse`, and diag / A_j − 1 into `ratio` (its max over the columns,
+// from 0, is the system's stiffness ratio).
+template <typename Scalar>
+void columnRatio(const Eigen::SparseMatrix<Scalar>& system, const Vector& areas, int j, Vector& inverse,
+                 Vector& ratio) {
+  double diagonal = 0.0;
+  for (int p = system.outerIndexPtr()[j]; p < system.outerIndexPtr()[j + 1]; ++p) {
+    if (system.innerIndexPtr()[p] == j) diagonal = realPart(system.valuePtr()[p]);
+  }
+  inverse[j] = diagonal > 0.0 ? 1.0 / diagonal : 0.0;
+  ratio[j] = diagonal / areas[j] - 1.0;
+}
+
+// Column j's term of spectralBound (super_time_stepping.h): Σ|L_ij| / A_j,
+// 0 where A_j is not positive (which the bound skips; it starts from 0).
+template <typename Scalar>
+void columnBound(const Eigen::SparseMatrix<Scalar>& stiffness, const Vector& areas, int j, Vector& bound) {
+  const int* outer = stiffness.outerIndexPtr();
+  const int end = stiffness.isCompressed() ? outer[j + 1] : outer[j] + stiffness.innerNonZeroPtr()[j];
+  const double sum = columnModulusSum(stiffness.valuePtr(), outer[j], end);
+  bound[j] = areas[j] > 0.0 ? sum / areas[j] : 0.0;
+}
+
+// max(0, v_0, v_1, ...) as inverseDiagonal and spectralBound take it (a NaN
+// is skipped wherever it stands): the same for any order, so per-column
+// values refreshed in part give the whole pass's result.
+double maxFromZero(const Vector& v) {
+  double m = 0.0;
+  for (Eigen::Index j = 0; j < v.size(); ++j) m = std::max(m, v[j]);
+  return m;
+}
+
+// M + h L in columns `columns` of a system with L's own pattern (checked by
+// the caller): what fillSystem's first branch writes there.
+template <typename Scalar>
+void fillColumns(const Eigen::SparseMatrix<Scalar>& stiffness, const Vector& dualAreas, double h, const int* columns,
+                 int count, Eigen::SparseMatrix<Scalar>& system) {
+  const int* sOuter = system.outerIndexPtr();
+  const int* sInner = system.innerIndexPtr();
+  Scalar* sValues = system.valuePtr();
+  const Scalar* lValues = stiffness.valuePtr();
+  for (int n = 0; n < count; ++n) {
+    const int j = columns[n];
+    for (int p = sOuter[j]; p < sOuter[j + 1]; ++p) {
+      Scalar value = h * lValues[p];
+      if (sInner[p] == j) value += Scalar(dualAreas[j]);
+      sValues[p] = value;
+    }
+  }
+}
+
+template <typename A, typename B>
+bool ownPattern(const Eigen::SparseMatrix<A>& stiffness, const Eigen::SparseMatrix<B>& system) {
+  const Eigen::Index n = system.cols();
+  return stiffness.isCompressed() && system.isCompressed() && stiffness.rows() == system.rows() &&
+         stiffness.cols() == n && stiffness.nonZeros() == system.nonZeros() &&
+         std::equal(stiffness.outerIndexPtr(), stiffness.outerIndexPtr() + n + 1, system.outerIndexPtr()) &&
+         std::equal(stiffness.innerIndexPtr(), stiffness.innerIndexPtr() + system.nonZeros(), system.innerIndexPtr());
+}
+
 template <typename A, typename B>
 bool samePattern(const Eigen::SparseMatrix<A>& a, const Eigen::SparseMatrix<B>& b) {
   if (a.rows() != b.rows() || a.cols() != b.cols() || a.nonZeros() != b.nonZeros()) return false;
@@ -137,6 +198,9 @@ void DiffusionSystems::preparePatterns(const IntrinsicGeometry& geometry) {
     vectorReanalyze_ = true;
   scalarInverseDiagonal_.setZero(n);  // the Jacobi diagonals assemble() writes
   vectorInverseDiagonal_.setZero(n);
+  for (Vector* v : {&scalarColumnRatio_, &scalarColumnBound_, &vectorColumnRatio_, &vectorColumnBound_})
+    v->setZero(n);
+  filledStep_ = 0;  // values of h = 1, not of a step
 }
 
 SolverStatus DiffusionSystems::assemble(const IntrinsicGeometry& geometry, double h) {
@@ -161,6 +225,53 @@ SolverStatus DiffusionSystems::assemble(const IntrinsicGeometry& geometry, doubl
   } else {
     vectorSystem_.resize(0, 0);
   }
+  const int n = static_cast<int>(areas.size());
+  for (Vector* v : {&scalarInverseDiagonal_, &scalarColumnRatio_, &scalarColumnBound_}) v->resize(n);
+  for (int j = 0; j < n; ++j) {
+    columnRatio(scalarSystem_, areas, j, scalarInverseDiagonal_, scalarColumnRatio_);
+    columnBound(scalarStiffness, areas, j, scalarColumnBound_);
+  }
+  if (vectorStiffness.rows() != 0) {
+    for (Vector* v : {&vectorInverseDiagonal_, &vectorColumnRatio_, &vectorColumnBound_}) v->resize(n);
+    for (int j = 0; j < n; ++j) {
+      columnRatio(vectorSystem_, areas, j, vectorInverseDiagonal_, vectorColumnRatio_);
+      columnBound(vectorStiffness, areas, j, vectorColumnBound_);
+    }
+  }
+  filledStep_ = h;
+  chooseMethods(h, vectorStiffness.rows() != 0);
+  return SolverStatus::Ok;
+}
+
+SolverStatus DiffusionSystems::assembleColumns(const IntrinsicGeometry& geometry, double h, const int* scalarColumns,
+                                               int scalarCount, const int* vectorColumns, int vectorCount) {
+  const Vector& areas = geometry.vertexDualAreas;
+  const SparseMatrix& scalarStiffness = geometry.densityStiffness;
+  const ComplexSparseMatrix& vectorStiffness = geometry.velocityStiffness;
+  const Eigen::Index n = areas.size();
+  const bool columnsHold = filledStep_ == h && h > 0 && scalarColumnRatio_.size() == n &&
+                           ownPattern(scalarStiffness, scalarSystem_) && vectorStiffness.rows() != 0 &&
+                           vectorColumnRatio_.size() == n && ownPattern(vectorStiffness, vectorSystem_) &&
+                           scalarStiffness.rows() == n;
+  if (!columnsHold) return assemble(geometry, h);
+  h_ = h;
+  ++assemblies_;
+  scalarFactorCurrent_ = vectorFactorCurrent_ = false;
+  fillColumns(scalarStiffness, areas, h, scalarColumns, scalarCount, scalarSystem_);
+  fillColumns(vectorStiffness, areas, h, vectorColumns, vectorCount, vectorSystem_);
+  for (int k = 0; k < scalarCount; ++k) {
+    columnRatio(scalarSystem_, areas, scalarColumns[k], scalarInverseDiagonal_, scalarColumnRatio_);
+    columnBound(scalarStiffness, areas, scalarColumns[k], scalarColumnBound_);
+  }
+  for (int k = 0; k < vectorCount; ++k) {
+    columnRatio(vectorSystem_, areas, vectorColumns[k], vectorInverseDiagonal_, vectorColumnRatio_);
+    columnBound(vectorStiffness, areas, vectorColumns[k], vectorColumnBound_);
+  }
+  chooseMethods(h, true);
+  return SolverStatus::Ok;
+}
+
+void DiffusionSystems::chooseMethods(double h, bool haveVector) {
   // Which methods may run per system (the per-solve choice among them is
   // diffuse()'s; design note).
   const bool cgForced = choice_ == DiffusionSolverChoice::Iterative;
@@ -173,14 +284,14 @@ SolverStatus DiffusionSystems::assemble(const IntrinsicGeometry& geometry, doubl
     if (rklForced) return rkl2Stages(h * bound);
     return automatic && h * bound <= kRklAutoStepStiffness ? rkl2Stages(h * bound) : 0;
   };
-  scalarRatio_ = inverseDiagonal(scalarSystem_, areas, scalarInverseDiagonal_);
-  scalarBound_ = spectralBound(scalarStiffness, areas);
+  scalarRatio_ = maxFromZero(scalarColumnRatio_);
+  scalarBound_ = maxFromZero(scalarColumnBound_);
   scalarCg_ = cgAllowed(scalarRatio_, kIterativeStiffnessRatio);
   scalarStages_ = stages(scalarBound_);
   scalarIterative_ = scalarCg_ || scalarStages_ > 0;
-  if (vectorStiffness.rows() != 0) {
-    vectorRatio_ = inverseDiagonal(vectorSystem_, areas, vectorInverseDiagonal_);
-    vectorBound_ = spectralBound(vectorStiffness, areas);
+  if (haveVector) {
+    vectorRatio_ = maxFromZero(vectorColumnRatio_);
+    vectorBound_ = maxFromZero(vectorColumnBound_);
     vectorCg_ = cgAllowed(vectorRatio_, kBandIterativeStiffnessRatio);
     vectorStages_ = stages(vectorBound_);
     vectorIterative_ = vectorCg_ || vectorStages_ > 0;
@@ -190,7 +301,6 @@ SolverStatus DiffusionSystems::assemble(const IntrinsicGeometry& geometry, doubl
     vectorStages_ = 0;
     vectorIterative_ = false;
   }
-  return SolverStatus::Ok;
 }
 
 SolverStatus DiffusionSystems::factorScalar() {

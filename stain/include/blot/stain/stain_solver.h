@@ -372,6 +372,9 @@ class StainSolver {
   Vector areaScratch_;
   // The vertices the strain test measures around (StrainTest::AroundLiquid),
   // reserved #V, and their marks (#V).
+  // Whether systems_ holds M + h L of the current tier (assembled since the
+  // tier last changed): a partial rebuild then refills only its columns.
+  bool systemsOfTier_ = false;
   std::vector<int> strainTestVertices_;
   std::vector<char> strainTestMarks_;
   Vector evaporatedMass_;  // #V kg, the last step's per-vertex evaporation

@@ -355,6 +355,13 @@ class SurfaceGeometry {
   /// last refreshIntrinsic (#E and #F after a whole rebuild).
   int refreshedEdgeCount() const { return refreshedEdges_; }
   int refreshedFaceCount() const { return refreshedFaces_; }
+  /// Whether the last refreshIntrinsic was partial (Partial or Region, not
+  /// their whole fallback), and then what it changed: the vertices whose dual
+  /// area and density-operator column it recomputed (V1, ascending), and
+  /// those whose connection column it recomputed (V2 ⊇ V1, ascending).
+  bool lastRefreshPartial() const { return lastRefreshPartial_; }
+  const std::vector<int>& refreshedVertices() const { return vertices1_; }
+  const std::vector<int>& reassembledConnectionVertices() const { return vertices2_; }
   /// #F by 2, the rest wefts as combinations of the rest faces' edges (operators.h).
   const Eigen::MatrixX2d& faceWeftCoefficients() const { return faceWeftCoefficients_; }
   /// max_e |ℓ_e(t+h)/ℓ_e,built − 1| from the last refreshExtrinsic (over the
@@ -513,6 +520,7 @@ class SurfaceGeometry {
   bool chooseRefreshedEdges(const RowVectors3& positions);
   void refreshChosenEdges(const RowVectors3& positions);
   double unchosenStrain_ = 0;  // the largest strain among the edges not chosen
+  bool lastRefreshPartial_ = false;
   // Region mode: marks (edgeMarks_) the edges of the faces within
   // kRegionRefreshRings rings of regionVertices_, the chosen edges.
   void markRegionEdges();

@@ -93,6 +93,17 @@ class DiffusionSystems {
   /// both factors stale. Factorizes nothing. Returns SizeMismatch when the
   /// geometry's operators do not match its vertex count.
   SolverStatus assemble(const IntrinsicGeometry& geometry, double h);
+  /// assemble() after a partial intrinsic refresh of the geometry the systems
+  /// were last assembled from (the caller's to know), which changed the
+  /// density operator only in the columns `scalarColumns` and the connection
+  /// only in `vectorColumns`, and the dual areas only at vertices in both
+  /// lists: refills those columns of M + h L and of the inverse diagonals,
+  /// and takes the stiffness ratios and spectral bounds again as maxima over
+  /// per-column values kept since (exact, in any order). The same values as
+  /// assemble() gives. assemble() itself where the systems were not filled
+  /// at this h or their patterns are not the operators' own.
+  SolverStatus assembleColumns(const IntrinsicGeometry& geometry, double h, const int* scalarColumns,
+                               int scalarCount, const int* vectorColumns, int vectorCount);
   /// Builds the systems' sparsity patterns for the geometry's operators, the
   /// part of the first assemble() that allocates, so that a solver built
   /// ahead of its steps (StainSolver's constructor) assembles its first step
@@ -165,6 +176,8 @@ class DiffusionSystems {
  private:
   SolverStatus factorScalar();
   SolverStatus factorVector();
+  // The maxima of the per-column values and, from them, each system's methods.
+  void chooseMethods(double h, bool haveVector);
 
   RealCholeskySolver scalar_;
   ComplexCholeskySolver vector_;
@@ -173,6 +186,11 @@ class DiffusionSystems {
   Vector scalarInverseDiagonal_, vectorInverseDiagonal_;
   double scalarRatio_ = 0, vectorRatio_ = 0;
   double scalarBound_ = 0, vectorBound_ = 0;
+  // Per column: h L_jj / A_j (diag / A_j − 1) and Σ_i |L_ij| / A_j, whose
+  // maxima are the ratios and bounds above; and the h the systems' values
+  // were filled for (0: not filled for a step; releaseFactors keeps it).
+  Vector scalarColumnRatio_, scalarColumnBound_, vectorColumnRatio_, vectorColumnBound_;
+  double filledStep_ = 0;
   int scalarStages_ = 0, vectorStages_ = 0;
   bool scalarCg_ = false, vectorCg_ = false;
   bool scalarIterative_ = false, vectorIterative_ = false;
