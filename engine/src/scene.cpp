@@ -884,6 +884,7 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
     ObjectReader m(ctx, *mesh, "mesh");
     def.mesh = parseMesh(m, scene.meshDescription, scene.meshOrder);
     ctx.setMeshOrder(scene.meshOrder);
+    def.meshOrder = scene.meshOrder;  // kept with the engine (Engine::fromSceneFile)
   } else {
     ctx.fail("mesh", "required key is missing (\"file\", \"patch\", \"icosphere\" or \"disc\")");
   }

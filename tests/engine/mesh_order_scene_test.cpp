@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <set>
 #include <string>
 #include <vector>
@@ -142,6 +143,26 @@ TEST(MeshOrderScene, TheStainIsTheSameOnTheRenumberedMesh) {
   const stain::Vector& plainAreas = plain.surface().stain().geometry().intrinsic().vertexDualAreas;
   const stain::Vector& orderedAreas = ordered.surface().stain().geometry().intrinsic().vertexDualAreas;
   EXPECT_NEAR(totalSolute(ordered, orderedAreas), totalSolute(plain, plainAreas), 1e-12 * totalSolute(plain, plainAreas));
+}
+
+// An engine built from a scene keeps the renumbering with its definition
+// (EngineDef::meshOrder), so a C++ caller of fromSceneJson / fromSceneFile can
+// map its vertices back to the file's, as the C API and the Python module do
+// from the SceneDef: engine vertex k sits where the file's vertex
+// meshOrder.vertices[k] does. Without the renumbering the order is empty.
+TEST(MeshOrderScene, AnEngineFromASceneKeepsItsRenumbering) {
+  const std::string text = indexedScene(R"(, "vertex_order": "locality")");
+  const SceneDef scene = parseScene(text, "ordered.json");
+  const std::unique_ptr<Engine> engine = Engine::fromSceneJson(text, ".", "ordered.json");
+  const stain::MeshOrder& order = engine->definition().meshOrder;
+  EXPECT_EQ(order.vertices, scene.meshOrder.vertices);
+  EXPECT_EQ(order.faces, scene.meshOrder.faces);
+  ASSERT_EQ(order.vertices.size(), 169u);
+  const SceneDef plain = parseScene(indexedScene(""), "plain.json");
+  const auto& rest = engine->definition().mesh.vertexPositions;
+  for (int k = 0; k < 169; ++k)
+    EXPECT_EQ(rest.row(k), plain.engine.mesh.vertexPositions.row(order.vertices[static_cast<size_t>(k)])) << k;
+  EXPECT_TRUE(Engine::fromSceneJson(indexedScene(""), ".", "plain.json")->definition().meshOrder.vertices.empty());
 }
 
 }  // namespace

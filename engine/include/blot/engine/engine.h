@@ -17,6 +17,7 @@
 #include <blot/stain/fabric/fabric_layout.h>
 #include <blot/stain/stages/sources.h>
 #include <blot/stain/stain_solver.h>
+#include <blot/stain/geometry/mesh_order.h>
 #include <blot/stain/geometry/surface_topology.h>
 #include <blot/stain/geometry/triangle_mesh.h>
 
@@ -101,6 +102,14 @@ struct EngineDef {
   int dropQueueCapacity = 64;
 
   StainColorMapping colors;  ///< stain colour (Beer–Lambert, linear RGB) of colors()
+
+  /// Where `mesh` came from when a scene renumbered it for memory locality
+  /// (mesh.vertex_order "locality", SceneDef::meshOrder): engine vertex k is
+  /// the file's vertex meshOrder.vertices[k], engine face k its face
+  /// meshOrder.faces[k]. Empty: the mesh's own numbering. A record for the
+  /// caller, so that an engine from Engine::fromSceneFile can map what it
+  /// writes (in its numbering) back to the file's; the engine never reads it.
+  stain::MeshOrder meshOrder;
 };
 
 /// Where a world point lands on the cloth (addDropAtPoint).
