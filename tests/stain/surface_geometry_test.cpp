@@ -788,7 +788,9 @@ TEST(SurfaceGeometry, TheUndoOfAPartialRefreshGivesBackTheTierBitwise) {
       gCountAllocations = true;
       geometry.refreshIntrinsic();
       const bool wasPartial = geometry.refreshedEdgeCount() < topology.edgeCount();
+      EXPECT_EQ(geometry.lastRefreshPartial(), wasPartial);
       geometry.undoIntrinsicRefresh();
+      EXPECT_FALSE(geometry.lastRefreshPartial());  // its lists describe no refresh now
       gCountAllocations = false;
       allocations += gAllocations.load();
       expectSameIntrinsic(geometry.intrinsic(), before);

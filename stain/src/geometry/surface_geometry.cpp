@@ -530,6 +530,7 @@ void SurfaceGeometry::undoIntrinsicRefresh() {
   dynamic_.maxEdgeStrain = kept_.maxEdgeStrain;
   strainMeasured_ = kept_.strainMeasured;
   kept_.valid = false;
+  lastRefreshPartial_ = false;  // the lists describe a refresh that no longer is
 }
 
 void SurfaceGeometry::refreshIntrinsicFromPositions(const RowVectors3& positions) {
@@ -1225,6 +1226,7 @@ SurfaceGeometry::DynamicState SurfaceGeometry::dynamicState() const {
 void SurfaceGeometry::restoreDynamicState(const DynamicState& s) {
   dynamic_ = s;
   kept_.valid = false;
+  lastRefreshPartial_ = false;
   strainMeasured_ = false;  // measured again by the next test
   const ExtrinsicGeometry& ex = dynamic_.extrinsic;
   // A saved state has every vertex's values (dynamicState): only the t + h
