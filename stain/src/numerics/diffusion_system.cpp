@@ -106,33 +106,9 @@ bool fillOrBuildSystem(const Eigen::SparseMatrix<Scalar>& stiffness, const Vecto
   return true;
 }
 
-// Column j's part of inverseDiagonal (krylov_solver.h): 1 / diag into
-// `inverse`, and diag / A_j − 1 into `ratio` (its max over the columns,
-// from 0, is the system's stiffness ratio).
-template <typename Scalar>
-void columnRatio(const Eigen::SparseMatrix<Scalar>& system, const Vector& areas, int j, Vector& inverse,
-                 Vector& ratio) {
-  double diagonal = 0.0;
-  for (int p = system.outerIndexPtr()[j]; p < system.outerIndexPtr()[j + 1]; ++p) {
-    if (system.innerIndexPtr()[p] == j) diagonal = realPart(system.valuePtr()[p]);
-  }
-  inverse[j] = diagonal > 0.0 ? 1.0 / diagonal : 0.0;
-  ratio[j] = diagonal / areas[j] - 1.0;
-}
-
-// Column j's term of spectralBound (super_time_stepping.h): Σ|L_ij| / A_j,
-// 0 where A_j is not positive (which the bound skips; it starts from 0).
-template <typename Scalar>
-void columnBound(const Eigen::SparseMatrix<Scalar>& stiffness, const Vector& areas, int j, Vector& bound) {
-  const int* outer = stiffness.outerIndexPtr();
-  const int end = stiffness.isCompressed() ? outer[j + 1] : outer[j] + stiffness.innerNonZeroPtr()[j];
-  const double sum = columnModulusSum(stiffness.valuePtr(), outer[j], end);
-  bound[j] = areas[j] > 0.0 ? sum / areas[j] : 0.0;
-}
-
-// max(0, v_0, v_1, ...) as inverseDiagonal and spectralBound take it (a NaN
-// is skipped wherever it stands): the same for any order, so per-column
-// values refreshed in part give the whole pass's result.
+// max(0, v_0, v_1, ...) as spectralBound takes it (a NaN is skipped wherever
+// it stands): the same for any order, so per-column values refreshed in part
+// give the whole pass's result.
 double maxFromZero(const Vector& v) {
   double m = 0.0;
   for (Eigen::Index j = 0; j < v.size(); ++j) m = std::max(m, v[j]);
@@ -228,14 +204,14 @@ SolverStatus DiffusionSystems::assemble(const IntrinsicGeometry& geometry, doubl
   const int n = static_cast<int>(areas.size());
   for (Vector* v : {&scalarInverseDiagonal_, &scalarColumnRatio_, &scalarColumnBound_}) v->resize(n);
   for (int j = 0; j < n; ++j) {
-    columnRatio(scalarSystem_, areas, j, scalarInverseDiagonal_, scalarColumnRatio_);
-    columnBound(scalarStiffness, areas, j, scalarColumnBound_);
+    scalarColumnRatio_[j] = inverseDiagonalAt(scalarSystem_, areas, j, scalarInverseDiagonal_);
+    scalarColumnBound_[j] = spectralBoundTerm(scalarStiffness, areas, j);
   }
   if (vectorStiffness.rows() != 0) {
     for (Vector* v : {&vectorInverseDiagonal_, &vectorColumnRatio_, &vectorColumnBound_}) v->resize(n);
     for (int j = 0; j < n; ++j) {
-      columnRatio(vectorSystem_, areas, j, vectorInverseDiagonal_, vectorColumnRatio_);
-      columnBound(vectorStiffness, areas, j, vectorColumnBound_);
+      vectorColumnRatio_[j] = inverseDiagonalAt(vectorSystem_, areas, j, vectorInverseDiagonal_);
+      vectorColumnBound_[j] = spectralBoundTerm(vectorStiffness, areas, j);
     }
   }
   filledStep_ = h;
@@ -260,12 +236,14 @@ SolverStatus DiffusionSystems::assembleColumns(const IntrinsicGeometry& geometry
   fillColumns(scalarStiffness, areas, h, scalarColumns, scalarCount, scalarSystem_);
   fillColumns(vectorStiffness, areas, h, vectorColumns, vectorCount, vectorSystem_);
   for (int k = 0; k < scalarCount; ++k) {
-    columnRatio(scalarSystem_, areas, scalarColumns[k], scalarInverseDiagonal_, scalarColumnRatio_);
-    columnBound(scalarStiffness, areas, scalarColumns[k], scalarColumnBound_);
+    const int j = scalarColumns[k];
+    scalarColumnRatio_[j] = inverseDiagonalAt(scalarSystem_, areas, j, scalarInverseDiagonal_);
+    scalarColumnBound_[j] = spectralBoundTerm(scalarStiffness, areas, j);
   }
   for (int k = 0; k < vectorCount; ++k) {
-    columnRatio(vectorSystem_, areas, vectorColumns[k], vectorInverseDiagonal_, vectorColumnRatio_);
-    columnBound(vectorStiffness, areas, vectorColumns[k], vectorColumnBound_);
+    const int j = vectorColumns[k];
+    vectorColumnRatio_[j] = inverseDiagonalAt(vectorSystem_, areas, j, vectorInverseDiagonal_);
+    vectorColumnBound_[j] = spectralBoundTerm(vectorStiffness, areas, j);
   }
   chooseMethods(h, true);
   return SolverStatus::Ok;

@@ -354,21 +354,18 @@ void releaseActive(ActiveSet& active, std::initializer_list<double*> vectors);
 inline double realPart(double v) { return v; }
 inline double realPart(const Complex& v) { return v.real(); }
 
-// 1 / diagonal of a compressed system, and max_i (A_ii / A_i − 1) = h L_ii / A_i.
+// Column j of a compressed system's Jacobi preconditioner: 1 / A_jj into
+// inverse[j] (0 where it is not positive); returns A_jj / A_j − 1 = h L_jj /
+// A_j, whose max over j from 0 is the system's stiffness ratio.
 template <typename Scalar>
-double inverseDiagonal(const Eigen::SparseMatrix<Scalar>& system, const Vector& areas, Vector& inverse) {
-  const int n = static_cast<int>(system.cols());
-  inverse.resize(n);
-  double ratio = 0.0;
-  for (int j = 0; j < n; ++j) {
-    double diagonal = 0.0;
-    for (int p = system.outerIndexPtr()[j]; p < system.outerIndexPtr()[j + 1]; ++p) {
-      if (system.innerIndexPtr()[p] == j) diagonal = realPart(system.valuePtr()[p]);
-    }
-    inverse[j] = diagonal > 0.0 ? 1.0 / diagonal : 0.0;
-    ratio = std::max(ratio, diagonal / areas[j] - 1.0);
+double inverseDiagonalAt(const Eigen::SparseMatrix<Scalar>& system, const Vector& areas, int j, Vector& inverse) {
+  double diagonal = 0.0;
+  for (int p = system.outerIndexPtr()[j]; p < system.outerIndexPtr()[j + 1]; ++p) {
+    if (system.innerIndexPtr()[p] == j) diagonal = realPart(system.valuePtr()[p]);
   }
-  return ratio;
+  inverse[j] = diagonal > 0.0 ? 1.0 / diagonal : 0.0;
+  return diagonal / areas[j] - 1.0;
 }
+
 
 }  // namespace blot::stain::diffusion_internal

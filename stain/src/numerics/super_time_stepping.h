@@ -65,18 +65,21 @@ inline double columnModulusSum(const std::complex<double>* values, int begin, in
   return sum;
 }
 
+// Column j's term of spectralBound: Σ_i |L_ij| / A_j, and 0 where A_j is not
+// positive (which the bound, taken from 0, then skips).
+template <typename Scalar>
+double spectralBoundTerm(const Eigen::SparseMatrix<Scalar>& stiffness, const Vector& areas, int j) {
+  const int* outer = stiffness.outerIndexPtr();
+  const int end = stiffness.isCompressed() ? outer[j + 1] : outer[j] + stiffness.innerNonZeroPtr()[j];
+  const double sum = columnModulusSum(stiffness.valuePtr(), outer[j], end);
+  return areas[j] > 0.0 ? sum / areas[j] : 0.0;
+}
+
 template <typename Scalar>
 double spectralBound(const Eigen::SparseMatrix<Scalar>& stiffness, const Vector& areas) {
   const int n = static_cast<int>(stiffness.cols());
-  const int* outer = stiffness.outerIndexPtr();
-  const int* nonZeros = stiffness.isCompressed() ? nullptr : stiffness.innerNonZeroPtr();
-  const Scalar* values = stiffness.valuePtr();
   double bound = 0.0;
-  for (int j = 0; j < n; ++j) {
-    const int end = nonZeros ? outer[j] + nonZeros[j] : outer[j + 1];
-    const double sum = columnModulusSum(values, outer[j], end);
-    if (areas[j] > 0.0) bound = std::max(bound, sum / areas[j]);
-  }
+  for (int j = 0; j < n; ++j) bound = std::max(bound, spectralBoundTerm(stiffness, areas, j));
   return bound;
 }
 
