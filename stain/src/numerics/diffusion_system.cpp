@@ -11,6 +11,35 @@ namespace blot::stain {
 using namespace diffusion_internal;
 namespace {
 
+template <typename A, typename B>
+bool samePattern(const Eigen::SparseMatrix<A>& a, const Eigen::SparseMatrix<B>& b) {
+  if (a.rows() != b.rows() || a.cols() != b.cols() || a.nonZeros() != b.nonZeros()) return false;
+  if (!a.isCompressed() || !b.isCompressed()) return false;
+  return std::equal(a.outerIndexPtr(), a.outerIndexPtr() + a.cols() + 1, b.outerIndexPtr()) &&
+         std::equal(a.innerIndexPtr(), a.innerIndexPtr() + a.nonZeros(), b.innerIndexPtr());
+}
+
+// Column j of M + h L in a system with L's own pattern: h L entry by entry,
+// plus the mass on the diagonal. Whether the column holds its diagonal.
+template <typename Scalar>
+bool fillOwnColumn(const Eigen::SparseMatrix<Scalar>& stiffness, const Vector& dualAreas, double h, int j,
+                   Eigen::SparseMatrix<Scalar>& system) {
+  const int* sOuter = system.outerIndexPtr();
+  const int* sInner = system.innerIndexPtr();
+  Scalar* sValues = system.valuePtr();
+  const Scalar* lValues = stiffness.valuePtr();
+  bool hasDiagonal = false;
+  for (int p = sOuter[j]; p < sOuter[j + 1]; ++p) {
+    Scalar value = h * lValues[p];
+    if (sInner[p] == j) {
+      value += Scalar(dualAreas[j]);
+      hasDiagonal = true;
+    }
+    sValues[p] = value;
+  }
+  return hasDiagonal;
+}
+
 // Refills `system` = M + h L in place. `system`'s pattern must contain L's
 // and the diagonal; entries of `system` that L lacks get only the mass.
 // Returns false if L has an entry `system` lacks (its pattern changed).
@@ -28,22 +57,12 @@ bool fillSystem(const Eigen::SparseMatrix<Scalar>& stiffness, const Vector& dual
   const int* lInner = stiffness.innerIndexPtr();
   const int* lNonZeros = stiffness.isCompressed() ? nullptr : stiffness.innerNonZeroPtr();
   const Scalar* lValues = stiffness.valuePtr();
-  if (lNonZeros == nullptr && stiffness.nonZeros() == system.nonZeros() &&
-      std::equal(lOuter, lOuter + n + 1, sOuter) && std::equal(lInner, lInner + system.nonZeros(), sInner)) {
+  if (samePattern(stiffness, system)) {
     // The system has L's own pattern (a one-ring operator holds its
-    // diagonal): h L entry by entry, plus the mass on the diagonal. The same
-    // values as the merge below, without its search.
+    // diagonal): the same values as the merge below, without its search.
     bool everyDiagonal = true;
     for (int j = 0; j < n; ++j) {
-      bool hasDiagonal = false;
-      for (int p = sOuter[j]; p < sOuter[j + 1]; ++p) {
-        Scalar value = h * lValues[p];
-        if (sInner[p] == j) {
-          value += Scalar(dualAreas[j]);
-          hasDiagonal = true;
-        }
-        sValues[p] = value;
-      }
+      const bool hasDiagonal = fillOwnColumn(stiffness, dualAreas, h, j, system);
       everyDiagonal = everyDiagonal && hasDiagonal;
     }
     return everyDiagonal;
@@ -115,41 +134,8 @@ double maxFromZero(const Vector& v) {
   return m;
 }
 
-// M + h L in columns `columns` of a system with L's own pattern (checked by
-// the caller): what fillSystem's first branch writes there.
-template <typename Scalar>
-void fillColumns(const Eigen::SparseMatrix<Scalar>& stiffness, const Vector& dualAreas, double h, const int* columns,
-                 int count, Eigen::SparseMatrix<Scalar>& system) {
-  const int* sOuter = system.outerIndexPtr();
-  const int* sInner = system.innerIndexPtr();
-  Scalar* sValues = system.valuePtr();
-  const Scalar* lValues = stiffness.valuePtr();
-  for (int n = 0; n < count; ++n) {
-    const int j = columns[n];
-    for (int p = sOuter[j]; p < sOuter[j + 1]; ++p) {
-      Scalar value = h * lValues[p];
-      if (sInner[p] == j) value += Scalar(dualAreas[j]);
-      sValues[p] = value;
-    }
-  }
-}
 
-template <typename A, typename B>
-bool ownPattern(const Eigen::SparseMatrix<A>& stiffness, const Eigen::SparseMatrix<B>& system) {
-  const Eigen::Index n = system.cols();
-  return stiffness.isCompressed() && system.isCompressed() && stiffness.rows() == system.rows() &&
-         stiffness.cols() == n && stiffness.nonZeros() == system.nonZeros() &&
-         std::equal(stiffness.outerIndexPtr(), stiffness.outerIndexPtr() + n + 1, system.outerIndexPtr()) &&
-         std::equal(stiffness.innerIndexPtr(), stiffness.innerIndexPtr() + system.nonZeros(), system.innerIndexPtr());
-}
 
-template <typename A, typename B>
-bool samePattern(const Eigen::SparseMatrix<A>& a, const Eigen::SparseMatrix<B>& b) {
-  if (a.rows() != b.rows() || a.cols() != b.cols() || a.nonZeros() != b.nonZeros()) return false;
-  if (!a.isCompressed() || !b.isCompressed()) return false;
-  return std::equal(a.outerIndexPtr(), a.outerIndexPtr() + a.cols() + 1, b.outerIndexPtr()) &&
-         std::equal(a.innerIndexPtr(), a.innerIndexPtr() + a.nonZeros(), b.innerIndexPtr());
-}
 
 }  // namespace
 
@@ -226,15 +212,15 @@ SolverStatus DiffusionSystems::assembleColumns(const IntrinsicGeometry& geometry
   const ComplexSparseMatrix& vectorStiffness = geometry.velocityStiffness;
   const Eigen::Index n = areas.size();
   const bool columnsHold = filledStep_ == h && h > 0 && scalarColumnRatio_.size() == n &&
-                           ownPattern(scalarStiffness, scalarSystem_) && vectorStiffness.rows() != 0 &&
-                           vectorColumnRatio_.size() == n && ownPattern(vectorStiffness, vectorSystem_) &&
+                           samePattern(scalarStiffness, scalarSystem_) && vectorStiffness.rows() != 0 &&
+                           vectorColumnRatio_.size() == n && samePattern(vectorStiffness, vectorSystem_) &&
                            scalarStiffness.rows() == n;
   if (!columnsHold) return assemble(geometry, h);
   h_ = h;
   ++assemblies_;
   scalarFactorCurrent_ = vectorFactorCurrent_ = false;
-  fillColumns(scalarStiffness, areas, h, scalarColumns, scalarCount, scalarSystem_);
-  fillColumns(vectorStiffness, areas, h, vectorColumns, vectorCount, vectorSystem_);
+  for (int k = 0; k < scalarCount; ++k) fillOwnColumn(scalarStiffness, areas, h, scalarColumns[k], scalarSystem_);
+  for (int k = 0; k < vectorCount; ++k) fillOwnColumn(vectorStiffness, areas, h, vectorColumns[k], vectorSystem_);
   for (int k = 0; k < scalarCount; ++k) {
     const int j = scalarColumns[k];
     scalarColumnRatio_[j] = inverseDiagonalAt(scalarSystem_, areas, j, scalarInverseDiagonal_);
