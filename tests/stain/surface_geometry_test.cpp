@@ -35,8 +35,8 @@ FabricField anisotropicFabric(int faceCount, unsigned seed) {
 }
 
 // A curved sheet with boundary: a 16x12 grid bent as z = 0.2 sin(2x) cos(3y).
-TriangleMesh wavySheet() {
-  TriangleMesh mesh = gridMesh(16, 12, 1.0, 0.75);
+TriangleMesh wavySheet(int nx = 16, int ny = 12) {
+  TriangleMesh mesh = gridMesh(nx, ny, 1.0, 0.75);
   for (Eigen::Index v = 0; v < mesh.vertexPositions.rows(); ++v) {
     const double x = mesh.vertexPositions(v, 0), y = mesh.vertexPositions(v, 1);
     mesh.vertexPositions(v, 2) = 0.2 * std::sin(2 * x) * std::cos(3 * y);
@@ -759,9 +759,7 @@ TEST(SurfaceGeometry, APartialRefreshThatThrowsLeavesNothingMarked) {
 // (prepareWholeRebuilds). Each refresh is then redone and the run goes on
 // from it, so the undo is tested on tiers that earlier refreshes changed.
 TEST(SurfaceGeometry, TheUndoOfAPartialRefreshGivesBackTheTierBitwise) {
-  TriangleMesh mesh = gridMesh(32, 24, 1.0, 0.75);  // wavySheet, finer: a region's rings stay local
-  for (Eigen::Index v = 0; v < mesh.vertexPositions.rows(); ++v)
-    mesh.vertexPositions(v, 2) = 0.2 * std::sin(2 * mesh.vertexPositions(v, 0)) * std::cos(3 * mesh.vertexPositions(v, 1));
+  const TriangleMesh mesh = wavySheet(32, 24);  // finer: a region's rings stay local
   const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
   const FabricField fabric = anisotropicFabric(topology.faceCount(), 5);
   for (const IntrinsicRefresh mode : {IntrinsicRefresh::Partial, IntrinsicRefresh::Region}) {
@@ -1092,9 +1090,7 @@ TEST(SurfaceGeometry, PartialReassemblyIsTheWholeAssemblyWithOrWithoutTheEntryTa
 // inverse diagonals, the stiffness ratios, the spectral bounds and the
 // methods chosen from them. At another h it assembles everything.
 TEST(SurfaceGeometry, SystemsRefilledInTheRefreshedColumnsAreTheWholeAssembly) {
-  TriangleMesh mesh = gridMesh(32, 24, 1.0, 0.75);
-  for (Eigen::Index v = 0; v < mesh.vertexPositions.rows(); ++v)
-    mesh.vertexPositions(v, 2) = 0.2 * std::sin(2 * mesh.vertexPositions(v, 0)) * std::cos(3 * mesh.vertexPositions(v, 1));
+  const TriangleMesh mesh = wavySheet(32, 24);
   const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
   const FabricField fabric = anisotropicFabric(topology.faceCount(), 5);
   const double h = 1.0 / 120;
