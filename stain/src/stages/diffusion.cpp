@@ -31,9 +31,14 @@ bool allZero(const Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& v) {
 // A cost no method reaches (the method may not run).
 constexpr double kNever = 1e300;
 
-double massOf(const Vector& rhs) {
+// rhs_i = A_i x_i (massTimes's product) and the mass Σ_i rhs_i, compensated
+// in index order, in one pass.
+double massTimesSummed(const Vector& dualAreas, const Vector& x, Vector& rhs) {
   CompensatedSum sum;
-  for (Eigen::Index i = 0; i < rhs.size(); ++i) sum.add(rhs[i]);
+  for (Eigen::Index i = 0; i < x.size(); ++i) {
+    rhs[i] = dualAreas[i] * x[i];
+    sum.add(rhs[i]);
+  }
   return sum.value();
 }
 
@@ -47,17 +52,38 @@ double massOf(const Vector& rhs) {
 // backward Euler's exponential tail, below what either solve resolves. Left
 // in place, a factor's solution holds a trace on every vertex, and every
 // later step's support, damp set and limiter would cover the mesh.
-void flushTail(Vector& solution) {
+// flushTail zeros that tail and measures the mass left (Σ A_i σ_i,
+// compensated, in index order) in the same pass; the factor to scale by is
+// applied when the solution is committed (commitRestored), so that a failed
+// velocity solve after it leaves the densities as they were.
+struct MassRestore {
+  bool scales = false;  // the solution's mass and the target are positive
+  double factor = 1.0;  // target mass / the solution's
+};
+MassRestore flushTail(const Vector& dualAreas, double mass, Vector& solution) {
   const double floor = kIterativeTolerance * solution.cwiseAbs().maxCoeff();
-  for (Eigen::Index i = 0; i < solution.size(); ++i)
+  CompensatedSum solved;
+  for (Eigen::Index i = 0; i < solution.size(); ++i) {
     if (std::abs(solution[i]) < floor) solution[i] = 0.0;
+    solved.add(dualAreas[i] * solution[i]);
+  }
+  MassRestore restore;
+  if (!(mass > 0.0) || !(solved.value() > 0.0)) return restore;
+  restore.scales = true;
+  restore.factor = mass / solved.value();
+  return restore;
 }
 
-void restoreMass(const Vector& dualAreas, double mass, Vector& solution) {
-  CompensatedSum solved;
-  for (Eigen::Index i = 0; i < solution.size(); ++i) solved.add(dualAreas[i] * solution[i]);
-  if (!(mass > 0.0) || !(solved.value() > 0.0)) return;
-  solution *= mass / solved.value();
+// density = the solution, times the restoring factor where there is one;
+// returns min(0, its least value), what minCoeff would give in that min.
+double commitRestored(const Vector& solution, const MassRestore& restore, Vector& density) {
+  double least = 0.0;
+  const double factor = restore.factor;
+  for (Eigen::Index i = 0; i < solution.size(); ++i) {
+    density[i] = restore.scales ? solution[i] * factor : solution[i];
+    least = std::min(least, density[i]);
+  }
+  return least;
 }
 
 }  // namespace
@@ -264,24 +290,17 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
   // both in one pass over the factor when both are held (the same bits as
   // two solves).
   const int factorizationsBefore = systems.factorizationCount();
+  MassRestore solventRestore, soluteRestore;
   if (!densityOnSupport && (solvent || solute)) {
     report.densityMethod = DiffusionMethod::Direct;
-    if (solvent) massTimes(areas, state.solvent, scratch.solution);
-    if (solute) massTimes(areas, state.solute, scratch.rhs);
-    const double solventMass = solvent ? massOf(scratch.solution) : 0.0;
-    const double soluteMass = solute ? massOf(scratch.rhs) : 0.0;
+    const double solventMass = solvent ? massTimesSummed(areas, state.solvent, scratch.solution) : 0.0;
+    const double soluteMass = solute ? massTimesSummed(areas, state.solute, scratch.rhs) : 0.0;
     report.status = systems.solveScalarInPlace(solvent ? scratch.solution : scratch.rhs,
                                                solvent && solute ? &scratch.rhs : nullptr);
     report.factorizations = systems.factorizationCount() - factorizationsBefore;
     if (report.status != SolverStatus::Ok) return report;
-    if (solvent) {
-      flushTail(scratch.solution);
-      restoreMass(areas, solventMass, scratch.solution);
-    }
-    if (solute) {
-      flushTail(scratch.rhs);
-      restoreMass(areas, soluteMass, scratch.rhs);
-    }
+    if (solvent) solventRestore = flushTail(areas, solventMass, scratch.solution);
+    if (solute) soluteRestore = flushTail(areas, soluteMass, scratch.rhs);
   }
   // A failed velocity solve must leave the densities as they were: undo the
   // CG bookkeeping before returning.
@@ -396,10 +415,8 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
     }
     abandonDensities();  // the CG vectors' invariant: zero outside the active set
   } else {
-    if (solvent) state.solvent = scratch.solution;
-    if (solute) state.solute = scratch.rhs;
-    if (solvent) minimum = std::min(minimum, state.solvent.minCoeff());
-    if (solute) minimum = std::min(minimum, state.solute.minCoeff());
+    if (solvent) minimum = std::min(minimum, commitRestored(scratch.solution, solventRestore, state.solvent));
+    if (solute) minimum = std::min(minimum, commitRestored(scratch.rhs, soluteRestore, state.solute));
   }
   if (velocityOnBand) {
     const int* list = velocityActive.list();
