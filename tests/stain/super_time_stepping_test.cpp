@@ -15,11 +15,13 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdint>
 #include <cstring>
 #include <random>
 #include <vector>
 
 #include "allocation_counter.h"  // counts malloc/calloc/realloc while gCountAllocations is set
+#include "numerics/compensated_sum.h"
 #include "numerics/super_time_stepping.h"
 #include "stain_fixture.h"
 
@@ -150,6 +152,41 @@ TEST(SuperTimeStepping, ComplexBoundIsBitwiseTheScalarSum) {
     }
   }
   EXPECT_EQ(sumsChecked, 2 * n);
+}
+
+// The diffusion stage's mass sums skip the zeros of a mostly dry mesh
+// (stages/diffusion.cpp): a zero of either sign added to a CompensatedSum
+// must change no bit, including after the sum cancelled to exactly zero.
+TEST(CompensatedSum, ZerosOfEitherSignChangeNoBit) {
+  std::mt19937_64 random(51);
+  std::uniform_real_distribution<double> mantissa(-1.0, 1.0);
+  std::uniform_int_distribution<int> exponent(-40, 40);
+  const auto bits = [](double x) {
+    std::uint64_t b;
+    std::memcpy(&b, &x, sizeof b);
+    return b;
+  };
+  for (int trial = 0; trial < 200; ++trial) {
+    CompensatedSum withZeros, without;
+    std::vector<double> added;
+    for (int k = 0; k < 400; ++k) {
+      double x = std::ldexp(mantissa(random), exponent(random));
+      // Now and then the negation of a term already added: exact
+      // cancellations, so the running sum passes through exactly zero.
+      if (k % 7 == 3 && !added.empty()) x = -added[static_cast<size_t>(k) % added.size()];
+      added.push_back(x);
+      withZeros.add(x);
+      without.add(x);
+      withZeros.add(k % 2 == 0 ? 0.0 : -0.0);
+      ASSERT_EQ(bits(withZeros.value()), bits(without.value())) << "trial " << trial << ", term " << k;
+    }
+    // A sum of zeros only is +0, as the empty sum.
+    CompensatedSum zeros;
+    zeros.add(-0.0);
+    zeros.add(0.0);
+    zeros.add(-0.0);
+    EXPECT_EQ(bits(zeros.value()), bits(CompensatedSum().value()));
+  }
 }
 
 TEST(SuperTimeStepping, SecondOrderInTimeAgainstTheExactSemiDiscreteSolution) {

@@ -8,7 +8,9 @@ namespace blot::stain::diffusion_internal {
 
 // Σ x_i in index order with Neumaier's compensation: the sum's own rounding
 // stays at ~1 ulp whatever #V, so the mass fix below does not drift by
-// ~sqrt(#V) ε per step.
+// ~sqrt(#V) ε per step. Adding a zero of either sign changes no bit (the sum
+// and the compensation are never −0: each starts at +0 and a sum of two
+// doubles is −0 only when both are), so a caller may skip zeros.
 class CompensatedSum {
  public:
   void add(double x) {

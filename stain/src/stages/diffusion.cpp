@@ -32,12 +32,14 @@ bool allZero(const Eigen::Matrix<Scalar, Eigen::Dynamic, 1>& v) {
 constexpr double kNever = 1e300;
 
 // rhs_i = A_i x_i (massTimes's product) and the mass Σ_i rhs_i, compensated
-// in index order, in one pass.
+// in index order, in one pass. Adding a zero (of either sign) leaves a
+// CompensatedSum's bits as they are, so the zeros, most of the mesh, are
+// not added: the sum's dependency chain runs over the liquid only.
 double massTimesSummed(const Vector& dualAreas, const Vector& x, Vector& rhs) {
   CompensatedSum sum;
   for (Eigen::Index i = 0; i < x.size(); ++i) {
     rhs[i] = dualAreas[i] * x[i];
-    sum.add(rhs[i]);
+    if (rhs[i] != 0.0) sum.add(rhs[i]);
   }
   return sum.value();
 }
@@ -65,7 +67,8 @@ MassRestore flushTail(const Vector& dualAreas, double mass, Vector& solution) {
   CompensatedSum solved;
   for (Eigen::Index i = 0; i < solution.size(); ++i) {
     if (std::abs(solution[i]) < floor) solution[i] = 0.0;
-    solved.add(dualAreas[i] * solution[i]);
+    const double held = dualAreas[i] * solution[i];
+    if (held != 0.0) solved.add(held);  // a zero adds nothing (massTimesSummed)
   }
   MassRestore restore;
   if (!(mass > 0.0) || !(solved.value() > 0.0)) return restore;
