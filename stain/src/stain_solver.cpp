@@ -889,12 +889,15 @@ SolverStatus StainSolver::recordDiffusion(const DiffusionReport& r) {
   // with σ > 0, all of them in the active set, which starts from every
   // nonzero density); CG or RKL2 velocities: the rows of
   // band_.diffusionMask, inside the band (noted). The direct solve writes
-  // whole fields.
+  // whole fields, and lists the vertices whose densities it changed or left
+  // nonzero (the limiter's only), mostly where the liquid is.
   const auto onRows = [](DiffusionMethod m) {
     return m == DiffusionMethod::ConjugateGradient || m == DiffusionMethod::SuperTimeStepping;
   };
   if (onRows(r.densityMethod)) {
     noteChanged(diffusionScratch_.densityActive.data(), r.densityActiveVertices);
+  } else if (r.densityMethod == DiffusionMethod::Direct && r.directSupportVertices >= 0) {
+    noteChanged(diffusionScratch_.directSupport.data(), r.directSupportVertices);
   } else if (r.densityMethod != DiffusionMethod::None) {
     noteAllChanged();
   }

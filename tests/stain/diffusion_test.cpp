@@ -9,8 +9,10 @@
 
 #include <atomic>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <limits>
 #include <random>
 #include <vector>
@@ -486,6 +488,54 @@ TEST(Diffusion, DirectSolveOfBothDensitiesGivesEachTheBitsOfItsOwnSolve) {
     }
   }
   EXPECT_GT(corrected, 0) << "the limiter must have run on both fields";
+}
+
+// The direct solve writes whole fields, but lists the vertices it (or the
+// limiter after it) changed, and the solver backs up and rescans only those:
+// every vertex whose solvent or solute changed, to the bit, or is nonzero
+// must be listed, once, and on a mesh larger than the liquid's reach the
+// list must be shorter than the mesh.
+TEST(Diffusion, DirectDensitySolveListsEveryVertexItWrote) {
+  const int n = 60;
+  const LiquidMesh g(gridMesh(n, n, 1, 1),
+                     uniformFabric(2 * n * n, fabricTensor(1, 1e-6), fabricTensor(1, 1), kPi / 6));
+  const double h = 0.5 / (n * n);
+  DiffusionSystems systems;
+  systems.setSolverChoice(DiffusionSolverChoice::Direct);
+  ASSERT_EQ(systems.factorize(g.intrinsic, h), SolverStatus::Ok);
+  DiffusionScratch scratch;
+  scratch.resize(g.vertexCount());
+  StainState state = zeroState(g.vertexCount());
+  state.solvent = spot(g, Vector2(0.5, 0.5), 0.08, 2.0);
+  state.solute = spot(g, Vector2(0.45, 0.55), 0.1, 0.3);
+  const auto bits = [](double x) {
+    std::uint64_t b;
+    std::memcpy(&b, &x, sizeof b);
+    return b;
+  };
+  int corrected = 0;
+  for (int step = 0; step < 4; ++step) {
+    const StainState before = state;
+    const DiffusionReport report = diffuse(diffusionContext(h), g.intrinsic, systems, scratch, state);
+    ASSERT_EQ(report.status, SolverStatus::Ok);
+    ASSERT_EQ(report.densityMethod, DiffusionMethod::Direct);
+    corrected += report.limiterCorrectedVertices;
+    ASSERT_GT(report.directSupportVertices, 0);
+    ASSERT_LT(report.directSupportVertices, g.vertexCount()) << "step " << step;
+    std::vector<int> listed(static_cast<size_t>(g.vertexCount()), 0);
+    for (int k = 0; k < report.directSupportVertices; ++k) ++listed[static_cast<size_t>(scratch.directSupport[k])];
+    for (int i = 0; i < g.vertexCount(); ++i) {
+      ASSERT_LE(listed[static_cast<size_t>(i)], 1) << "vertex " << i << " listed twice";
+      const bool written = bits(state.solvent[i]) != bits(before.solvent[i]) ||
+                           bits(state.solute[i]) != bits(before.solute[i]) || state.solvent[i] != 0.0 ||
+                           state.solute[i] != 0.0;
+      if (written) {
+        ASSERT_EQ(listed[static_cast<size_t>(i)], 1) << "step " << step << ", vertex " << i;
+      }
+    }
+    for (const char mark : scratch.directMarks) ASSERT_EQ(mark, 0) << "marks are 0 between calls";
+  }
+  EXPECT_GT(corrected, 0) << "the limiter must have run (its writes are listed too)";
 }
 
 // --- Allocation ------------------------------------------------------------------------

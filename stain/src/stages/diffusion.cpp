@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 #include <initializer_list>
 #include <vector>
 
@@ -79,12 +81,25 @@ MassRestore flushTail(const Vector& dualAreas, double mass, Vector& solution) {
 
 // density = the solution, times the restoring factor where there is one;
 // returns min(0, its least value), what minCoeff would give in that min.
-double commitRestored(const Vector& solution, const MassRestore& restore, Vector& density) {
+// Lists (once, with `marks`) each vertex whose value changed, to the bit, or
+// is nonzero: all this write and the limiter after it can change.
+double commitRestored(const Vector& solution, const MassRestore& restore, Vector& density,
+                      std::vector<char>& marks, int* listed, int& count) {
   double least = 0.0;
   const double factor = restore.factor;
   for (Eigen::Index i = 0; i < solution.size(); ++i) {
-    density[i] = restore.scales ? solution[i] * factor : solution[i];
-    least = std::min(least, density[i]);
+    const double value = restore.scales ? solution[i] * factor : solution[i];
+    std::uint64_t now, before;
+    std::memcpy(&now, &value, sizeof now);
+    std::memcpy(&before, &density[i], sizeof before);
+    // Changed bits, or nonzero (the sign bit shifted out).
+    const bool written = now != before || (now << 1) != 0;
+    if (written && marks[static_cast<size_t>(i)] == 0) {
+      marks[static_cast<size_t>(i)] = 1;
+      listed[count++] = static_cast<int>(i);
+    }
+    density[i] = value;
+    least = std::min(least, value);
   }
   return least;
 }
@@ -110,6 +125,8 @@ void DiffusionScratch::resize(int vertexCount, int edgeCount) {
   velocityActive.assign(static_cast<size_t>(vertexCount), 0);
   densityMarks.assign(static_cast<size_t>(vertexCount), 0);
   velocityMarks.assign(static_cast<size_t>(vertexCount), 0);
+  directSupport.assign(static_cast<size_t>(vertexCount), 0);
+  directMarks.assign(static_cast<size_t>(vertexCount), 0);
   densityActiveCount = velocityActiveCount = 0;
   const int chunks = (vertexCount + kKrylovChunkRows - 1) / kKrylovChunkRows;
   krylovPartials.assign(static_cast<size_t>(chunks) * kKrylovPartialsPerChunk, 0.0);
@@ -418,8 +435,16 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
     }
     abandonDensities();  // the CG vectors' invariant: zero outside the active set
   } else {
-    if (solvent) minimum = std::min(minimum, commitRestored(scratch.solution, solventRestore, state.solvent));
-    if (solute) minimum = std::min(minimum, commitRestored(scratch.rhs, soluteRestore, state.solute));
+    int* listed = scratch.directSupport.data();
+    int count = 0;
+    if (solvent)
+      minimum = std::min(minimum, commitRestored(scratch.solution, solventRestore, state.solvent, scratch.directMarks,
+                                                 listed, count));
+    if (solute)
+      minimum = std::min(minimum, commitRestored(scratch.rhs, soluteRestore, state.solute, scratch.directMarks,
+                                                 listed, count));
+    for (int k = 0; k < count; ++k) scratch.directMarks[static_cast<size_t>(listed[k])] = 0;
+    report.directSupportVertices = count;
   }
   if (velocityOnBand) {
     const int* list = velocityActive.list();

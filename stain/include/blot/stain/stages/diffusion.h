@@ -235,6 +235,12 @@ struct DiffusionScratch {
   /// per kKrylovChunkRows rows of #V).
   std::vector<double> krylovPartials;
   int densityActiveCount = 0, velocityActiveCount = 0;
+  /// The direct density solve's written vertices (#V capacity): each whose
+  /// solvent or solute it changed (to the bit) or left nonzero, in the order
+  /// found, DiffusionReport::directSupportVertices of them; with their marks
+  /// (#V, 0 between calls).
+  std::vector<int> directSupport;
+  std::vector<char> directMarks;
   /// The velocity's band for its preconditioned CG, and one more pair
   /// vector (2 #V) for it.
   DomainRows velocityRows;
@@ -259,6 +265,10 @@ struct DiffusionReport {
   int densityActiveVertices = 0, velocityActiveVertices = 0;  ///< rows the CG worked on
   int fallbacks = 0;  ///< CG solves that stalled and were redone with the factor
   int factorizations = 0;  ///< numeric factorizations the direct solves needed (0–2)
+  /// After a direct density solve: the vertices listed in
+  /// DiffusionScratch::directSupport, all it (and the limiter after it) may
+  /// have changed; −1 when there was no such solve.
+  int directSupportVertices = -1;
 };
 
 /// Solves for σ_f, σ_s (if the switches and state need it) and u. Densities are
