@@ -456,18 +456,30 @@ TEST(Diffusion, SwitchesAndEmptyFieldsAreSkippedAndAFailedSolveKeepsTheState) {
 // The direct density solve takes solvent and solute in one pass over the
 // factor: each field gets the bits it gets when it is the only one (the tail
 // flush, the mass restoration and the limiter are per field).
-TEST(Diffusion, DirectSolveOfBothDensitiesGivesEachTheBitsOfItsOwnSolve) {
-  // The strong anisotropy of the limiter test above: the solves undershoot,
-  // so the limiter runs on both fields too.
-  const int n = 30;
-  const LiquidMesh g(gridMesh(n, n, 1, 1),
-                     uniformFabric(2 * n * n, fabricTensor(1, 1e-6), fabricTensor(1, 1), kPi / 6));
-  const double h = 10.0 / (n * n);
+// An n × n grid with the strong anisotropy of the limiter test above (the
+// solves undershoot, so the limiter runs), its systems factorized for direct
+// solves at h, and scratch for it.
+struct DirectSolveGrid {
+  DirectSolveGrid(int n, double h)
+      : g(gridMesh(n, n, 1, 1), uniformFabric(2 * n * n, fabricTensor(1, 1e-6), fabricTensor(1, 1), kPi / 6)) {
+    systems.setSolverChoice(DiffusionSolverChoice::Direct);
+    status = systems.factorize(g.intrinsic, h);
+    scratch.resize(g.vertexCount());
+  }
+  LiquidMesh g;
   DiffusionSystems systems;
-  systems.setSolverChoice(DiffusionSolverChoice::Direct);
-  ASSERT_EQ(systems.factorize(g.intrinsic, h), SolverStatus::Ok);
   DiffusionScratch scratch;
-  scratch.resize(g.vertexCount());
+  SolverStatus status = SolverStatus::Ok;
+};
+
+TEST(Diffusion, DirectSolveOfBothDensitiesGivesEachTheBitsOfItsOwnSolve) {
+  const int n = 30;
+  const double h = 10.0 / (n * n);
+  DirectSolveGrid grid(n, h);
+  ASSERT_EQ(grid.status, SolverStatus::Ok);
+  const LiquidMesh& g = grid.g;
+  DiffusionSystems& systems = grid.systems;
+  DiffusionScratch& scratch = grid.scratch;
   StainState both = zeroState(g.vertexCount());
   both.solvent = spot(g, Vector2(0.5, 0.5), 0.15, 2.0);
   both.solute = spot(g, Vector2(0.4, 0.6), 0.2, 0.3);
@@ -497,17 +509,13 @@ TEST(Diffusion, DirectSolveOfBothDensitiesGivesEachTheBitsOfItsOwnSolve) {
 // list must be shorter than the mesh.
 TEST(Diffusion, DirectDensitySolveListsEveryVertexItWrote) {
   const int n = 60;
-  const LiquidMesh g(gridMesh(n, n, 1, 1),
-                     uniformFabric(2 * n * n, fabricTensor(1, 1e-6), fabricTensor(1, 1), kPi / 6));
   const double h = 0.5 / (n * n);
-  DiffusionSystems systems;
-  systems.setSolverChoice(DiffusionSolverChoice::Direct);
-  ASSERT_EQ(systems.factorize(g.intrinsic, h), SolverStatus::Ok);
-  DiffusionScratch scratch;
-  scratch.resize(g.vertexCount());
-  StainState state = zeroState(g.vertexCount());
-  state.solvent = spot(g, Vector2(0.5, 0.5), 0.08, 2.0);
-  state.solute = spot(g, Vector2(0.45, 0.55), 0.1, 0.3);
+  DirectSolveGrid grid(n, h);
+  ASSERT_EQ(grid.status, SolverStatus::Ok);
+  const int vertices = grid.g.vertexCount();
+  StainState state = zeroState(vertices);
+  state.solvent = spot(grid.g, Vector2(0.5, 0.5), 0.08, 2.0);
+  state.solute = spot(grid.g, Vector2(0.45, 0.55), 0.1, 0.3);
   const auto bits = [](double x) {
     std::uint64_t b;
     std::memcpy(&b, &x, sizeof b);
@@ -516,15 +524,15 @@ TEST(Diffusion, DirectDensitySolveListsEveryVertexItWrote) {
   int corrected = 0;
   for (int step = 0; step < 4; ++step) {
     const StainState before = state;
-    const DiffusionReport report = diffuse(diffusionContext(h), g.intrinsic, systems, scratch, state);
+    const DiffusionReport report = diffuse(diffusionContext(h), grid.g.intrinsic, grid.systems, grid.scratch, state);
     ASSERT_EQ(report.status, SolverStatus::Ok);
     ASSERT_EQ(report.densityMethod, DiffusionMethod::Direct);
     corrected += report.limiterCorrectedVertices;
     ASSERT_GT(report.directSupportVertices, 0);
-    ASSERT_LT(report.directSupportVertices, g.vertexCount()) << "step " << step;
-    std::vector<int> listed(static_cast<size_t>(g.vertexCount()), 0);
-    for (int k = 0; k < report.directSupportVertices; ++k) ++listed[static_cast<size_t>(scratch.directSupport[k])];
-    for (int i = 0; i < g.vertexCount(); ++i) {
+    ASSERT_LT(report.directSupportVertices, vertices) << "step " << step;
+    std::vector<int> listed(static_cast<size_t>(vertices), 0);
+    for (int k = 0; k < report.directSupportVertices; ++k) ++listed[static_cast<size_t>(grid.scratch.directSupport[k])];
+    for (int i = 0; i < vertices; ++i) {
       ASSERT_LE(listed[static_cast<size_t>(i)], 1) << "vertex " << i << " listed twice";
       const bool written = bits(state.solvent[i]) != bits(before.solvent[i]) ||
                            bits(state.solute[i]) != bits(before.solute[i]) || state.solvent[i] != 0.0 ||
@@ -533,7 +541,7 @@ TEST(Diffusion, DirectDensitySolveListsEveryVertexItWrote) {
         ASSERT_EQ(listed[static_cast<size_t>(i)], 1) << "step " << step << ", vertex " << i;
       }
     }
-    for (const char mark : scratch.directMarks) ASSERT_EQ(mark, 0) << "marks are 0 between calls";
+    for (const char mark : grid.scratch.directMarks) ASSERT_EQ(mark, 0) << "marks are 0 between calls";
   }
   EXPECT_GT(corrected, 0) << "the limiter must have run (its writes are listed too)";
 }
