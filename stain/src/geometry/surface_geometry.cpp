@@ -16,6 +16,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "numerics/lanes.h"
 #include "numerics/threads.h"
 
 namespace blot::stain {
@@ -74,28 +75,35 @@ Vector3 rotationVector(const Eigen::Quaterniond& q) {
 // not depend on its lane, its companions, the list or the thread. A lane past
 // the fits given repeats the first one; its results are dropped.
 constexpr int kFitLanes = 4;
+static_assert(kFitLanes == lanes::kLanes, "a fit per lane of numerics/lanes.h");
 
 struct LaneQuaternions {
   double w[kFitLanes], x[kFitLanes], y[kFitLanes], z[kFitLanes];
 };
 
-// R(q) (Eigen's toRotationMatrix) of every lane, row-major: R[3r + c][l].
+// R(q) (Eigen's toRotationMatrix) of every lane, row-major: R[3r + c].
+void laneRotationMatrices(const lanes::Lanes& w, const lanes::Lanes& x, const lanes::Lanes& y,
+                          const lanes::Lanes& z, lanes::Lanes (&R)[9]) {
+  const lanes::Lanes tx = 2.0 * x, ty = 2.0 * y, tz = 2.0 * z;
+  const lanes::Lanes twx = tx * w, twy = ty * w, twz = tz * w;
+  const lanes::Lanes txx = tx * x, txy = ty * x, txz = tz * x;
+  const lanes::Lanes tyy = ty * y, tyz = tz * y, tzz = tz * z;
+  R[0] = 1.0 - (tyy + tzz);
+  R[1] = txy - twz;
+  R[2] = txz + twy;
+  R[3] = txy + twz;
+  R[4] = 1.0 - (txx + tzz);
+  R[5] = tyz - twx;
+  R[6] = txz - twy;
+  R[7] = tyz + twx;
+  R[8] = 1.0 - (txx + tyy);
+}
+
+// The same, lane l of each entry in R[3r + c][l].
 void laneRotationMatrices(const LaneQuaternions& q, double (&R)[9][kFitLanes]) {
-  for (int l = 0; l < kFitLanes; ++l) {
-    const double tx = 2.0 * q.x[l], ty = 2.0 * q.y[l], tz = 2.0 * q.z[l];
-    const double twx = tx * q.w[l], twy = ty * q.w[l], twz = tz * q.w[l];
-    const double txx = tx * q.x[l], txy = ty * q.x[l], txz = tz * q.x[l];
-    const double tyy = ty * q.y[l], tyz = tz * q.y[l], tzz = tz * q.z[l];
-    R[0][l] = 1.0 - (tyy + tzz);
-    R[1][l] = txy - twz;
-    R[2][l] = txz + twy;
-    R[3][l] = txy + twz;
-    R[4][l] = 1.0 - (txx + tzz);
-    R[5][l] = tyz - twx;
-    R[6][l] = txz - twy;
-    R[7][l] = tyz + twx;
-    R[8][l] = 1.0 - (txx + tyy);
-  }
+  lanes::Lanes r[9];
+  laneRotationMatrices(lanes::load(q.w), lanes::load(q.x), lanes::load(q.y), lanes::load(q.z), r);
+  for (int e = 0; e < 9; ++e) lanes::store(r[e], R[e]);
 }
 
 enum class LaneStatus : char { Active, Converged, Failed };
@@ -103,72 +111,83 @@ enum class LaneStatus : char { Active, Converged, Failed };
 // The Newton iteration behind fitRotation (see the design note), in lanes.
 // C: each lane's covariance; q: each lane's start, on return its rotation;
 // iterations: taken. A lane whose status is Failed on return gave up (the
-// caller then takes the SVD).
+// caller then takes the SVD). Every lane takes every iteration (a finished
+// lane's values are dropped), so the arithmetic runs on all four at once.
 void newtonLanes(const Matrix3* const (&C)[kFitLanes], LaneQuaternions& q, int (&iterations)[kFitLanes],
                  LaneStatus (&status)[kFitLanes]) {
+  using lanes::Lanes;
   for (int l = 0; l < kFitLanes; ++l) {
     status[l] = LaneStatus::Active;
     iterations[l] = 0;
   }
+  // c[3r + k]: entry (r, k) of each lane's covariance.
+  Lanes c[9];
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < 3; ++k)
+      c[3 * r + k] = lanes::gather((*C[0])(r, k), (*C[1])(r, k), (*C[2])(r, k), (*C[3])(r, k));
   for (int iteration = 1; iteration <= kMaxNewtonIterations; ++iteration) {
-    double R[9][kFitLanes];
-    laneRotationMatrices(q, R);
-    double trace[kFitLanes], gradient[kFitLanes], tiny[kFitLanes], d0[kFitLanes], d1[kFitLanes], d2[kFitLanes];
-    double stepSquared[kFitLanes];
+    const Lanes qw = lanes::load(q.w), qx = lanes::load(q.x), qy = lanes::load(q.y), qz = lanes::load(q.z);
+    Lanes R[9];
+    laneRotationMatrices(qw, qx, qy, qz, R);
+    // M = Rᵀ C.
+    Lanes M[3][3];
+    for (int r = 0; r < 3; ++r)
+      for (int k = 0; k < 3; ++k) M[r][k] = R[r] * c[k] + R[3 + r] * c[3 + k] + R[6 + r] * c[6 + k];
+    const Lanes trace = M[0][0] + M[1][1] + M[2][2];
+    // g = 2 vee(skew M); the Newton step is δ = (tr M·I − sym M)⁻¹ g, by
+    // unpivoted LDLᵀ (pivots checked below).
+    const Lanes g0 = M[2][1] - M[1][2], g1 = M[0][2] - M[2][0], g2 = M[1][0] - M[0][1];
+    const Lanes gradient = g0 * g0 + g1 * g1 + g2 * g2;
+    const Lanes h00 = trace - M[0][0], h11 = trace - M[1][1], h22 = trace - M[2][2];
+    const Lanes h10 = -0.5 * (M[1][0] + M[0][1]), h20 = -0.5 * (M[2][0] + M[0][2]);
+    const Lanes h21 = -0.5 * (M[2][1] + M[1][2]);
+    const Lanes tiny = kPivotTolerance * trace;
+    const Lanes d0 = h00;
+    const Lanes r0 = 1.0 / h00;
+    const Lanes l10 = h10 * r0, l20 = h20 * r0;
+    const Lanes d1 = h11 - l10 * h10;
+    const Lanes r1 = 1.0 / d1;
+    const Lanes l21 = (h21 - l20 * h10) * r1;
+    const Lanes d2 = h22 - l20 * h20 - l21 * l21 * d1;
+    const Lanes y0 = g0, y1 = g1 - l10 * y0, y2 = g2 - l20 * y0 - l21 * y1;
+    const Lanes x2 = y2 / d2;
+    const Lanes x1 = y1 * r1 - l21 * x2;
+    const Lanes x0 = y0 * r0 - l10 * x1 - l20 * x2;
+    const Lanes stepSquared = x0 * x0 + x1 * x1 + x2 * x2;
+    // q ⊗ (1, δ/2), normalised: |(1, δ/2)| = √(1 + |δ|²/4) and |q| = 1.
+    const Lanes cw = 1.0 / lanes::sqrt(1.0 + 0.25 * stepSquared);
+    const Lanes hx = 0.5 * cw * x0, hy = 0.5 * cw * x1, hz = 0.5 * cw * x2;
     LaneQuaternions next;
-    for (int l = 0; l < kFitLanes; ++l) {
-      // M = Rᵀ C.
-      const Matrix3& c = *C[l];
-      double M[3][3];
-      for (int r = 0; r < 3; ++r)
-        for (int k = 0; k < 3; ++k)
-          M[r][k] = R[r][l] * c(0, k) + R[3 + r][l] * c(1, k) + R[6 + r][l] * c(2, k);
-      trace[l] = M[0][0] + M[1][1] + M[2][2];
-      // g = 2 vee(skew M); the Newton step is δ = (tr M·I − sym M)⁻¹ g, by
-      // unpivoted LDLᵀ (pivots checked below).
-      const double g0 = M[2][1] - M[1][2], g1 = M[0][2] - M[2][0], g2 = M[1][0] - M[0][1];
-      gradient[l] = g0 * g0 + g1 * g1 + g2 * g2;
-      const double h00 = trace[l] - M[0][0], h11 = trace[l] - M[1][1], h22 = trace[l] - M[2][2];
-      const double h10 = -0.5 * (M[1][0] + M[0][1]), h20 = -0.5 * (M[2][0] + M[0][2]);
-      const double h21 = -0.5 * (M[2][1] + M[1][2]);
-      tiny[l] = kPivotTolerance * trace[l];
-      d0[l] = h00;
-      const double r0 = 1.0 / h00;
-      const double l10 = h10 * r0, l20 = h20 * r0;
-      d1[l] = h11 - l10 * h10;
-      const double r1 = 1.0 / d1[l];
-      const double l21 = (h21 - l20 * h10) * r1;
-      d2[l] = h22 - l20 * h20 - l21 * l21 * d1[l];
-      const double y0 = g0, y1 = g1 - l10 * y0, y2 = g2 - l20 * y0 - l21 * y1;
-      const double x2 = y2 / d2[l];
-      const double x1 = y1 * r1 - l21 * x2;
-      const double x0 = y0 * r0 - l10 * x1 - l20 * x2;
-      stepSquared[l] = x0 * x0 + x1 * x1 + x2 * x2;
-      // q ⊗ (1, δ/2), normalised: |(1, δ/2)| = √(1 + |δ|²/4) and |q| = 1.
-      const double cw = 1.0 / std::sqrt(1.0 + 0.25 * stepSquared[l]);
-      const double hx = 0.5 * cw * x0, hy = 0.5 * cw * x1, hz = 0.5 * cw * x2;
-      next.w[l] = q.w[l] * cw - q.x[l] * hx - q.y[l] * hy - q.z[l] * hz;
-      next.x[l] = q.w[l] * hx + q.x[l] * cw + q.y[l] * hz - q.z[l] * hy;
-      next.y[l] = q.w[l] * hy + q.y[l] * cw + q.z[l] * hx - q.x[l] * hz;
-      next.z[l] = q.w[l] * hz + q.z[l] * cw + q.x[l] * hy - q.y[l] * hx;
-    }
+    lanes::store(qw * cw - qx * hx - qy * hy - qz * hz, next.w);
+    lanes::store(qw * hx + qx * cw + qy * hz - qz * hy, next.x);
+    lanes::store(qw * hy + qy * cw + qz * hx - qx * hz, next.y);
+    lanes::store(qw * hz + qz * cw + qx * hy - qy * hx, next.z);
+    double traceOf[kFitLanes], gradientOf[kFitLanes], tinyOf[kFitLanes], d0Of[kFitLanes], d1Of[kFitLanes],
+        d2Of[kFitLanes], stepOf[kFitLanes];
+    lanes::store(trace, traceOf);
+    lanes::store(gradient, gradientOf);
+    lanes::store(tiny, tinyOf);
+    lanes::store(d0, d0Of);
+    lanes::store(d1, d1Of);
+    lanes::store(d2, d2Of);
+    lanes::store(stepSquared, stepOf);
     bool active = false;
     for (int l = 0; l < kFitLanes; ++l) {
       if (status[l] != LaneStatus::Active) continue;
       iterations[l] = iteration;
-      if (!(trace[l] > 0)) {
+      if (!(traceOf[l] > 0)) {
         status[l] = LaneStatus::Failed;
-      } else if (gradient[l] <= kGradientTolerance * kGradientTolerance * trace[l] * trace[l]) {
+      } else if (gradientOf[l] <= kGradientTolerance * kGradientTolerance * traceOf[l] * traceOf[l]) {
         status[l] = LaneStatus::Converged;
-      } else if (!(d0[l] > tiny[l]) || !(d1[l] > tiny[l]) || !(d2[l] > tiny[l]) ||
-                 !(stepSquared[l] <= kMaxNewtonStep * kMaxNewtonStep)) {
+      } else if (!(d0Of[l] > tinyOf[l]) || !(d1Of[l] > tinyOf[l]) || !(d2Of[l] > tinyOf[l]) ||
+                 !(stepOf[l] <= kMaxNewtonStep * kMaxNewtonStep)) {
         status[l] = LaneStatus::Failed;
       } else {
         q.w[l] = next.w[l];
         q.x[l] = next.x[l];
         q.y[l] = next.y[l];
         q.z[l] = next.z[l];
-        if (stepSquared[l] <= kNewtonStepTolerance * kNewtonStepTolerance) {
+        if (stepOf[l] <= kNewtonStepTolerance * kNewtonStepTolerance) {
           status[l] = LaneStatus::Converged;
         } else {
           active = true;
@@ -200,31 +219,40 @@ struct FitInputs {
 // fitted before. Identity where the frame is degenerate (Newton or the SVD
 // then decide).
 void frameGuessLanes(const FitInputs (&in)[kFitLanes], LaneQuaternions& q) {
+  using lanes::Lanes;
+  const auto gather = [&](const auto& entry) {
+    return lanes::gather(entry(in[0]), entry(in[1]), entry(in[2]), entry(in[3]));
+  };
+  const Lanes nx = gather([](const FitInputs& f) { return f.normal->x(); });
+  const Lanes ny = gather([](const FitInputs& f) { return f.normal->y(); });
+  const Lanes nz = gather([](const FitInputs& f) { return f.normal->z(); });
+  const Lanes ex = gather([](const FitInputs& f) { return f.edge->x(); });
+  const Lanes ey = gather([](const FitInputs& f) { return f.edge->y(); });
+  const Lanes ez = gather([](const FitInputs& f) { return f.edge->z(); });
+  const Lanes inverse = 1.0 / lanes::sqrt(gather([](const FitInputs& f) { return f.normalSquared; }));
+  const Lanes z0 = nx * inverse, z1 = ny * inverse, z2 = nz * inverse;
+  Lanes y0 = z1 * ez - z2 * ey, y1 = z2 * ex - z0 * ez, y2 = z0 * ey - z1 * ex;
+  const Lanes length = lanes::sqrt(y0 * y0 + y1 * y1 + y2 * y2);
+  const Lanes edgeLength = lanes::sqrt(ex * ex + ey * ey + ez * ez);
+  y0 = y0 / length;
+  y1 = y1 / length;
+  y2 = y2 / length;
+  const Lanes x0 = y1 * z2 - y2 * z1, x1 = y2 * z0 - y0 * z2, x2 = y0 * z1 - y1 * z0;
+  const Lanes frame[3][3] = {{x0, y0, z0}, {x1, y1, z1}, {x2, y2, z2}};
+  // Q = frame F̄ᵀ.
   double Q[3][3][kFitLanes];
-  bool usable[kFitLanes];
-  for (int l = 0; l < kFitLanes; ++l) {
-    const Vector3& n = *in[l].normal;
-    const Vector3& e = *in[l].edge;
-    const Matrix3& F = *in[l].restFrame;
-    const double inverse = 1.0 / std::sqrt(in[l].normalSquared);
-    const double z0 = n.x() * inverse, z1 = n.y() * inverse, z2 = n.z() * inverse;
-    double y0 = z1 * e.z() - z2 * e.y(), y1 = z2 * e.x() - z0 * e.z(), y2 = z0 * e.y() - z1 * e.x();
-    const double length = std::sqrt(y0 * y0 + y1 * y1 + y2 * y2);
-    const double edgeLength = std::sqrt(e.x() * e.x() + e.y() * e.y() + e.z() * e.z());
-    usable[l] = in[l].normalSquared > 0.0 && length > 1e-12 * edgeLength;
-    y0 /= length;
-    y1 /= length;
-    y2 /= length;
-    const double x0 = y1 * z2 - y2 * z1, x1 = y2 * z0 - y0 * z2, x2 = y0 * z1 - y1 * z0;
-    const double frame[3][3] = {{x0, y0, z0}, {x1, y1, z1}, {x2, y2, z2}};
-    // Q = frame F̄ᵀ.
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c)
-        Q[r][c][l] = frame[r][0] * F(c, 0) + frame[r][1] * F(c, 1) + frame[r][2] * F(c, 2);
+  for (int c = 0; c < 3; ++c) {
+    Lanes F[3];
+    for (int k = 0; k < 3; ++k) F[k] = gather([&](const FitInputs& f) { return (*f.restFrame)(c, k); });
+    for (int r = 0; r < 3; ++r) lanes::store(frame[r][0] * F[0] + frame[r][1] * F[1] + frame[r][2] * F[2], Q[r][c]);
   }
+  double lengthOf[kFitLanes], edgeLengthOf[kFitLanes];
+  lanes::store(length, lengthOf);
+  lanes::store(edgeLength, edgeLengthOf);
   // The quaternion of Q (Shepperd's choice of the largest component, as
   // Eigen's), normalised.
   for (int l = 0; l < kFitLanes; ++l) {
+    const bool usable = in[l].normalSquared > 0.0 && lengthOf[l] > 1e-12 * edgeLengthOf[l];
     double w, x, y, z;
     const double trace = Q[0][0][l] + Q[1][1][l] + Q[2][2][l];
     if (trace > 0) {
@@ -251,10 +279,10 @@ void frameGuessLanes(const FitInputs (&in)[kFitLanes], LaneQuaternions& q) {
       z = v[2];
     }
     const double norm = std::sqrt(w * w + x * x + y * y + z * z);
-    q.w[l] = usable[l] ? w / norm : 1.0;
-    q.x[l] = usable[l] ? x / norm : 0.0;
-    q.y[l] = usable[l] ? y / norm : 0.0;
-    q.z[l] = usable[l] ? z / norm : 0.0;
+    q.w[l] = usable ? w / norm : 1.0;
+    q.x[l] = usable ? x / norm : 0.0;
+    q.y[l] = usable ? y / norm : 0.0;
+    q.z[l] = usable ? z / norm : 0.0;
   }
 }
 
