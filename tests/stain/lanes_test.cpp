@@ -10,6 +10,8 @@
 #include <random>
 #include <vector>
 
+#include <Eigen/Core>
+
 #include "numerics/lanes.h"
 
 namespace blot::stain {
@@ -61,7 +63,7 @@ TEST(Lanes, EachLaneIsTheScalarOperationWhateverItsCompanions) {
       const Lanes x = lanes::load(a), y = lanes::gather(b[0], b[1], b[2], b[3]);
       double sum[lanes::kLanes], difference[lanes::kLanes], product[lanes::kLanes], quotient[lanes::kLanes],
           root[lanes::kLanes], scaled[lanes::kLanes], shifted[lanes::kLanes], inverse[lanes::kLanes],
-          below[lanes::kLanes];
+          below[lanes::kLanes], plusOne[lanes::kLanes], thirds[lanes::kLanes];
       lanes::store(x + y, sum);
       lanes::store(x - y, difference);
       lanes::store(x * y, product);
@@ -71,6 +73,8 @@ TEST(Lanes, EachLaneIsTheScalarOperationWhateverItsCompanions) {
       lanes::store(1.0 + y, shifted);
       lanes::store(1.0 / x, inverse);
       lanes::store(0.25 - x, below);
+      lanes::store(x + 1.0, plusOne);
+      lanes::store(x / 3.0, thirds);
       for (int l = 0; l < lanes::kLanes; ++l) {
         ASSERT_TRUE(same(sum[l], a[l] + b[l])) << a[l] << " + " << b[l];
         ASSERT_TRUE(same(difference[l], a[l] - b[l])) << a[l] << " - " << b[l];
@@ -81,6 +85,8 @@ TEST(Lanes, EachLaneIsTheScalarOperationWhateverItsCompanions) {
         ASSERT_TRUE(same(shifted[l], 1.0 + b[l])) << b[l];
         ASSERT_TRUE(same(inverse[l], 1.0 / a[l])) << a[l];
         ASSERT_TRUE(same(below[l], 0.25 - a[l])) << a[l];
+        ASSERT_TRUE(same(plusOne[l], a[l] + 1.0)) << a[l];
+        ASSERT_TRUE(same(thirds[l], a[l] / 3.0)) << a[l];
         ++checked;
       }
     }
@@ -96,6 +102,40 @@ TEST(Lanes, SplatLoadAndGatherPutEachValueInItsLane) {
   for (int l = 0; l < lanes::kLanes; ++l) EXPECT_EQ(bits(out[l]), bits(values[l]));
   lanes::store(lanes::splat(-0.0), out);
   for (int l = 0; l < lanes::kLanes; ++l) EXPECT_EQ(bits(out[l]), bits(-0.0));
+}
+
+// The rotation fits' frames U F̄ are formed in lanes; the SVD fallback and
+// the SVD method form them with Eigen's product. Both must give one bit
+// pattern, whatever Eigen's version does with the sums' association.
+TEST(Lanes, Product3HasTheBitsOfEigensMatrix3Product) {
+  std::mt19937_64 random(11);
+  std::uniform_real_distribution<double> entry(-1.0, 1.0);
+  int mismatches = 0;
+  for (int trial = 0; trial < 20000; ++trial) {
+    Eigen::Matrix3d a[lanes::kLanes], b[lanes::kLanes];
+    for (int l = 0; l < lanes::kLanes; ++l)
+      for (int k = 0; k < 9; ++k) {
+        a[l].data()[k] = std::ldexp(entry(random), trial % 7 - 3);
+        b[l].data()[k] = entry(random);
+      }
+    lanes::Lanes A[9], B[9], P[9];
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) {
+        A[3 * r + c] = lanes::gather(a[0](r, c), a[1](r, c), a[2](r, c), a[3](r, c));
+        B[3 * r + c] = lanes::gather(b[0](r, c), b[1](r, c), b[2](r, c), b[3](r, c));
+      }
+    lanes::product3(A, B, P);
+    for (int e = 0; e < 9; ++e) {
+      double p[lanes::kLanes];
+      lanes::store(P[e], p);
+      for (int l = 0; l < lanes::kLanes; ++l) {
+        Eigen::Matrix3d expected;
+        expected.noalias() = a[l] * b[l];
+        mismatches += bits(p[l]) == bits(expected(e / 3, e % 3)) ? 0 : 1;
+      }
+    }
+  }
+  EXPECT_EQ(mismatches, 0);
 }
 
 }  // namespace

@@ -99,13 +99,6 @@ void laneRotationMatrices(const lanes::Lanes& w, const lanes::Lanes& x, const la
   R[8] = 1.0 - (txx + tyy);
 }
 
-// The same, lane l of each entry in R[3r + c][l].
-void laneRotationMatrices(const LaneQuaternions& q, double (&R)[9][kFitLanes]) {
-  lanes::Lanes r[9];
-  laneRotationMatrices(lanes::load(q.w), lanes::load(q.x), lanes::load(q.y), lanes::load(q.z), r);
-  for (int e = 0; e < 9; ++e) lanes::store(r[e], R[e]);
-}
-
 enum class LaneStatus : char { Active, Converged, Failed };
 
 // The Newton iteration behind fitRotation (see the design note), in lanes.
@@ -217,8 +210,9 @@ struct FitInputs {
 // converges in 2–4 iterations from there). A function of the slot's
 // positions only, so a fit gives the same bits whichever vertices were
 // fitted before. Identity where the frame is degenerate (Newton or the SVD
-// then decide).
-void frameGuessLanes(const FitInputs (&in)[kFitLanes], LaneQuaternions& q) {
+// then decide). Also each lane's unit normal n / |n|, the slot's normal.
+void frameGuessLanes(const FitInputs (&in)[kFitLanes], LaneQuaternions& q,
+                     double (&unitNormal)[3][kFitLanes]) {
   using lanes::Lanes;
   const auto gather = [&](const auto& entry) {
     return lanes::gather(entry(in[0]), entry(in[1]), entry(in[2]), entry(in[3]));
@@ -246,43 +240,52 @@ void frameGuessLanes(const FitInputs (&in)[kFitLanes], LaneQuaternions& q) {
     for (int k = 0; k < 3; ++k) F[k] = gather([&](const FitInputs& f) { return (*f.restFrame)(c, k); });
     for (int r = 0; r < 3; ++r) lanes::store(frame[r][0] * F[0] + frame[r][1] * F[1] + frame[r][2] * F[2], Q[r][c]);
   }
-  double lengthOf[kFitLanes], edgeLengthOf[kFitLanes];
+  lanes::store(z0, unitNormal[0]);
+  lanes::store(z1, unitNormal[1]);
+  lanes::store(z2, unitNormal[2]);
+  // The quaternion of Q (Shepperd's choice of the largest component, as
+  // Eigen's), normalised: where the trace is positive (every lane turned by
+  // less than 120° from rest) in the lanes, the other choices lane by lane.
+  const Lanes trace = lanes::load(Q[0][0]) + lanes::load(Q[1][1]) + lanes::load(Q[2][2]);
+  Lanes t = lanes::sqrt(trace + 1.0);
+  const Lanes w = 0.5 * t;
+  t = 0.5 / t;
+  const Lanes x = (lanes::load(Q[2][1]) - lanes::load(Q[1][2])) * t;
+  const Lanes y = (lanes::load(Q[0][2]) - lanes::load(Q[2][0])) * t;
+  const Lanes z = (lanes::load(Q[1][0]) - lanes::load(Q[0][1])) * t;
+  const Lanes norm = lanes::sqrt(w * w + x * x + y * y + z * z);
+  lanes::store(w / norm, q.w);
+  lanes::store(x / norm, q.x);
+  lanes::store(y / norm, q.y);
+  lanes::store(z / norm, q.z);
+  double traceOf[kFitLanes], lengthOf[kFitLanes], edgeLengthOf[kFitLanes];
+  lanes::store(trace, traceOf);
   lanes::store(length, lengthOf);
   lanes::store(edgeLength, edgeLengthOf);
-  // The quaternion of Q (Shepperd's choice of the largest component, as
-  // Eigen's), normalised.
   for (int l = 0; l < kFitLanes; ++l) {
     const bool usable = in[l].normalSquared > 0.0 && lengthOf[l] > 1e-12 * edgeLengthOf[l];
-    double w, x, y, z;
-    const double trace = Q[0][0][l] + Q[1][1][l] + Q[2][2][l];
-    if (trace > 0) {
-      double t = std::sqrt(trace + 1.0);
-      w = 0.5 * t;
-      t = 0.5 / t;
-      x = (Q[2][1][l] - Q[1][2][l]) * t;
-      y = (Q[0][2][l] - Q[2][0][l]) * t;
-      z = (Q[1][0][l] - Q[0][1][l]) * t;
-    } else {
-      int i = 0;
-      if (Q[1][1][l] > Q[0][0][l]) i = 1;
-      if (Q[2][2][l] > Q[i][i][l]) i = 2;
-      const int j = (i + 1) % 3, k = (j + 1) % 3;
-      double t = std::sqrt(Q[i][i][l] - Q[j][j][l] - Q[k][k][l] + 1.0);
-      double v[3];
-      v[i] = 0.5 * t;
-      t = 0.5 / t;
-      w = (Q[k][j][l] - Q[j][k][l]) * t;
-      v[j] = (Q[j][i][l] + Q[i][j][l]) * t;
-      v[k] = (Q[k][i][l] + Q[i][k][l]) * t;
-      x = v[0];
-      y = v[1];
-      z = v[2];
+    if (!usable) {
+      q.w[l] = 1.0;
+      q.x[l] = q.y[l] = q.z[l] = 0.0;
+      continue;
     }
-    const double norm = std::sqrt(w * w + x * x + y * y + z * z);
-    q.w[l] = usable ? w / norm : 1.0;
-    q.x[l] = usable ? x / norm : 0.0;
-    q.y[l] = usable ? y / norm : 0.0;
-    q.z[l] = usable ? z / norm : 0.0;
+    if (traceOf[l] > 0) continue;
+    int i = 0;
+    if (Q[1][1][l] > Q[0][0][l]) i = 1;
+    if (Q[2][2][l] > Q[i][i][l]) i = 2;
+    const int j = (i + 1) % 3, k = (j + 1) % 3;
+    double s = std::sqrt(Q[i][i][l] - Q[j][j][l] - Q[k][k][l] + 1.0);
+    double v[3];
+    v[i] = 0.5 * s;
+    s = 0.5 / s;
+    const double wl = (Q[k][j][l] - Q[j][k][l]) * s;
+    v[j] = (Q[j][i][l] + Q[i][j][l]) * s;
+    v[k] = (Q[k][i][l] + Q[i][k][l]) * s;
+    const double normOf = std::sqrt(wl * wl + v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    q.w[l] = wl / normOf;
+    q.x[l] = v[0] / normOf;
+    q.y[l] = v[1] / normOf;
+    q.z[l] = v[2] / normOf;
   }
 }
 
@@ -1057,33 +1060,53 @@ void SurfaceGeometry::fitSlots(SlotFit* jobs, int count, FitCounts& counts) cons
     return;
   }
   for (int start = 0; start < count; start += kFitLanes) {
-    const int lanes = std::min(kFitLanes, count - start);
+    const int used = std::min(kFitLanes, count - start);
     FitInputs in[kFitLanes];
     const Matrix3* C[kFitLanes];
     for (int l = 0; l < kFitLanes; ++l) {
-      const SlotFit& job = jobs[start + std::min(l, lanes - 1)];
+      const SlotFit& job = jobs[start + std::min(l, used - 1)];
       in[l] = {&job.normal, job.normalSquared, &job.edge, &restFrames[static_cast<size_t>(job.vertex)]};
       C[l] = &job.covariance;
     }
     LaneQuaternions q;
-    frameGuessLanes(in, q);
+    double unitNormal[3][kFitLanes];
+    frameGuessLanes(in, q, unitNormal);
     int iterations[kFitLanes];
     LaneStatus status[kFitLanes];
     newtonLanes(C, q, iterations, status);
-    double R[9][kFitLanes];
-    laneRotationMatrices(q, R);
-    for (int l = 0; l < lanes; ++l) {
+    // U and the frame U F̄ of every lane (lanes::product3: Eigen's bits).
+    lanes::Lanes U[9], restFrame[9], frame[9];
+    laneRotationMatrices(lanes::load(q.w), lanes::load(q.x), lanes::load(q.y), lanes::load(q.z), U);
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c)
+        restFrame[3 * r + c] = lanes::gather((*in[0].restFrame)(r, c), (*in[1].restFrame)(r, c),
+                                             (*in[2].restFrame)(r, c), (*in[3].restFrame)(r, c));
+    lanes::product3(U, restFrame, frame);
+    double UOf[9][kFitLanes], frameOf[9][kFitLanes];
+    for (int e = 0; e < 9; ++e) {
+      lanes::store(U[e], UOf[e]);
+      lanes::store(frame[e], frameOf[e]);
+    }
+    for (int l = 0; l < used; ++l) {
       SlotFit& job = jobs[start + l];
       counts.iterations += iterations[l];
-      if (status[l] == LaneStatus::Converged) {
-        Matrix3 U;
-        U << R[0][l], R[1][l], R[2][l], R[3][l], R[4][l], R[5][l], R[6][l], R[7][l], R[8][l];
-        finish(job, Eigen::Quaterniond(q.w[l], q.x[l], q.y[l], q.z[l]), U);
-      } else {
+      if (status[l] != LaneStatus::Converged) {
         ++counts.fallbacks;
-        const Matrix3 U = rotationFromCovariance(job.covariance);
-        finish(job, Eigen::Quaterniond(U), U);
+        const Matrix3 fitted = rotationFromCovariance(job.covariance);
+        finish(job, Eigen::Quaterniond(fitted), fitted);
+        continue;
       }
+      // What finish writes, from the lanes.
+      *job.rotation = Eigen::Quaterniond(q.w[l], q.x[l], q.y[l], q.z[l]);
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) {
+          (*job.fit)(r, c) = UOf[3 * r + c][l];
+          (*job.frame)(r, c) = frameOf[3 * r + c][l];
+        }
+      // A fully folded fan has no normal: take the fitted frame's.
+      for (int c = 0; c < 3; ++c)
+        (*job.normals)(job.vertex, c) = job.normalSquared > 0.0 ? unitNormal[c][l] : frameOf[3 * c + 2][l];
+      ++counts.fitted;
     }
   }
 }

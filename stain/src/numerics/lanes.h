@@ -73,5 +73,22 @@ inline Lanes operator+(double a, const Lanes& b) { return splat(a) + b; }
 inline Lanes operator-(double a, const Lanes& b) { return splat(a) - b; }
 inline Lanes operator*(double a, const Lanes& b) { return splat(a) * b; }
 inline Lanes operator/(double a, const Lanes& b) { return splat(a) / b; }
+inline Lanes operator+(const Lanes& a, double b) { return a + splat(b); }
+inline Lanes operator-(const Lanes& a, double b) { return a - splat(b); }
+inline Lanes operator*(const Lanes& a, double b) { return a * splat(b); }
+inline Lanes operator/(const Lanes& a, double b) { return a / splat(b); }
+
+/// P = A B for a 3 × 3 matrix in each lane, entry (r, c) of each in
+/// [3r + c], with the sums associated as Eigen 3.4's fixed-size product of
+/// two Matrix3d (SSE2, no fused multiply-add) associates them: rows 0 and 1
+/// left to right, row 2 with its last two terms first. So a lane's product
+/// has the bits of `a * b` on Eigen matrices (lanes_test checks it against
+/// the Eigen this is built with).
+inline void product3(const Lanes (&A)[9], const Lanes (&B)[9], Lanes (&P)[9]) {
+  for (int c = 0; c < 3; ++c) {
+    for (int r = 0; r < 2; ++r) P[3 * r + c] = A[3 * r] * B[c] + A[3 * r + 1] * B[3 + c] + A[3 * r + 2] * B[6 + c];
+    P[6 + c] = A[6] * B[c] + (A[7] * B[3 + c] + A[8] * B[6 + c]);
+  }
+}
 
 }  // namespace blot::stain::lanes
