@@ -63,7 +63,8 @@ TEST(Lanes, EachLaneIsTheScalarOperationWhateverItsCompanions) {
       const Lanes x = lanes::load(a), y = lanes::gather(b[0], b[1], b[2], b[3]);
       double sum[lanes::kLanes], difference[lanes::kLanes], product[lanes::kLanes], quotient[lanes::kLanes],
           root[lanes::kLanes], scaled[lanes::kLanes], shifted[lanes::kLanes], inverse[lanes::kLanes],
-          below[lanes::kLanes], plusOne[lanes::kLanes], thirds[lanes::kLanes];
+          below[lanes::kLanes], plusOne[lanes::kLanes], thirds[lanes::kLanes], negated[lanes::kLanes],
+          magnitude[lanes::kLanes];
       lanes::store(x + y, sum);
       lanes::store(x - y, difference);
       lanes::store(x * y, product);
@@ -75,6 +76,8 @@ TEST(Lanes, EachLaneIsTheScalarOperationWhateverItsCompanions) {
       lanes::store(0.25 - x, below);
       lanes::store(x + 1.0, plusOne);
       lanes::store(x / 3.0, thirds);
+      lanes::store(-x, negated);
+      lanes::store(lanes::abs(x), magnitude);
       for (int l = 0; l < lanes::kLanes; ++l) {
         ASSERT_TRUE(same(sum[l], a[l] + b[l])) << a[l] << " + " << b[l];
         ASSERT_TRUE(same(difference[l], a[l] - b[l])) << a[l] << " - " << b[l];
@@ -87,6 +90,8 @@ TEST(Lanes, EachLaneIsTheScalarOperationWhateverItsCompanions) {
         ASSERT_TRUE(same(below[l], 0.25 - a[l])) << a[l];
         ASSERT_TRUE(same(plusOne[l], a[l] + 1.0)) << a[l];
         ASSERT_TRUE(same(thirds[l], a[l] / 3.0)) << a[l];
+        ASSERT_TRUE(same(negated[l], -a[l])) << a[l];
+        ASSERT_TRUE(same(magnitude[l], std::abs(a[l]))) << a[l];
         ++checked;
       }
     }

@@ -6,6 +6,7 @@
 
 #include <blot/stain/geometry/intrinsic_geometry.h>
 
+#include "numerics/lanes.h"
 #include "numerics/vector_trig.h"
 
 #include <algorithm>
@@ -311,9 +312,11 @@ Matrix3 stiffnessFromGradients(const TriangleGradients& g, const Matrix2& tensor
 // Each lane runs the operations of intrinsicCorners, triangleGradients and
 // stiffnessFromGradients in their order: Eigen evaluates a Gᵀ T G as
 // ((a Gᵀ) T) G, each inner sum in index order, and the build contracts
-// nothing (-ffp-contract=off). So a lane's bits are its face's alone, and the
-// lanes are independent loops the compiler can vectorize.
+// nothing (-ffp-contract=off). So a lane's bits are its face's alone; the
+// arithmetic shared by all four runs on numerics/lanes.h (GCC left these
+// loops scalar), the tensors' branches lane by lane.
 constexpr int kStiffnessLanes = 4;
+static_assert(kStiffnessLanes == lanes::kLanes, "a face per lane of numerics/lanes.h");
 
 struct StiffnessLanes {
   double density[9][kStiffnessLanes];  // K(k, l) at 3k + l
@@ -321,17 +324,14 @@ struct StiffnessLanes {
 };
 
 // K = ((a Gᵀ) T) G for every lane, T(r, c) at t[2r + c].
-void stiffnessOfLanes(const double (&area)[kStiffnessLanes], const double (&g)[2][3][kStiffnessLanes],
-                      const double (&t)[4][kStiffnessLanes], double (&K)[9][kStiffnessLanes]) {
+void stiffnessOfLanes(const lanes::Lanes& area, const lanes::Lanes (&g)[2][3], const double (&t)[4][kStiffnessLanes],
+                      double (&K)[9][kStiffnessLanes]) {
+  const lanes::Lanes t0 = lanes::load(t[0]), t1 = lanes::load(t[1]), t2 = lanes::load(t[2]), t3 = lanes::load(t[3]);
   for (int k = 0; k < 3; ++k) {
-    double m0[kStiffnessLanes], m1[kStiffnessLanes];
-    for (int j = 0; j < kStiffnessLanes; ++j) {
-      const double a0 = area[j] * g[0][k][j], a1 = area[j] * g[1][k][j];
-      m0[j] = a0 * t[0][j] + a1 * t[2][j];
-      m1[j] = a0 * t[1][j] + a1 * t[3][j];
-    }
-    for (int l = 0; l < 3; ++l)
-      for (int j = 0; j < kStiffnessLanes; ++j) K[3 * k + l][j] = m0[j] * g[0][l][j] + m1[j] * g[1][l][j];
+    const lanes::Lanes a0 = area * g[0][k], a1 = area * g[1][k];
+    const lanes::Lanes m0 = a0 * t0 + a1 * t2;
+    const lanes::Lanes m1 = a0 * t1 + a1 * t3;
+    for (int l = 0; l < 3; ++l) lanes::store(m0 * g[0][l] + m1 * g[1][l], K[3 * k + l]);
   }
 }
 
@@ -350,11 +350,12 @@ void stiffnessLanes(const SurfaceTopology& topology, const Vector& edgeLengths, 
     area[j] = given >= 0.0 ? given : triangleArea(l0[j], l1[j], l2[j]);  // intrinsicCorners' rule
   }
   // intrinsicCorners: (0, 0), (l0, 0), (x, y).
+  const lanes::Lanes L0 = lanes::load(l0), L1 = lanes::load(l1), L2 = lanes::load(l2);
+  const lanes::Lanes X = (L0 * L0 + (L2 - L1) * (L2 + L1)) / (2.0 * L0);
+  const lanes::Lanes Y = 2.0 * lanes::load(area) / L0;
   double x[L], y[L];
-  for (int j = 0; j < L; ++j) {
-    x[j] = (l0[j] * l0[j] + (l2[j] - l1[j]) * (l2[j] + l1[j])) / (2.0 * l0[j]);
-    y[j] = 2.0 * area[j] / l0[j];
-  }
+  lanes::store(X, x);
+  lanes::store(Y, y);
   // The tensors in each face's frame (its weft needs the corners):
   // intrinsicTensor's arithmetic written out, without its Matrix2 and
   // optional (it was a call per face and tensor).
@@ -393,17 +394,16 @@ void stiffnessLanes(const SurfaceTopology& topology, const Vector& edgeLengths, 
   }
   // triangleGradients: column k is the edge p[k + 2] − p[k + 1] turned by
   // +90°, over twice the signed area; the area its half magnitude.
-  double g[2][3][L], stiffnessArea[L];
-  for (int j = 0; j < L; ++j) {
-    const double twiceSignedArea = (l0[j] - 0.0) * (y[j] - 0.0) - (0.0 - 0.0) * (x[j] - 0.0);
-    g[0][0][j] = -(y[j] - 0.0) / twiceSignedArea;  // p2 − p1
-    g[1][0][j] = (x[j] - l0[j]) / twiceSignedArea;
-    g[0][1][j] = -(0.0 - y[j]) / twiceSignedArea;  // p0 − p2
-    g[1][1][j] = (0.0 - x[j]) / twiceSignedArea;
-    g[0][2][j] = -(0.0 - 0.0) / twiceSignedArea;  // p1 − p0
-    g[1][2][j] = (l0[j] - 0.0) / twiceSignedArea;
-    stiffnessArea[j] = 0.5 * std::abs(twiceSignedArea);
-  }
+  const lanes::Lanes zero = lanes::splat(0.0);
+  const lanes::Lanes twiceSignedArea = (L0 - zero) * (Y - zero) - (zero - zero) * (X - zero);
+  lanes::Lanes g[2][3];
+  g[0][0] = -(Y - zero) / twiceSignedArea;  // p2 − p1
+  g[1][0] = (X - L0) / twiceSignedArea;
+  g[0][1] = -(zero - Y) / twiceSignedArea;  // p0 − p2
+  g[1][1] = (zero - X) / twiceSignedArea;
+  g[0][2] = -(zero - zero) / twiceSignedArea;  // p1 − p0
+  g[1][2] = (L0 - zero) / twiceSignedArea;
+  const lanes::Lanes stiffnessArea = 0.5 * lanes::abs(twiceSignedArea);
   stiffnessOfLanes(stiffnessArea, g, td, out.density);
   stiffnessOfLanes(stiffnessArea, g, tv, out.velocity);
 }

@@ -41,6 +41,15 @@ inline Lanes operator-(const Lanes& a, const Lanes& b) { return {_mm_sub_pd(a.lo
 inline Lanes operator*(const Lanes& a, const Lanes& b) { return {_mm_mul_pd(a.lo, b.lo), _mm_mul_pd(a.hi, b.hi)}; }
 inline Lanes operator/(const Lanes& a, const Lanes& b) { return {_mm_div_pd(a.lo, b.lo), _mm_div_pd(a.hi, b.hi)}; }
 inline Lanes sqrt(const Lanes& a) { return {_mm_sqrt_pd(a.lo), _mm_sqrt_pd(a.hi)}; }
+/// −a and |a|: the sign bit flipped or cleared, as the scalar − and std::abs (a zero keeps its magnitude).
+inline Lanes operator-(const Lanes& a) {
+  const __m128d sign = _mm_set1_pd(-0.0);
+  return {_mm_xor_pd(a.lo, sign), _mm_xor_pd(a.hi, sign)};
+}
+inline Lanes abs(const Lanes& a) {
+  const __m128d sign = _mm_set1_pd(-0.0);
+  return {_mm_andnot_pd(sign, a.lo), _mm_andnot_pd(sign, a.hi)};
+}
 
 #else
 
@@ -63,6 +72,16 @@ inline Lanes operator/(const Lanes& a, const Lanes& b) { return each(a, b, [](do
 inline Lanes sqrt(const Lanes& a) {
   Lanes r;
   for (int l = 0; l < kLanes; ++l) r.v[l] = std::sqrt(a.v[l]);
+  return r;
+}
+inline Lanes operator-(const Lanes& a) {
+  Lanes r;
+  for (int l = 0; l < kLanes; ++l) r.v[l] = -a.v[l];
+  return r;
+}
+inline Lanes abs(const Lanes& a) {
+  Lanes r;
+  for (int l = 0; l < kLanes; ++l) r.v[l] = std::abs(a.v[l]);
   return r;
 }
 
