@@ -69,8 +69,8 @@ Vector3 rotationVector(const Eigen::Quaterniond& q) {
 
 // Rotation fits in lanes. The fits of a vertex list are independent chains
 // of divisions and roots (~300 ns a vertex, latency-bound): kFitLanes of them
-// go through each step together, so the core overlaps them (and the compiler
-// may pack them into vector registers). Every lane does the same operations
+// go through each step together, so the core overlaps them, two to an SSE2
+// register (numerics/lanes.h). Every lane does the same operations
 // on its own values, in the same order as a lone fit would: a fit's bits do
 // not depend on its lane, its companions, the list or the thread. A lane past
 // the fits given repeats the first one; its results are dropped.
