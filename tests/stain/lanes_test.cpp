@@ -98,6 +98,16 @@ TEST(Lanes, EachLaneIsTheScalarOperationWhateverItsCompanions) {
   EXPECT_EQ(checked, n * ((n + 6) / 7) * lanes::kLanes);
 }
 
+// lanes_portable_test builds this file with BLOT_LANES_PORTABLE: the plain
+// arrays a CPU without SSE2 gets, checked by the same tests.
+TEST(Lanes, TheFormBuiltIsTheOneAskedFor) {
+#if defined(__SSE2__) && !defined(BLOT_LANES_PORTABLE)
+  EXPECT_TRUE(lanes::kSse2);
+#else
+  EXPECT_FALSE(lanes::kSse2);
+#endif
+}
+
 TEST(Lanes, SplatLoadAndGatherPutEachValueInItsLane) {
   const double values[lanes::kLanes] = {1.5, -2.0, 0.0, 7.25};
   double out[lanes::kLanes];

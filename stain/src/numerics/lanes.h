@@ -7,26 +7,42 @@
 // multiply with an add, so each lane gets the bits of the same expression
 // written for one double, in the same order (the callers write their
 // expressions as the scalar code did, operation for operation).
+// BLOT_LANES_PORTABLE selects the array form on x86-64 too (lanes_test is
+// built both ways, so the form other CPUs get is compiled and checked here);
+// each form is in an inline namespace of its own, so a test built with one
+// and a library built with the other never share a definition.
 
 #include <cmath>
 
-#ifdef __SSE2__
+#if defined(__SSE2__) && !defined(BLOT_LANES_PORTABLE)
+#define BLOT_LANES_SSE2 1
 #include <emmintrin.h>
 #endif
 
 namespace blot::stain::lanes {
+#ifdef BLOT_LANES_SSE2
+inline namespace sse2 {
+#else
+inline namespace portable {
+#endif
 
 inline constexpr int kLanes = 4;
+/// Whether the lanes are SSE2 registers (else plain arrays).
+#ifdef BLOT_LANES_SSE2
+inline constexpr bool kSse2 = true;
+#else
+inline constexpr bool kSse2 = false;
+#endif
 
 struct Lanes {
-#ifdef __SSE2__
+#ifdef BLOT_LANES_SSE2
   __m128d lo, hi;
 #else
   double v[kLanes];
 #endif
 };
 
-#ifdef __SSE2__
+#ifdef BLOT_LANES_SSE2
 
 inline Lanes load(const double* p) { return {_mm_loadu_pd(p), _mm_loadu_pd(p + 2)}; }
 inline void store(const Lanes& a, double* p) {
@@ -110,4 +126,5 @@ inline void product3(const Lanes (&A)[9], const Lanes (&B)[9], Lanes (&P)[9]) {
   }
 }
 
+}  // inline namespace sse2 or portable
 }  // namespace blot::stain::lanes
