@@ -210,9 +210,10 @@ struct FitInputs {
 // converges in 2–4 iterations from there). A function of the slot's
 // positions only, so a fit gives the same bits whichever vertices were
 // fitted before. Identity where the frame is degenerate (Newton or the SVD
-// then decide). Also each lane's unit normal n / |n|, the slot's normal.
-void frameGuessLanes(const FitInputs (&in)[kFitLanes], LaneQuaternions& q,
-                     double (&unitNormal)[3][kFitLanes]) {
+// then decide). Also each lane's unit normal n / |n|, the slot's normal, and
+// its rest frame F̄ (entry (r, c) at [3r + c]), which the frame U F̄ reads.
+void frameGuessLanes(const FitInputs (&in)[kFitLanes], LaneQuaternions& q, double (&unitNormal)[3][kFitLanes],
+                     lanes::Lanes (&restFrame)[9]) {
   using lanes::Lanes;
   const auto gather = [&](const auto& entry) {
     return lanes::gather(entry(in[0]), entry(in[1]), entry(in[2]), entry(in[3]));
@@ -236,7 +237,7 @@ void frameGuessLanes(const FitInputs (&in)[kFitLanes], LaneQuaternions& q,
   // Q = frame F̄ᵀ.
   double Q[3][3][kFitLanes];
   for (int c = 0; c < 3; ++c) {
-    Lanes F[3];
+    Lanes* F = restFrame + 3 * c;  // row c of F̄
     for (int k = 0; k < 3; ++k) F[k] = gather([&](const FitInputs& f) { return (*f.restFrame)(c, k); });
     for (int r = 0; r < 3; ++r) lanes::store(frame[r][0] * F[0] + frame[r][1] * F[1] + frame[r][2] * F[2], Q[r][c]);
   }
@@ -1040,16 +1041,22 @@ void SurfaceGeometry::sampleSlot(const RowVectors3& positions, int i, SlotFit& j
 
 void SurfaceGeometry::fitSlots(SlotFit* jobs, int count, FitCounts& counts) const {
   const std::vector<Matrix3>& restFrames = dynamic_.extrinsic.restFrames;
+  // The slot's normal once its frame is written: n / |n| (unit), or, where a
+  // fully folded fan has none, the fitted frame's.
+  const auto setNormal = [](SlotFit& job, const double (&unit)[3]) {
+    for (int c = 0; c < 3; ++c)
+      (*job.normals)(job.vertex, c) = job.normalSquared > 0.0 ? unit[c] : (*job.frame)(c, 2);
+  };
   const auto finish = [&](SlotFit& job, const Eigen::Quaterniond& q, const Matrix3& U) {
     *job.rotation = q;
     *job.fit = U;
     job.frame->noalias() = U * restFrames[static_cast<size_t>(job.vertex)];
-    // A fully folded fan has no normal: take the fitted frame's.
+    double unit[3] = {0.0, 0.0, 0.0};
     if (job.normalSquared > 0.0) {
-      job.normals->row(job.vertex) = (job.normal * (1.0 / std::sqrt(job.normalSquared))).transpose();
-    } else {
-      job.normals->row(job.vertex) = job.frame->col(2).transpose();
+      const double inverse = 1.0 / std::sqrt(job.normalSquared);
+      for (int c = 0; c < 3; ++c) unit[c] = job.normal(c) * inverse;
     }
+    setNormal(job, unit);
     ++counts.fitted;
   };
   if (rotationFitMethod_ == RotationFitMethod::Svd) {
@@ -1070,17 +1077,14 @@ void SurfaceGeometry::fitSlots(SlotFit* jobs, int count, FitCounts& counts) cons
     }
     LaneQuaternions q;
     double unitNormal[3][kFitLanes];
-    frameGuessLanes(in, q, unitNormal);
+    lanes::Lanes restFrame[9];
+    frameGuessLanes(in, q, unitNormal, restFrame);
     int iterations[kFitLanes];
     LaneStatus status[kFitLanes];
     newtonLanes(C, q, iterations, status);
     // U and the frame U F̄ of every lane (lanes::product3: Eigen's bits).
-    lanes::Lanes U[9], restFrame[9], frame[9];
+    lanes::Lanes U[9], frame[9];
     laneRotationMatrices(lanes::load(q.w), lanes::load(q.x), lanes::load(q.y), lanes::load(q.z), U);
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c)
-        restFrame[3 * r + c] = lanes::gather((*in[0].restFrame)(r, c), (*in[1].restFrame)(r, c),
-                                             (*in[2].restFrame)(r, c), (*in[3].restFrame)(r, c));
     lanes::product3(U, restFrame, frame);
     double UOf[9][kFitLanes], frameOf[9][kFitLanes];
     for (int e = 0; e < 9; ++e) {
@@ -1103,9 +1107,7 @@ void SurfaceGeometry::fitSlots(SlotFit* jobs, int count, FitCounts& counts) cons
           (*job.fit)(r, c) = UOf[3 * r + c][l];
           (*job.frame)(r, c) = frameOf[3 * r + c][l];
         }
-      // A fully folded fan has no normal: take the fitted frame's.
-      for (int c = 0; c < 3; ++c)
-        (*job.normals)(job.vertex, c) = job.normalSquared > 0.0 ? unitNormal[c][l] : frameOf[3 * c + 2][l];
+      setNormal(job, {unitNormal[0][l], unitNormal[1][l], unitNormal[2][l]});
       ++counts.fitted;
     }
   }

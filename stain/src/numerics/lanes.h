@@ -1,6 +1,7 @@
 #pragma once
 // Four doubles that go through each operation together: the rotation fits'
-// lanes (geometry/surface_geometry.cpp). On x86-64 they sit in two SSE2
+// lanes (geometry/surface_geometry.cpp) and the operators' refill, four faces
+// at a time (geometry/operators.cpp). On x86-64 they sit in two SSE2
 // registers, the baseline of every such CPU, so no dispatch is needed;
 // elsewhere in a plain array. +, −, ×, ÷ and √ are IEEE 754's correctly
 // rounded operations in a register as in a scalar, and nothing here fuses a
