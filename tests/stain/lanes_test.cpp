@@ -3,6 +3,7 @@
 // fits written on them keep the bits of their scalar form.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -64,7 +65,7 @@ TEST(Lanes, EachLaneIsTheScalarOperationWhateverItsCompanions) {
       double sum[lanes::kLanes], difference[lanes::kLanes], product[lanes::kLanes], quotient[lanes::kLanes],
           root[lanes::kLanes], scaled[lanes::kLanes], shifted[lanes::kLanes], inverse[lanes::kLanes],
           below[lanes::kLanes], plusOne[lanes::kLanes], thirds[lanes::kLanes], negated[lanes::kLanes],
-          magnitude[lanes::kLanes];
+          magnitude[lanes::kLanes], larger[lanes::kLanes], smaller[lanes::kLanes];
       lanes::store(x + y, sum);
       lanes::store(x - y, difference);
       lanes::store(x * y, product);
@@ -78,6 +79,8 @@ TEST(Lanes, EachLaneIsTheScalarOperationWhateverItsCompanions) {
       lanes::store(x / 3.0, thirds);
       lanes::store(-x, negated);
       lanes::store(lanes::abs(x), magnitude);
+      lanes::store(lanes::max(x, y), larger);
+      lanes::store(lanes::min(x, y), smaller);
       for (int l = 0; l < lanes::kLanes; ++l) {
         ASSERT_TRUE(same(sum[l], a[l] + b[l])) << a[l] << " + " << b[l];
         ASSERT_TRUE(same(difference[l], a[l] - b[l])) << a[l] << " - " << b[l];
@@ -92,6 +95,9 @@ TEST(Lanes, EachLaneIsTheScalarOperationWhateverItsCompanions) {
         ASSERT_TRUE(same(thirds[l], a[l] / 3.0)) << a[l];
         ASSERT_TRUE(same(negated[l], -a[l])) << a[l];
         ASSERT_TRUE(same(magnitude[l], std::abs(a[l]))) << a[l];
+        // Which of two zeros, and a NaN on either side, as std::max and std::min.
+        ASSERT_TRUE(same(larger[l], std::max(a[l], b[l]))) << "max " << a[l] << ", " << b[l];
+        ASSERT_TRUE(same(smaller[l], std::min(a[l], b[l]))) << "min " << a[l] << ", " << b[l];
         ++checked;
       }
     }

@@ -1,7 +1,8 @@
 #pragma once
 // Four doubles that go through each operation together: the rotation fits'
-// lanes (geometry/surface_geometry.cpp) and the operators' refill, four faces
-// at a time (geometry/operators.cpp). On x86-64 they sit in two SSE2
+// lanes (geometry/surface_geometry.cpp), the operators' refill, four faces
+// at a time (geometry/operators.cpp), and the step's scans for a value out
+// of range (stain_solver.cpp). On x86-64 they sit in two SSE2
 // registers, the baseline of every such CPU, so no dispatch is needed;
 // elsewhere in a plain array. +, −, ×, ÷ and √ are IEEE 754's correctly
 // rounded operations in a register as in a scalar, and nothing here fuses a
@@ -67,6 +68,12 @@ inline Lanes abs(const Lanes& a) {
   const __m128d sign = _mm_set1_pd(-0.0);
   return {_mm_andnot_pd(sign, a.lo), _mm_andnot_pd(sign, a.hi)};
 }
+/// std::max(a, b) and std::min(a, b) in each lane: b where it compares above
+/// (below) a, else a. So a NaN b leaves a, and of two zeros a is kept, as
+/// in a scalar reduction `m = std::max(m, v)` (MAXPD and MINPD return their
+/// second operand unless the first compares above or below it).
+inline Lanes max(const Lanes& a, const Lanes& b) { return {_mm_max_pd(b.lo, a.lo), _mm_max_pd(b.hi, a.hi)}; }
+inline Lanes min(const Lanes& a, const Lanes& b) { return {_mm_min_pd(b.lo, a.lo), _mm_min_pd(b.hi, a.hi)}; }
 
 #else
 
@@ -100,6 +107,12 @@ inline Lanes abs(const Lanes& a) {
   Lanes r;
   for (int l = 0; l < kLanes; ++l) r.v[l] = std::abs(a.v[l]);
   return r;
+}
+inline Lanes max(const Lanes& a, const Lanes& b) {
+  return each(a, b, [](double x, double y) { return x < y ? y : x; });  // std::max(x, y)
+}
+inline Lanes min(const Lanes& a, const Lanes& b) {
+  return each(a, b, [](double x, double y) { return y < x ? y : x; });  // std::min(x, y)
 }
 
 #endif
