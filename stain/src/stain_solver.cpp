@@ -9,6 +9,7 @@
 #include <blot/stain/stain_solver.h>
 #include <blot/stain/thread_limit.h>
 
+#include "numerics/lanes.h"
 #include "numerics/machine_load.h"
 
 #include <algorithm>
@@ -73,33 +74,96 @@ class ScopedTimer {
   std::chrono::steady_clock::time_point start_;
 };
 
-/// First vertex with a non-finite or negative (below −tol·max) density, or -1.
-int firstBadVertex(const StainState& s, double relativeTolerance) {
-  const Vector* fields[] = {&s.solvent, &s.solute, &s.absorbedSolvent, &s.absorbedSolute, &s.adsorbedSolute};
-  // One pass for the common case (all finite, none below the floor): the
-  // largest and smallest value of every field and a sum that is finite only
-  // if every term is; the per-vertex search below runs only when it fails.
-  constexpr double kLargest = std::numeric_limits<double>::max();
+/// The extremes of the five density fields (from 0, as a reduction by
+/// std::max and std::min takes them: a NaN is passed over) and whether those
+/// fields and u are all finite, over vertices list[0, count), or 0 .. count−1
+/// when kListed is false. The common case of the step's checks (all finite,
+/// none below the floor) needs nothing else; the search for the vertex runs
+/// only when it fails.
+struct FieldScan {
   double largest = 0, smallest = 0;
   bool finite = true;
-  for (const Vector* f : fields) {
-    const double* v = f->data();
-    for (Eigen::Index i = 0; i < f->size(); ++i) {
-      largest = std::max(largest, v[i]);
-      smallest = std::min(smallest, v[i]);
-      finite &= std::abs(v[i]) <= kLargest;  // false for NaN and ±inf
+  void merge(const FieldScan& other) {
+    largest = std::max(largest, other.largest);
+    smallest = std::min(smallest, other.smallest);
+    finite = finite && other.finite;
+  }
+};
+
+/// Four vertices at a time (numerics/lanes.h): each lane keeps the extremes
+/// of its own vertices, and the extremes of those are the fields' (a maximum
+/// does not depend on the order its values come in, and lanes::max passes
+/// over a NaN as std::max does), so the result is the scalar pass's. A lane's
+/// sum of v·0 is ±0 while every v is finite and NaN from the first ±inf or
+/// NaN on, which stays.
+template <bool kListed>
+FieldScan scanFields(const StainState& s, const int* list, int count) {
+  using lanes::Lanes;
+  const double* fields[] = {s.solvent.data(), s.solute.data(), s.absorbedSolvent.data(), s.absorbedSolute.data(),
+                            s.adsorbedSolute.data()};
+  const double* u = reinterpret_cast<const double*>(s.velocities.data());  // re, im of each vertex
+  const auto vertex = [list](int k) {
+    if constexpr (kListed) return list[k];
+    return k;
+  };
+  Lanes largest = lanes::splat(0.0), smallest = largest, poison = largest;
+  int k = 0;
+  for (; k + lanes::kLanes <= count; k += lanes::kLanes) {
+    const int i0 = vertex(k), i1 = vertex(k + 1), i2 = vertex(k + 2), i3 = vertex(k + 3);
+    for (const double* f : fields) {
+      const Lanes v = kListed ? lanes::gather(f[i0], f[i1], f[i2], f[i3]) : lanes::load(f + k);
+      largest = lanes::max(largest, v);
+      smallest = lanes::min(smallest, v);
+      poison = poison + v * 0.0;
     }
+    const Lanes re = kListed ? lanes::gather(u[2 * i0], u[2 * i1], u[2 * i2], u[2 * i3]) : lanes::load(u + 2 * k);
+    const Lanes im = kListed ? lanes::gather(u[2 * i0 + 1], u[2 * i1 + 1], u[2 * i2 + 1], u[2 * i3 + 1])
+                             : lanes::load(u + 2 * k + lanes::kLanes);
+    poison = poison + re * 0.0 + im * 0.0;
   }
-  const double* u = reinterpret_cast<const double*>(s.velocities.data());
-  for (Eigen::Index i = 0; i < 2 * s.velocities.size(); ++i) finite &= std::abs(u[i]) <= kLargest;
-  const double scale = std::max(largest, -smallest);
-  if (finite && smallest >= -relativeTolerance * scale) return -1;
-  const double floor = -relativeTolerance * scale;
-  for (int i = 0; i < s.vertexCount(); ++i) {
-    for (const Vector* f : fields)
-      if (!std::isfinite((*f)[i]) || (*f)[i] < floor) return i;
-    if (!std::isfinite(s.velocities[i].real()) || !std::isfinite(s.velocities[i].imag())) return i;
+  FieldScan scan;
+  double lanesLargest[lanes::kLanes], lanesSmallest[lanes::kLanes], lanesPoison[lanes::kLanes];
+  lanes::store(largest, lanesLargest);
+  lanes::store(smallest, lanesSmallest);
+  lanes::store(poison, lanesPoison);
+  for (int l = 0; l < lanes::kLanes; ++l) {
+    scan.largest = std::max(scan.largest, lanesLargest[l]);
+    scan.smallest = std::min(scan.smallest, lanesSmallest[l]);
+    scan.finite = scan.finite && lanesPoison[l] == 0.0;
   }
+  constexpr double kLargest = std::numeric_limits<double>::max();
+  for (; k < count; ++k) {
+    const int i = vertex(k);
+    for (const double* f : fields) {
+      scan.largest = std::max(scan.largest, f[i]);
+      scan.smallest = std::min(scan.smallest, f[i]);
+      scan.finite = scan.finite && std::abs(f[i]) <= kLargest;  // false for NaN and ±inf
+    }
+    scan.finite = scan.finite && std::abs(u[2 * i]) <= kLargest && std::abs(u[2 * i + 1]) <= kLargest;
+  }
+  return scan;
+}
+
+/// The floor of a scan: −tol × the largest magnitude it saw.
+double floorOf(const FieldScan& scan, double relativeTolerance) {
+  return -relativeTolerance * std::max(scan.largest, -scan.smallest);
+}
+
+/// Whether vertex i holds a non-finite value or a density below `floor`.
+bool badVertex(const StainState& s, int i, double floor) {
+  const Vector* fields[] = {&s.solvent, &s.solute, &s.absorbedSolvent, &s.absorbedSolute, &s.adsorbedSolute};
+  for (const Vector* f : fields)
+    if (!std::isfinite((*f)[i]) || (*f)[i] < floor) return true;
+  return !std::isfinite(s.velocities[i].real()) || !std::isfinite(s.velocities[i].imag());
+}
+
+/// First vertex with a non-finite or negative (below −tol·max) density, or -1.
+int firstBadVertex(const StainState& s, double relativeTolerance) {
+  const FieldScan scan = scanFields<false>(s, nullptr, s.vertexCount());
+  const double floor = floorOf(scan, relativeTolerance);
+  if (scan.finite && scan.smallest >= floor) return -1;
+  for (int i = 0; i < s.vertexCount(); ++i)
+    if (badVertex(s, i, floor)) return i;
   return -1;
 }
 
@@ -107,28 +171,12 @@ int firstBadVertex(const StainState& s, double relativeTolerance) {
 /// smallest listed vertex with a non-finite value or a density below
 /// −tol × the largest listed magnitude, or -1.
 int firstBadVertexAmong(const StainState& s, const std::vector<int>& vertices, double relativeTolerance) {
-  const Vector* fields[] = {&s.solvent, &s.solute, &s.absorbedSolvent, &s.absorbedSolute, &s.adsorbedSolute};
-  constexpr double kLargest = std::numeric_limits<double>::max();
-  double largest = 0, smallest = 0;
-  bool finite = true;
-  for (const int i : vertices) {
-    for (const Vector* f : fields) {
-      const double v = (*f)[i];
-      largest = std::max(largest, v);
-      smallest = std::min(smallest, v);
-      finite &= std::abs(v) <= kLargest;  // false for NaN and ±inf
-    }
-    finite &= std::abs(s.velocities[i].real()) <= kLargest && std::abs(s.velocities[i].imag()) <= kLargest;
-  }
-  const double scale = std::max(largest, -smallest);
-  if (finite && smallest >= -relativeTolerance * scale) return -1;
-  const double floor = -relativeTolerance * scale;
+  const FieldScan scan = scanFields<true>(s, vertices.data(), static_cast<int>(vertices.size()));
+  const double floor = floorOf(scan, relativeTolerance);
+  if (scan.finite && scan.smallest >= floor) return -1;
   int first = -1;
-  for (const int i : vertices) {
-    bool bad = !std::isfinite(s.velocities[i].real()) || !std::isfinite(s.velocities[i].imag());
-    for (const Vector* f : fields) bad |= !std::isfinite((*f)[i]) || (*f)[i] < floor;
-    if (bad && (first < 0 || i < first)) first = i;
-  }
+  for (const int i : vertices)
+    if (badVertex(s, i, floor) && (first < 0 || i < first)) first = i;
   return first;
 }
 
@@ -427,45 +475,27 @@ bool StainSolver::checkStage(Stage stage, StepReport& report) {
     fault_.armed = false;  // fires once
   }
   // One pass over the vertices the stages touched (wet + halo, held ones
-  // after "sources"): the extremes of every field and a flag that is false
-  // for NaN or ±inf. The search for the vertex runs only on a failure.
-  const Vector* fields[] = {&state_.solvent, &state_.solute, &state_.absorbedSolvent, &state_.absorbedSolute,
-                            &state_.adsorbedSolute};
-  constexpr double kLargest = std::numeric_limits<double>::max();
-  double largest = 0, smallest = 0;
-  bool finite = true;
-  const auto scan = [&](int i) {
-    for (const Vector* f : fields) {
-      const double v = (*f)[i];
-      largest = std::max(largest, v);
-      smallest = std::min(smallest, v);
-      finite &= std::abs(v) <= kLargest;
-    }
-    finite &= std::abs(state_.velocities[i].real()) <= kLargest && std::abs(state_.velocities[i].imag()) <= kLargest;
-  };
+  // after "sources"): the extremes of every field and whether all are
+  // finite. The search for the vertex runs only on a failure.
   const bool held = stage == Stage::Sources;
-  for (int i : band_.vertices) scan(i);
+  FieldScan scan = scanFields<true>(state_, band_.vertices.data(), band_.size());
   if (held)
     for (const HeldRegion& region : heldRegions_)
-      for (int v : region.vertices) scan(v);
-  const double floor = -kNegativeDensityTolerance * std::max(largest, -smallest);
-  if (finite && smallest >= floor) return true;
+      scan.merge(scanFields<true>(state_, region.vertices.data(), static_cast<int>(region.vertices.size())));
+  const double floor = floorOf(scan, kNegativeDensityTolerance);
+  if (scan.finite && scan.smallest >= floor) return true;
 
-  const auto bad = [&](int i) {
-    for (const Vector* f : fields)
-      if (!std::isfinite((*f)[i]) || (*f)[i] < floor) return true;
-    return !std::isfinite(state_.velocities[i].real()) || !std::isfinite(state_.velocities[i].imag());
-  };
   int vertex = -1;
   for (int i : band_.vertices)
-    if (bad(i)) {
+    if (badVertex(state_, i, floor)) {
       vertex = i;
       break;
     }
   if (vertex < 0 && held)
     for (const HeldRegion& region : heldRegions_)
       for (int v : region.vertices)
-        if (vertex < 0 && bad(v)) vertex = v;
+        if (vertex < 0 && badVertex(state_, v, floor)) vertex = v;
+  const bool finite = scan.finite;
   report.status = finite ? StepStatus::NegativeMass : StepStatus::NonFinite;
   report.stage = stage;
   report.vertex = vertex;

@@ -8,8 +8,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstring>
+#include <limits>
 #include <string>
+#include <vector>
 
 #include "waving_flag_motion.h"
 
@@ -116,6 +119,84 @@ TEST(StageFault, EveryStageIsCheckedAndNamedAndTheStateIsKept) {
     EXPECT_EQ(again.status, StepStatus::Ok) << again.stageName() << ": " << again.message;
     EXPECT_EQ(solver->stepCount(), 4);
   }
+}
+
+// The step's checks scan four vertices at a time (stain_solver.cpp,
+// scanFields): a bad value is found in any field, in any of the four lanes
+// and in the few vertices past the last group of four. Written from outside,
+// it is found by the validation of the whole state; put in by a stage (the
+// injected fault), by the scan of the band after that stage or, outside the
+// band, by the validation of the vertices the step changed.
+TEST(StageFault, EveryFieldLaneAndTailOfTheScansIsChecked) {
+  const Scene scene;
+  const int n = static_cast<int>(scene.mesh.vertexPositions.rows());
+  ASSERT_NE(n % 4, 0) << "the mesh must leave vertices past the last group of four";
+  const double inf = std::numeric_limits<double>::infinity();
+  const std::vector<int> vertices = {0, 1, 2, 3, n / 2, n / 2 + 1, n - 4, n - 3, n - 2, n - 1};
+  // Written from outside into a dry cloth: the validation of the whole state
+  // finds each field's bad value in each lane and in the tail.
+  {
+    auto solver = std::make_unique<StainSolver>(
+        scene.topology, scene.mesh.vertexPositions,
+        isotropicFabricField(static_cast<int>(scene.mesh.faces.rows()), 1e-3, 1e-3), StainSolverDef{});
+    ASSERT_EQ(solver->step(kH, wavingPositions(scene.mesh, kH)).status, StepStatus::Ok);
+    int byValidation = 0, byStage = 0;
+    for (int field = 0; field < 7; ++field)
+      for (const double bad : {std::nan(""), inf, -inf, -1.0}) {
+        if (field >= 5 && bad == -1.0) continue;  // a velocity may be negative
+        for (const int v : vertices) {
+          SCOPED_TRACE("field " + std::to_string(field) + ", value " + std::to_string(bad) + ", vertex " +
+                       std::to_string(v));
+          const auto slot = [&](StainState& state) -> double& {
+            Vector* densities[] = {&state.solvent, &state.solute, &state.absorbedSolvent, &state.absorbedSolute,
+                                   &state.adsorbedSolute};
+            return field < 5 ? (*densities[field])[v] : reinterpret_cast<double*>(&state.velocities[v])[field - 5];
+          };
+          slot(solver->mutableState()) = bad;
+          const StainState poisoned = solver->state();
+          const StepReport r = solver->step(kH, wavingPositions(scene.mesh, 2 * kH));
+          EXPECT_TRUE(r.status == StepStatus::NonFinite || r.status == StepStatus::NegativeMass) << r.message;
+          EXPECT_EQ(r.vertex, v) << r.message;
+          ++(r.stage == Stage::Validate ? byValidation : byStage);
+          EXPECT_TRUE(sameState(solver->state(), poisoned));
+          slot(solver->mutableState()) = 0.0;  // the dry cloth's value
+          solver->restartMotion(wavingPositions(scene.mesh, kH), RowVectors3::Zero(n, 3));
+        }
+      }
+    EXPECT_EQ(solver->step(kH, wavingPositions(scene.mesh, 2 * kH)).status, StepStatus::Ok);
+    // A positive infinite free density (solvent or solute) makes its vertex
+    // wet: the check after the band's first stage finds it. Every other bad
+    // value is left to the validation.
+    EXPECT_EQ(byStage, 2 * static_cast<int>(vertices.size()));
+    EXPECT_EQ(byValidation, (5 * 4 + 2 * 3 - 2) * static_cast<int>(vertices.size()));
+  }
+  // Put in by a stage, at vertices in and outside the band: the scan of the
+  // band after the stage, or the validation of what the step changed.
+  auto solver = scene.solver();
+  const int steps = 3;
+  for (int k = 1; k <= steps; ++k)
+    ASSERT_EQ(solver->step(kH, wavingPositions(scene.mesh, k * kH)).status, StepStatus::Ok);
+  int inBand = 0, outside = 0;
+  for (const int v : vertices) {
+    SCOPED_TRACE("injected at vertex " + std::to_string(v));
+    const bool banded = solver->band().levels[static_cast<size_t>(v)] >= 0;
+    InjectedFault fault;
+    fault.stage = Stage::Interact;
+    fault.step = steps + 1;
+    fault.vertex = v;
+    solver->injectFaultForTesting(fault);
+    const StainState before = solver->state();
+    const StepReport r = solver->step(kH, wavingPositions(scene.mesh, (steps + 1) * kH));
+    EXPECT_EQ(r.status, StepStatus::NonFinite);
+    EXPECT_EQ(r.vertex, v) << r.message;
+    EXPECT_TRUE(sameState(solver->state(), before));
+    (banded ? inBand : outside) += 1;
+    solver->restartMotion(wavingPositions(scene.mesh, steps * kH), RowVectors3::Zero(n, 3));
+  }
+  EXPECT_GT(inBand, 0);
+  EXPECT_GT(outside, 0);
+  EXPECT_EQ(solver->step(kH, wavingPositions(scene.mesh, (steps + 1) * kH)).status, StepStatus::Ok);
+  std::printf("[ scans    ] %d vertices: injected faults %d in the band, %d outside it\n", n, inBand, outside);
 }
 
 bool sameTier(const IntrinsicGeometry& a, const IntrinsicGeometry& b) {
