@@ -20,7 +20,9 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <string>
 #include <type_traits>
+#include <utility>
 
 #include <omp.h>
 
@@ -155,6 +157,35 @@ bool badVertex(const StainState& s, int i, double floor) {
   for (const Vector* f : fields)
     if (!std::isfinite((*f)[i]) || (*f)[i] < floor) return true;
   return !std::isfinite(s.velocities[i].real()) || !std::isfinite(s.velocities[i].imag());
+}
+
+/// First vertex holding a NaN or an infinity in any field, or -1; `value`
+/// then names the first such field and its value ("solvent = nan").
+int firstNonFiniteVertex(const StainState& s, std::string& value) {
+  const std::pair<const char*, const Vector*> fields[] = {{"solvent", &s.solvent},
+                                                          {"solute", &s.solute},
+                                                          {"absorbed solvent", &s.absorbedSolvent},
+                                                          {"absorbed solute", &s.absorbedSolute},
+                                                          {"adsorbed solute", &s.adsorbedSolute}};
+  const auto named = [&value](const char* name, double v) {
+    std::ostringstream text;
+    text << name << " = " << v;
+    value = text.str();
+  };
+  for (int i = 0; i < s.vertexCount(); ++i) {
+    for (const auto& [name, field] : fields)
+      if (!std::isfinite((*field)[i])) {
+        named(name, (*field)[i]);
+        return i;
+      }
+    const Complex u = s.velocities[i];
+    if (!std::isfinite(u.real()) || !std::isfinite(u.imag())) {
+      named(std::isfinite(u.real()) ? "velocity (imaginary part)" : "velocity (real part)",
+            std::isfinite(u.real()) ? u.imag() : u.real());
+      return i;
+    }
+  }
+  return -1;
 }
 
 /// First vertex with a non-finite or negative (below −tol·max) density, or -1.
@@ -458,6 +489,17 @@ bool StainSolver::runStage(Stage stage, bool active, StepReport& report, Work&& 
       report.status = StepStatus::SolverFailure;
       report.stage = stage;
       report.message = toString(status);
+      // A solve that met a NaN or an infinity: the vertex that holds one in
+      // the state the step started from (put in from outside, e.g. through
+      // mutableState, where no earlier check of this step looked), if any.
+      if (status == SolverStatus::NonFinite) {
+        std::string value;
+        report.vertex = firstNonFiniteVertex(state_, value);
+        if (report.vertex >= 0)
+          report.message += ": stage '" + std::string(stageName(stage)) + "' of step " + std::to_string(steps_ + 1) +
+                            " met a non-finite value; vertex " + std::to_string(report.vertex) + " holds " + value +
+                            " in the state the step started from; state restored";
+      }
       return false;
     }
   } else {

@@ -199,6 +199,29 @@ TEST(StageFault, EveryFieldLaneAndTailOfTheScansIsChecked) {
   std::printf("[ scans    ] %d vertices: injected faults %d in the band, %d outside it\n", n, inBand, outside);
 }
 
+// A NaN or an infinity put in from outside where the diffusion solves (a
+// nonzero density is a row of its CG) makes the solve fail before any check
+// of the step sees it: the report names the vertex and the field that hold it.
+TEST(StageFault, ANonFiniteValueASolveMeetsIsNamedWithItsVertex) {
+  const Scene scene;
+  const int n = static_cast<int>(scene.mesh.vertexPositions.rows());
+  for (const int v : {0, n - 1}) {
+    SCOPED_TRACE("vertex " + std::to_string(v));
+    auto solver = scene.solver();
+    for (int k = 1; k <= 2; ++k) ASSERT_EQ(solver->step(kH, wavingPositions(scene.mesh, k * kH)).status, StepStatus::Ok);
+    solver->mutableState().solvent[v] = std::nan("");
+    const StainState poisoned = solver->state();
+    const StepReport r = solver->step(kH, wavingPositions(scene.mesh, 3 * kH));
+    ASSERT_EQ(r.status, StepStatus::SolverFailure) << r.stageName() << ": " << r.message;
+    EXPECT_STREQ(r.stageName(), "diffuse");
+    EXPECT_EQ(r.vertex, v) << r.message;
+    EXPECT_NE(r.message.find("vertex " + std::to_string(v) + " holds solvent = nan"), std::string::npos) << r.message;
+    EXPECT_NE(r.message.find("step 3"), std::string::npos) << r.message;
+    EXPECT_TRUE(sameState(solver->state(), poisoned));
+    std::printf("[ report   ] %s: %s\n", r.stageName(), r.message.c_str());
+  }
+}
+
 bool sameTier(const IntrinsicGeometry& a, const IntrinsicGeometry& b) {
   return a.rebuildCount == b.rebuildCount && sameBits(a.edgeLengths, b.edgeLengths) &&
          sameBits(a.vertexDualAreas, b.vertexDualAreas) && sameBits(a.edgeTransportAngles, b.edgeTransportAngles) &&
