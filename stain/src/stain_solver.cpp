@@ -13,6 +13,7 @@
 #include "numerics/machine_load.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -82,6 +83,16 @@ class ScopedTimer {
 /// when kListed is false. The common case of the step's checks (all finite,
 /// none below the floor) needs nothing else; the search for the vertex runs
 /// only when it fails.
+/// The five density fields of a state, named as the reports name them.
+constexpr size_t kDensityFields = 5;
+std::array<std::pair<const char*, const Vector*>, kDensityFields> densityFields(const StainState& s) {
+  return {{{"solvent", &s.solvent},
+           {"solute", &s.solute},
+           {"absorbed solvent", &s.absorbedSolvent},
+           {"absorbed solute", &s.absorbedSolute},
+           {"adsorbed solute", &s.adsorbedSolute}}};
+}
+
 struct FieldScan {
   double largest = 0, smallest = 0;
   bool finite = true;
@@ -101,8 +112,9 @@ struct FieldScan {
 template <bool kListed>
 FieldScan scanFields(const StainState& s, const int* list, int count) {
   using lanes::Lanes;
-  const double* fields[] = {s.solvent.data(), s.solute.data(), s.absorbedSolvent.data(), s.absorbedSolute.data(),
-                            s.adsorbedSolute.data()};
+  const auto named = densityFields(s);
+  std::array<const double*, kDensityFields> fields{};
+  for (size_t f = 0; f < fields.size(); ++f) fields[f] = named[f].second->data();
   const double* u = reinterpret_cast<const double*>(s.velocities.data());  // re, im of each vertex
   const auto vertex = [list](int k) {
     if constexpr (kListed) return list[k];
@@ -118,10 +130,11 @@ FieldScan scanFields(const StainState& s, const int* list, int count) {
       smallest = lanes::min(smallest, v);
       poison = poison + v * 0.0;
     }
-    const Lanes re = kListed ? lanes::gather(u[2 * i0], u[2 * i1], u[2 * i2], u[2 * i3]) : lanes::load(u + 2 * k);
-    const Lanes im = kListed ? lanes::gather(u[2 * i0 + 1], u[2 * i1 + 1], u[2 * i2 + 1], u[2 * i3 + 1])
+    // The four vertices' eight parts of u, in either order (only their finiteness counts).
+    const Lanes u0 = kListed ? lanes::gather(u[2 * i0], u[2 * i1], u[2 * i2], u[2 * i3]) : lanes::load(u + 2 * k);
+    const Lanes u1 = kListed ? lanes::gather(u[2 * i0 + 1], u[2 * i1 + 1], u[2 * i2 + 1], u[2 * i3 + 1])
                              : lanes::load(u + 2 * k + lanes::kLanes);
-    poison = poison + re * 0.0 + im * 0.0;
+    poison = poison + u0 * 0.0 + u1 * 0.0;
   }
   FieldScan scan;
   double lanesLargest[lanes::kLanes], lanesSmallest[lanes::kLanes], lanesPoison[lanes::kLanes];
@@ -153,20 +166,15 @@ double floorOf(const FieldScan& scan, double relativeTolerance) {
 
 /// Whether vertex i holds a non-finite value or a density below `floor`.
 bool badVertex(const StainState& s, int i, double floor) {
-  const Vector* fields[] = {&s.solvent, &s.solute, &s.absorbedSolvent, &s.absorbedSolute, &s.adsorbedSolute};
-  for (const Vector* f : fields)
-    if (!std::isfinite((*f)[i]) || (*f)[i] < floor) return true;
+  for (const auto& [name, field] : densityFields(s))
+    if (!std::isfinite((*field)[i]) || (*field)[i] < floor) return true;
   return !std::isfinite(s.velocities[i].real()) || !std::isfinite(s.velocities[i].imag());
 }
 
 /// First vertex holding a NaN or an infinity in any field, or -1; `value`
 /// then names the first such field and its value ("solvent = nan").
 int firstNonFiniteVertex(const StainState& s, std::string& value) {
-  const std::pair<const char*, const Vector*> fields[] = {{"solvent", &s.solvent},
-                                                          {"solute", &s.solute},
-                                                          {"absorbed solvent", &s.absorbedSolvent},
-                                                          {"absorbed solute", &s.absorbedSolute},
-                                                          {"adsorbed solute", &s.adsorbedSolute}};
+  const auto fields = densityFields(s);
   const auto named = [&value](const char* name, double v) {
     std::ostringstream text;
     text << name << " = " << v;
