@@ -116,7 +116,7 @@ FieldScan scanFields(const StainState& s, const int* list, int count) {
   std::array<const double*, kDensityFields> fields{};
   for (size_t f = 0; f < fields.size(); ++f) fields[f] = named[f].second->data();
   const double* u = reinterpret_cast<const double*>(s.velocities.data());  // re, im of each vertex
-  const auto vertex = [list](int k) {
+  const auto vertex = [&](int k) {
     if constexpr (kListed) return list[k];
     return k;
   };
