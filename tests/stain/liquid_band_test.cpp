@@ -1203,5 +1203,31 @@ TEST(LiquidBand, IncrementalWetSetEqualsTheFullScan) {
   EXPECT_EQ(smallSteps, 30) << "the band should stay under a quarter of the mesh";
 }
 
+// The incremental wet set's list counts each noted vertex once: the stages
+// note the same band again and again, and only more than #V/8 distinct
+// vertices make the next update scan every vertex (before stop 53, noting a
+// list of 15 of 160 vertices twice did).
+TEST(LiquidBand, NotedListsCountEachVertexOnce) {
+  const int n = 160;
+  LiquidBand band;
+  band.resize(n);
+  StainState state;
+  state.resize(n);
+  markWetVertices(1e-4, state, band);  // a dry cloth: no candidates, no scan pending
+  ASSERT_FALSE(band.scanAll);
+  ASSERT_TRUE(band.candidates.empty());
+  std::vector<int> ring(15);
+  for (int k = 0; k < 15; ++k) ring[static_cast<size_t>(k)] = 7 * k;
+  for (int stage = 0; stage < 8; ++stage) band.noteChanged(ring.data(), static_cast<int>(ring.size()));
+  EXPECT_FALSE(band.scanAll);
+  EXPECT_EQ(band.candidates, ring);
+  const std::vector<int> more = {1, 2, 3, 4, 5};  // 20 distinct vertices: #V/8, still a list
+  band.noteChanged(more.data(), static_cast<int>(more.size()));
+  EXPECT_FALSE(band.scanAll);
+  const std::vector<int> oneMore = {5, 6};  // the 21st
+  band.noteChanged(oneMore.data(), static_cast<int>(oneMore.size()));
+  EXPECT_TRUE(band.scanAll);
+}
+
 }  // namespace
 }  // namespace blot::stain

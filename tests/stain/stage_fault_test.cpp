@@ -507,6 +507,36 @@ TEST(StageFault, ABandRestrictedStepIsRolledBackToTheBit) {
   }
 }
 
+// The rollback point lists the vertices a step changes until they pass a
+// quarter of the mesh, counted once each: the stages list the same band again
+// and again, and a band of 15 % of the mesh noted eight times is still a list
+// (before stop 53, the second time made it a full copy). Restore gives back
+// exactly the listed vertices.
+TEST(StageFault, TheRollbackListCountsEachVertexOnce) {
+  const int n = 100;
+  StainState state;
+  state.resize(n);
+  StateBackup backup;
+  backup.resize(n);
+  backup.commit(state);
+  std::vector<int> band(15);
+  for (int k = 0; k < 15; ++k) band[static_cast<size_t>(k)] = 3 * k;
+  for (int stage = 0; stage < 8; ++stage) backup.note(band.data(), static_cast<int>(band.size()));
+  EXPECT_FALSE(backup.all());
+  EXPECT_EQ(backup.vertices(), band);
+  for (const int i : band) state.solvent[i] = 1.0 + i;
+  backup.restore(state);
+  EXPECT_EQ(state.solvent.cwiseAbs().maxCoeff(), 0.0) << "the listed vertices are given back";
+  // 25 distinct vertices are a list; the 26th makes it a full copy.
+  for (int i = 0; i < 25; ++i) backup.note(i);
+  EXPECT_FALSE(backup.all());
+  backup.note(std::vector<int>{24, 25}.data(), 2);
+  EXPECT_TRUE(backup.all());
+  state.solute.setConstant(2.0);
+  backup.restore(state);
+  EXPECT_EQ(state.solute.cwiseAbs().maxCoeff(), 0.0) << "a full restore gives back every vertex";
+}
+
 TEST(StageFault, UnknownStagesAndVerticesAreRefused) {
   const Scene scene;
   auto solver = scene.solver();

@@ -72,21 +72,19 @@ class StateBackup {
   /// Start of a step: the mirror becomes the state (the listed vertices, or
   /// all of it when stale or after noteAll), the list empties.
   void commit(const StainState& state);
-  /// Vertex i (or `count` vertices; a list that would pass #V/4 is noteAll)
-  /// may change in this step.
+  /// Vertex i (or `count` vertices) may change in this step. Past a quarter
+  /// of the mesh, listing costs more than the full copies: the list becomes
+  /// noteAll when it holds more than #V/4 distinct vertices (the stages of a
+  /// step list the same band again and again, so the lengths of the lists
+  /// noted are no measure of it).
   void note(int i) {
     if (all_ || marks_[static_cast<size_t>(i)]) return;
     marks_[static_cast<size_t>(i)] = 1;
     vertices_.push_back(i);
+    if (4 * vertices_.size() > marks_.size()) noteAll();
   }
   void note(const int* list, int count) {
-    if (all_) return;
-    // Past a quarter of the mesh, listing costs more than the full copies.
-    if (4 * (vertices_.size() + static_cast<size_t>(count)) > marks_.size()) {
-      noteAll();
-      return;
-    }
-    for (int k = 0; k < count; ++k) note(list[k]);
+    for (int k = 0; k < count && !all_; ++k) note(list[k]);
   }
   /// Every vertex may change in this step.
   void noteAll() { all_ = true; }

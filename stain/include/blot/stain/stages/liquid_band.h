@@ -115,21 +115,21 @@ struct LiquidBand {
   /// Level-0 count (vertices holding liquid).
   int wetCount() const { return ringEnds.empty() ? 0 : ringEnds[0]; }
   int size() const { return static_cast<int>(vertices.size()); }
-  /// Vertex v (or `count` vertices; a list that would pass #V/8 sets
-  /// scanAll) may have changed since the last scan.
+  /// Vertex v (or `count` vertices) may have changed since the last scan.
+  /// Past an eighth of the mesh the sorted visit costs more than the scan: a
+  /// list noted sets scanAll once the candidates hold more than #V/8
+  /// distinct vertices (the stages note the same band again and again, so
+  /// the lengths of the lists are no measure of it).
   void noteChanged(int v) {
     if (candidateMarks[static_cast<size_t>(v)]) return;
     candidateMarks[static_cast<size_t>(v)] = 1;
     candidates.push_back(v);
   }
   void noteChanged(const int* list, int count) {
-    if (scanAll) return;
-    // Past an eighth of the mesh the sorted visit costs more than the scan.
-    if (8 * (candidates.size() + static_cast<size_t>(count)) > candidateMarks.size()) {
-      scanAll = true;
-      return;
+    for (int k = 0; k < count && !scanAll; ++k) {
+      noteChanged(list[k]);
+      if (8 * candidates.size() > candidateMarks.size()) scanAll = true;
     }
-    for (int k = 0; k < count; ++k) noteChanged(list[k]);
   }
 };
 
