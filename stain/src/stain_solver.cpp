@@ -77,12 +77,6 @@ class ScopedTimer {
   std::chrono::steady_clock::time_point start_;
 };
 
-/// The extremes of the five density fields (from 0, as a reduction by
-/// std::max and std::min takes them: a NaN is passed over) and whether those
-/// fields and u are all finite, over vertices list[0, count), or 0 .. count−1
-/// when kListed is false. The common case of the step's checks (all finite,
-/// none below the floor) needs nothing else; the search for the vertex runs
-/// only when it fails.
 /// The five density fields of a state, named as the reports name them.
 constexpr size_t kDensityFields = 5;
 std::array<std::pair<const char*, const Vector*>, kDensityFields> densityFields(const StainState& s) {
@@ -93,6 +87,12 @@ std::array<std::pair<const char*, const Vector*>, kDensityFields> densityFields(
            {"adsorbed solute", &s.adsorbedSolute}}};
 }
 
+/// The extremes of the five density fields (from 0, as a reduction by
+/// std::max and std::min takes them: a NaN is passed over) and whether those
+/// fields and u are all finite, over vertices list[0, count), or 0 .. count−1
+/// when kListed is false. The common case of the step's checks (all finite,
+/// none below the floor) needs nothing else; the search for the vertex runs
+/// only when it fails.
 struct FieldScan {
   double largest = 0, smallest = 0;
   bool finite = true;
@@ -101,6 +101,10 @@ struct FieldScan {
     smallest = std::min(smallest, other.smallest);
     finite = finite && other.finite;
   }
+  /// The floor −tol × the largest magnitude seen.
+  double floor(double relativeTolerance) const { return -relativeTolerance * std::max(largest, -smallest); }
+  /// Every value finite and no density below the floor: no vertex to search for.
+  bool passes(double floor) const { return finite && smallest >= floor; }
 };
 
 /// Four vertices at a time (numerics/lanes.h): each lane keeps the extremes
@@ -159,11 +163,6 @@ FieldScan scanFields(const StainState& s, const int* list, int count) {
   return scan;
 }
 
-/// The floor of a scan: −tol × the largest magnitude it saw.
-double floorOf(const FieldScan& scan, double relativeTolerance) {
-  return -relativeTolerance * std::max(scan.largest, -scan.smallest);
-}
-
 /// Whether vertex i holds a non-finite value or a density below `floor`.
 bool badVertex(const StainState& s, int i, double floor) {
   for (const auto& [name, field] : densityFields(s))
@@ -199,8 +198,8 @@ int firstNonFiniteVertex(const StainState& s, std::string& value) {
 /// First vertex with a non-finite or negative (below −tol·max) density, or -1.
 int firstBadVertex(const StainState& s, double relativeTolerance) {
   const FieldScan scan = scanFields<false>(s, nullptr, s.vertexCount());
-  const double floor = floorOf(scan, relativeTolerance);
-  if (scan.finite && scan.smallest >= floor) return -1;
+  const double floor = scan.floor(relativeTolerance);
+  if (scan.passes(floor)) return -1;
   for (int i = 0; i < s.vertexCount(); ++i)
     if (badVertex(s, i, floor)) return i;
   return -1;
@@ -211,8 +210,8 @@ int firstBadVertex(const StainState& s, double relativeTolerance) {
 /// −tol × the largest listed magnitude, or -1.
 int firstBadVertexAmong(const StainState& s, const std::vector<int>& vertices, double relativeTolerance) {
   const FieldScan scan = scanFields<true>(s, vertices.data(), static_cast<int>(vertices.size()));
-  const double floor = floorOf(scan, relativeTolerance);
-  if (scan.finite && scan.smallest >= floor) return -1;
+  const double floor = scan.floor(relativeTolerance);
+  if (scan.passes(floor)) return -1;
   int first = -1;
   for (const int i : vertices)
     if (badVertex(s, i, floor) && (first < 0 || i < first)) first = i;
@@ -532,8 +531,8 @@ bool StainSolver::checkStage(Stage stage, StepReport& report) {
   if (held)
     for (const HeldRegion& region : heldRegions_)
       scan.merge(scanFields<true>(state_, region.vertices.data(), static_cast<int>(region.vertices.size())));
-  const double floor = floorOf(scan, kNegativeDensityTolerance);
-  if (scan.finite && scan.smallest >= floor) return true;
+  const double floor = scan.floor(kNegativeDensityTolerance);
+  if (scan.passes(floor)) return true;
 
   int vertex = -1;
   for (int i : band_.vertices)
