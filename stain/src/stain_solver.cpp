@@ -287,6 +287,7 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   densityScratch_.resize(n, topology.edgeCount(), topology.faceCount());
   band_.resize(n, static_cast<int>(topology.ringNeighbors().size()));
   interactionScratch_.reserve(static_cast<size_t>(n));
+  diffusedPastReach_.reserve(static_cast<size_t>(n));
   strainTestVertices_.reserve(static_cast<size_t>(n));
   strainTestMarks_.assign(static_cast<size_t>(n), 0);
   surfaceVelocityScratch_ = RowVectors3::Zero(n, 3);
@@ -863,6 +864,7 @@ StepReport StainSolver::runStages() {
     // (band_ still holds them until prepareBand).
     for (const int i : band_.vertices) evaporatedMass_[i] = 0.0;
     for (const int i : band_.absorbingVertices) evaporatedMass_[i] = 0.0;
+    for (const int i : diffusedPastReach_) evaporatedMass_[i] = 0.0;  // and past its reach set
     evaporationWritten_ = false;
   }
   // Held regions are topped up first, so liquid they add this step is in the
@@ -898,6 +900,7 @@ StepReport StainSolver::runStages() {
   // backtrack and the other half after the velocity advection.
   const bool frameChange = on.coriolis && on.velocityAdvection && on.coriolisScheme == CoriolisScheme::ExactRotation;
 
+  diffusedPastReach_.clear();  // filled by this step's density diffusion, if it runs
   // clang-format off
   const std::vector<char>& band = band_.bandMask;    // forces act here, u is defined here
   const std::vector<char>& reach = band_.reachMask;  // where liquid can be after this step
@@ -918,7 +921,7 @@ StepReport StainSolver::runStages() {
   if (!runStage(Stage::AdvectDensity, on.densityAdvection, report, [&] { recordAdvection(advectDensities(ctx, topology, intrinsic, extrinsic, band_.wetMask, densityScratch_, state_, &geometry_.restEdgeFrameNormals(), &reach, among)); }) ||
       !runStage(Stage::Diffuse, on.densityDiffusion || on.velocityDiffusion, report, [&] { return recordDiffusion(diffuse(ctx, intrinsic, systems_, diffusionScratch_, state_, &band_.diffusionMask, velocityByFactor_)); }) ||
       !runStage(Stage::Interact, on.absorption || on.adsorption || on.evaporation, report, [&] { noteChanged(band_.absorbingVertices.data(), static_cast<int>(band_.absorbingVertices.size()));
-                                                                                                   interact(ctx, topology, intrinsic, reach, state_, &evaporatedMass_, interactionVertices(), &band_.soakedMask);
+                                                                                                   withDiffusedLiquidInReach([&] { interact(ctx, topology, intrinsic, reach, state_, &evaporatedMass_, interactionVertices(), &band_.soakedMask); });
                                                                                                    evaporationWritten_ = on.evaporation;
                                                                                                    markTerms({{StepTerm::Absorption, on.absorption}, {StepTerm::Adsorption, on.adsorption}, {StepTerm::Evaporation, on.evaporation}}); }))
     return report;
@@ -942,8 +945,24 @@ const std::vector<int>* StainSolver::interactionVertices() {
     if (band_.reachMask[static_cast<size_t>(i)]) list.push_back(i);
   for (const int i : band_.absorbingVertices)
     if (!band_.reachMask[static_cast<size_t>(i)]) list.push_back(i);
+  // Diffused liquid outside the band (inside it, the loop above took it: it
+  // is marked in the reach mask while the interaction runs).
+  for (const int i : diffusedPastReach_)
+    if (band_.levels[static_cast<size_t>(i)] < 0) list.push_back(i);
   std::sort(list.begin(), list.end());
   return &list;
+}
+
+template <class F>
+void StainSolver::withDiffusedLiquidInReach(const F& f) {
+  struct Unmark {
+    StainSolver& solver;
+    ~Unmark() {
+      for (const int i : solver.diffusedPastReach_) solver.band_.reachMask[static_cast<size_t>(i)] = 0;
+    }
+  } unmark{*this};
+  for (const int i : diffusedPastReach_) band_.reachMask[static_cast<size_t>(i)] = 1;
+  f();
 }
 
 void StainSolver::markTerms(std::initializer_list<std::pair<StepTerm, bool>> terms) {
@@ -979,6 +998,20 @@ SolverStatus StainSolver::recordDiffusion(const DiffusionReport& r) {
     noteChanged(diffusionScratch_.directSupport.data(), r.directSupportVertices);
   } else if (r.densityMethod != DiffusionMethod::None) {
     noteAllChanged();
+  }
+  // Liquid the density solve carried past the reach set: the interaction
+  // processes it this step, as it does the reach set.
+  diffusedPastReach_.clear();
+  const auto collectPastReach = [&](int i) {
+    if (band_.reachMask[static_cast<size_t>(i)] == 0 && state_.solvent[i] + state_.solute[i] > 0.0)
+      diffusedPastReach_.push_back(i);
+  };
+  if (onRows(r.densityMethod)) {
+    for (int k = 0; k < r.densityActiveVertices; ++k) collectPastReach(diffusionScratch_.densityActive[static_cast<size_t>(k)]);
+  } else if (r.densityMethod == DiffusionMethod::Direct && r.directSupportVertices >= 0) {
+    for (int k = 0; k < r.directSupportVertices; ++k) collectPastReach(diffusionScratch_.directSupport[static_cast<size_t>(k)]);
+  } else if (r.densityMethod != DiffusionMethod::None) {
+    for (int i = 0; i < state_.vertexCount(); ++i) collectPastReach(i);
   }
   if (onRows(r.velocityMethod)) {
     noteChanged(diffusionScratch_.velocityActive.data(), r.velocityActiveVertices);

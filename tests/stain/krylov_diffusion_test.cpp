@@ -409,16 +409,17 @@ TEST(KrylovDiffusion, ACgOnlyRunFactorizesNothingAndADirectRunOncePerAssembly) {
 
   // Both stiff: one factor for each system that a step solves directly (the
   // free densities need no solve on some steps). The velocity takes the
-  // factor from the second step, when the liquid covers the mesh; on the
-  // first (and once the free liquid left is small again), CG on the band is
-  // predicted cheaper than the factor and a band over the whole mesh. (At
-  // 1000× the band's Gauss–Seidel CG is predicted cheaper than the factor on
-  // every step: 3000×.)
+  // factor from the second step, when the liquid covers the mesh, to the
+  // fifth; on the first (and once the free liquid left is small again: the
+  // fibres take it everywhere it spread, and none is free after step 7), CG
+  // on the band is predicted cheaper than the factor and a band over the
+  // whole mesh. (At 1000× the band's Gauss–Seidel CG is predicted cheaper
+  // than the factor on every step: 3000×.)
   const StretchedRun direct = runStretchedDrop(3000.0);
   EXPECT_EQ(direct.steps, 20);
   EXPECT_EQ(direct.assemblies, 20);
   EXPECT_GT(direct.densityDirectSteps, 0);
-  EXPECT_GE(direct.velocityDirectSteps, 5);
+  EXPECT_GE(direct.velocityDirectSteps, 4);
   EXPECT_GT(direct.velocitySolveSteps, direct.velocityDirectSteps) << "the first step solves u by CG on the band";
   EXPECT_EQ(direct.factorizations, direct.densityDirectSteps + direct.velocityDirectSteps)
       << "each system once per assembly that a direct solve used, never twice";

@@ -317,6 +317,10 @@ class StainSolver {
   /// The vertices the interaction visits (interaction.h's `among`), or null
   /// for all when the band is not small.
   const std::vector<int>* interactionVertices();
+  /// Runs f with diffusedPastReach_ marked in the band's reach mask (the
+  /// interaction's domain), and unmarks them afterwards, also when f throws.
+  template <class F>
+  void withDiffusedLiquidInReach(const F& f);
   // Liquid was ever on the surface (a drop, a source, a write from outside):
   // until then nothing reads the metric, and the strain test is skipped.
   bool everHeldLiquid() const;
@@ -367,6 +371,11 @@ class StainSolver {
   std::vector<HeldRegion> heldRegions_;
   LiquidBand band_;  // this step's band; its vertices are the stage checks' domain
   std::vector<int> interactionScratch_;  // interactionVertices(), reserved #V
+  /// Vertices outside the reach set that hold free liquid after this step's
+  /// density diffusion (recordDiffusion; reserved #V): the diffusion carries
+  /// liquid past the rings the advection can reach, and the interaction
+  /// processes them with the reach set (marked in it while it runs).
+  std::vector<int> diffusedPastReach_;
   RowVectors3 surfaceVelocityScratch_;  // addDrop: surfaceVelocity of every vertex
   bool surfaceMoved_ = false;           // this step's surface moved (refreshGeometry)
   Vector areaScratch_;
