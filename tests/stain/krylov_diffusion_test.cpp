@@ -409,8 +409,9 @@ TEST(KrylovDiffusion, ACgOnlyRunFactorizesNothingAndADirectRunOncePerAssembly) {
 
   // Both stiff: one factor for each system that a step solves directly (the
   // free densities need no solve on some steps). The velocity takes the
-  // factor from the second step, when the liquid covers the mesh, to the
-  // fifth; on the first (and once the free liquid left is small again: the
+  // factor on the steps whose band covers the mesh (3 and 4: the reach set
+  // is the wet set's one ring, so on step 2 the band still leaves a ring
+  // out); on the others (the free liquid spreading, then small again: the
   // fibres take it everywhere it spread, and none is free after step 7), CG
   // on the band is predicted cheaper than the factor and a band over the
   // whole mesh. (At 1000× the band's Gauss–Seidel CG is predicted cheaper
@@ -419,7 +420,7 @@ TEST(KrylovDiffusion, ACgOnlyRunFactorizesNothingAndADirectRunOncePerAssembly) {
   EXPECT_EQ(direct.steps, 20);
   EXPECT_EQ(direct.assemblies, 20);
   EXPECT_GT(direct.densityDirectSteps, 0);
-  EXPECT_GE(direct.velocityDirectSteps, 4);
+  EXPECT_GE(direct.velocityDirectSteps, 2);
   EXPECT_GT(direct.velocitySolveSteps, direct.velocityDirectSteps) << "the first step solves u by CG on the band";
   EXPECT_EQ(direct.factorizations, direct.densityDirectSteps + direct.velocityDirectSteps)
       << "each system once per assembly that a direct solve used, never twice";

@@ -686,6 +686,64 @@ TEST(LiquidBand, FootPointsInTheirStarsStopTheBandAtTheReachSetsRing) {
   EXPECT_GT(feet, 5000);
 }
 
+// The reach set stops at the rings the density advection's sub-steps can
+// reach: liquid moves one ring a sub-step, and the sub-step count is bounded
+// before the forces by d times the wet set's largest dual perimeter over
+// dual area. Drops of every speed from a crawl to several edges a step, on a
+// still regular grid, a jittered one and a turning one (the rigid fluxes):
+// the advection never takes more sub-steps than the reach set has rings,
+// every vertex whose free densities the step changed is in the reach set (no
+// diffusion here to carry liquid further; traces below the wet threshold
+// stay where they are, outside the band), and a slow drop's reach set is its
+// one ring, where the distance labels alone always took two.
+TEST(LiquidBand, TheReachSetIsTheRingsTheSubStepsCanReach) {
+  const TriangleMesh jittered = jitteredGrid(0.3, 4242);
+  const TriangleMesh regular = gridMesh(40, 40, 1.0, 1.0);
+  int steps = 0, oneRing = 0, deeper = 0;
+  for (const TriangleMesh* mesh : {&regular, static_cast<const TriangleMesh*>(&jittered)}) {
+    for (const bool turning : {false, true}) {
+      for (const double speed : {0.02, 0.3, 1.0, 2.5, 6.0}) {
+        const int n = static_cast<int>(mesh->vertexPositions.rows());
+        const SurfaceTopology topology(mesh->faces, n);
+        StainSolver solver(topology, mesh->vertexPositions,
+                           isotropicFabricField(static_cast<int>(mesh->faces.rows()), 1e-4, 1e-4), transportOnly(true));
+        const Vector3 axis = Vector3(0.3, -0.2, 1.0).normalized();
+        if (turning) solver.setInitialMotion(mesh->vertexPositions, testing::spinVelocities(mesh->vertexPositions, axis));
+        DropDef drop;
+        drop.centerPoint = Vector3(0.45, 0.5, 0.0);
+        drop.radius = 0.08;
+        drop.velocity = Vector3(speed, 0.4 * speed, 0.0);
+        solver.addDrop(drop);
+        const double h = 0.01;
+        for (int step = 1; step <= 10; ++step) {
+          const Matrix3 R = Eigen::AngleAxisd(step * h, axis).toRotationMatrix();
+          const StainState before = solver.state();
+          const StepReport report = turning ? solver.stepRigid(h, mesh->vertexPositions * R.transpose(), R)
+                                            : solver.step(h, mesh->vertexPositions);
+          ASSERT_EQ(report.status, StepStatus::Ok) << report.message;
+          const StepProfile& p = solver.profile();
+          if (p.wetVertices == 0) break;
+          ++steps;
+          EXPECT_LE(p.advectionSubsteps, p.reachRings) << "speed " << speed << " step " << step;
+          const StainState& s = solver.state();
+          for (int i = 0; i < n; ++i) {
+            if (s.solvent[i] != before.solvent[i] || s.solute[i] != before.solute[i]) {
+              EXPECT_NE(solver.band().reachMask[static_cast<size_t>(i)], 0)
+                  << "speed " << speed << " step " << step << ": liquid moved at vertex " << i << ", outside the reach set";
+            }
+          }
+          oneRing += p.reachRings == 1;
+          deeper += p.reachRings > 2;
+          if (HasFailure()) return;
+        }
+      }
+    }
+  }
+  EXPECT_EQ(steps, 200);
+  EXPECT_GE(oneRing, 40) << "slow drops on the still grids reach one ring";
+  EXPECT_GT(deeper, 40) << "fast drops reach further";
+}
+
 // ------------------------------------------- geometry on the band only
 
 /// Exact equality of every state field, on every vertex.

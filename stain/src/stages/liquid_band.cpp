@@ -216,6 +216,32 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
   // this function's time on a 10K cloth).
   double speedSquared = 0.0, acceleration = 0.0;
   double wetStarRadius = std::numeric_limits<double>::infinity();  // the wet set's least
+  // Sub-step rings: the density advection moves liquid one ring a sub-step
+  // and takes n = ceil(max over the wet set of h outflow_i / A_i) of them.
+  // Its flux through the dual edge of ij is ½(U_i + U_j)·N_ij with
+  // |N_ij| ≤ Σ over the edge's faces of |c_T − m_ij| (the barycentric dual
+  // edge, surface_geometry.h), so h outflow_i / A_i ≤ d · P_i / A_i, P_i the
+  // sum of those lengths around i. courantFactor = max P_i / A_i over the
+  // wet set (1/m, 1e-9 over for rounding; infinite where it cannot be
+  // computed): no liquid gets past level ceil(d · courantFactor).
+  const bool havePositions = extrinsic.positions.rows() == n;
+  const auto& positions = extrinsic.positions;
+  double courantFactor = havePositions ? 0.0 : std::numeric_limits<double>::infinity();
+  const auto dualPerimeterOverArea = [&](int i) {
+    double perimeter = 0.0;  // Σ over i's faces of the two dual half-edges at i
+    for (int m = offsets[static_cast<size_t>(i)]; m < offsets[static_cast<size_t>(i) + 1]; ++m) {
+      const int f = ringFaces[static_cast<size_t>(m)];
+      if (f < 0) continue;
+      const int corner = faces(f, 0) == i ? 0 : faces(f, 1) == i ? 1 : 2;
+      const Vector3 pi = positions.row(i).transpose();
+      const Vector3 pj = positions.row(faces(f, (corner + 1) % 3)).transpose();
+      const Vector3 pk = positions.row(faces(f, (corner + 2) % 3)).transpose();
+      // c_T − m_ij = (2 p_k − p_i − p_j) / 6, and the same with j and k swapped.
+      perimeter += ((2.0 * pk - pi - pj).norm() + (2.0 * pj - pi - pk).norm()) / 6.0;
+    }
+    const double area = areas[i];
+    return area > 0.0 ? perimeter / area : std::numeric_limits<double>::infinity();
+  };
   for (int k = 0; k < wetCount; ++k) {
     const int i = band.vertices[static_cast<size_t>(k)];
     const size_t ii = static_cast<size_t>(i);
@@ -226,7 +252,19 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
     LiquidBand::Distances& labels = band.distances[ii];
     labels.fromWet = labels.fromReach = labels.nearestWet = labels.nearestReach = 0.0;
     wetStarRadius = std::min(wetStarRadius, labels.starRadius);
+    if (havePositions) courantFactor = std::max(courantFactor, dualPerimeterOverArea(i));
   }
+  if (!(courantFactor < std::numeric_limits<double>::infinity())) {
+    courantFactor = std::numeric_limits<double>::infinity();  // NaN too: no limit from the sub-steps
+  } else {
+    courantFactor *= 1.0 + 1e-9;
+  }
+  // The least d at which liquid can get to level L ≥ 2 in the sub-steps:
+  // ceil(d · courantFactor) ≥ L, i.e. d · courantFactor > L − 1. Level 1 is
+  // always in reach (a step with u = 0 moves nothing, and takes no sub-step).
+  const auto subStepDistance = [&](int level) {
+    return level <= 1 ? 0.0 : static_cast<double>(level - 1) / courantFactor;
+  };
   const double wetSpeedSquared = speedSquared, wetAcceleration = acceleration;
 
   // Distance labels (growLiquidBand's comment in the header): a vertex is a
@@ -349,6 +387,14 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
                               : weightSum > 0.0 ? weighted / weightSum
                                                 : plain / static_cast<double>(count);
         band.weights[i] = soaked ? 0.0 : weightSum / static_cast<double>(count);
+        // Past the sub-steps' rings no liquid gets there, whatever the labels say.
+        if (inReach && level > 1) {
+          const double needed = subStepDistance(level);
+          if (!(needed < distance)) {
+            inReach = false;
+            rejected = std::min(rejected, needed);
+          }
+        }
         band.reachMask[ii] = inReach ? 1 : 0;
         LiquidBand::Distances& labels = band.distances[ii];
         if (inReach) starLimit = std::min(starLimit, labels.starRadius);
@@ -406,6 +452,7 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
           inReach = 1;
         }
       }
+      if (inReach != 0 && level > 1 && !(subStepDistance(level) < distance)) inReach = 0;
       band.reachMask[ii] = inReach;
       if (inReach != 0 && band.distances[ii].nearestWet < distance) deepestCentre = level;
     }
