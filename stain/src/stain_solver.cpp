@@ -903,7 +903,7 @@ StepReport StainSolver::runStages() {
   diffusedPastReach_.clear();  // filled by this step's density diffusion, if it runs
   // clang-format off
   const std::vector<char>& band = band_.bandMask;    // forces act here, u is defined here
-  const std::vector<char>& reach = band_.reachMask;  // where liquid can be after this step
+  const std::vector<char>& reach = band_.reachMask;  // where the advection can move liquid this step
   const std::vector<int>* among = smallBand() ? &band_.vertices : nullptr;  // the masked loops visit the band, not #V
   if (!runStage(Stage::BodyForces, on.gravity || on.linearInertia, report, [&] { clearVelocityWithoutFreeLiquid(ctx, band, state_, among); applyBodyForces(ctx, extrinsic, band, state_, among); markTerms({{StepTerm::Gravity, on.gravity}, {StepTerm::LinearInertia, on.linearInertia}}); }) ||
       !runStage(Stage::FilmPressure, on.filmPressure, report, [&] { applyFilmPressure(ctx, topology, extrinsic, band, state_); profile_.markRan(StepTerm::FilmPressure); }) ||

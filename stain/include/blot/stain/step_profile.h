@@ -100,7 +100,7 @@ struct StepProfile {
   /// StainSolver::bandVertices; the whole mesh with a direct velocity solve).
   int bandVertices = 0;
   int bandRings = 0;               ///< deepest level of the band (rings beyond the wet set)
-  int reachRings = 0;              ///< deepest level of the reach set (where liquid can be after this step)
+  int reachRings = 0;              ///< deepest level of the reach set (where the advection can move liquid this step)
   int geometryVertices = 0;        ///< vertices whose extrinsic geometry the step computed (the band and
                                    ///< traces of liquid; #V in VertexRefresh::AllVertices; 0 if the surface did not move)
   int advectionVertices = 0;       ///< vertices density advection worked on (wet + sub-step halo, or #V)

@@ -30,12 +30,14 @@ struct LiquidBand {
   /// #V masks for the stages (kHoldsLiquid on the wet set, 1 elsewhere inside, 0 outside):
   std::vector<char> wetMask;        ///< level 0: holds liquid (densities are advected from here)
   std::vector<char> haloMask;       ///< levels 0..1: wet and the one-ring halo
-  std::vector<char> reachMask;      ///< levels 0..reachRings: where liquid can be after this step
+  std::vector<char> reachMask;      ///< levels 0..reachRings: where the advection can move liquid this
+                                    ///< step (the density diffusion can carry traces further)
   std::vector<char> bandMask;       ///< every level: forces act here, u is defined here
   std::vector<char> diffusionMask;  ///< band vertices whose neighbours are all in the band (the
                                     ///< velocity solve's rows; the others are its boundary data)
   int rings = 0;       ///< levels beyond the wet set (outermost level)
-  int reachRings = 0;  ///< deepest level of the reach set (R = ceil(h U / ℓ) + 1 on equal edges ℓ)
+  int reachRings = 0;  ///< deepest level of the reach set (R = ceil(h U / ℓ) + 1 on equal edges ℓ,
+                       ///< fewer where the advection's sub-steps cannot get that far)
   int haloCount = 0;   ///< vertices at level 1
   int interiorCount = 0;  ///< vertices of diffusionMask (the velocity solve's rows)
   /// Times growLiquidBand grew the rings again this step: U grew past the
@@ -205,6 +207,12 @@ void settleSoakedVelocities(const LiquidBand& band, StainState& state, const Cha
 /// would have passed (a rejected label below it) is grown again from the wet
 /// set (LiquidBand::regrowths; after two tries it covers the component). coverComponent: the whole
 /// component, reach set as above.
+///
+/// Sub-step rings: the density advection moves liquid one ring a sub-step
+/// and takes at most ceil(d · max over the wet set of P_i / A_i) of them
+/// (P_i the barycentric dual half-edges around i, from the positions; see
+/// the source), so a level past that is out of the reach set whatever the
+/// labels say (its label joins the regrowth test like theirs).
 ///
 /// Foot points in their stars: the backtrack from a reach vertex x walks
 /// h |u_x| ≤ d from x along the surface, so while d is below the least
