@@ -223,10 +223,12 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
   // edge, surface_geometry.h), so h outflow_i / A_i ≤ d · P_i / A_i, P_i the
   // sum of those lengths around i. courantFactor = max P_i / A_i over the
   // wet set (1/m, 1e-9 over for rounding; infinite where it cannot be
-  // computed): no liquid gets past level ceil(d · courantFactor).
+  // computed): no liquid gets past level ceil(d · courantFactor). Computed
+  // when a level past 1 is first decided (a band without one, e.g. a wet
+  // set covering the mesh, never pays for it).
   const bool havePositions = extrinsic.positions.rows() == n;
   const auto& positions = extrinsic.positions;
-  double courantFactor = havePositions ? 0.0 : std::numeric_limits<double>::infinity();
+  double courantFactor = -1.0;  // not computed yet
   const auto dualPerimeterOverArea = [&](int i) {
     double perimeter = 0.0;  // Σ over i's faces of the two dual half-edges at i
     for (int m = offsets[static_cast<size_t>(i)]; m < offsets[static_cast<size_t>(i) + 1]; ++m) {
@@ -252,18 +254,20 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
     LiquidBand::Distances& labels = band.distances[ii];
     labels.fromWet = labels.fromReach = labels.nearestWet = labels.nearestReach = 0.0;
     wetStarRadius = std::min(wetStarRadius, labels.starRadius);
-    if (havePositions) courantFactor = std::max(courantFactor, dualPerimeterOverArea(i));
-  }
-  if (!(courantFactor < std::numeric_limits<double>::infinity())) {
-    courantFactor = std::numeric_limits<double>::infinity();  // NaN too: no limit from the sub-steps
-  } else {
-    courantFactor *= 1.0 + 1e-9;
   }
   // The least d at which liquid can get to level L ≥ 2 in the sub-steps:
   // ceil(d · courantFactor) ≥ L, i.e. d · courantFactor > L − 1. Level 1 is
   // always in reach (a step with u = 0 moves nothing, and takes no sub-step).
   const auto subStepDistance = [&](int level) {
-    return level <= 1 ? 0.0 : static_cast<double>(level - 1) / courantFactor;
+    if (courantFactor < 0.0) {
+      double largest = havePositions ? 0.0 : std::numeric_limits<double>::infinity();
+      for (int k = 0; k < wetCount && havePositions; ++k)
+        largest = std::max(largest, dualPerimeterOverArea(band.vertices[static_cast<size_t>(k)]));
+      // NaN too: no limit from the sub-steps.
+      courantFactor = largest < std::numeric_limits<double>::infinity() ? largest * (1.0 + 1e-9)
+                                                                        : std::numeric_limits<double>::infinity();
+    }
+    return static_cast<double>(level - 1) / courantFactor;
   };
   const double wetSpeedSquared = speedSquared, wetAcceleration = acceleration;
 
