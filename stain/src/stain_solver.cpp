@@ -992,26 +992,29 @@ SolverStatus StainSolver::recordDiffusion(const DiffusionReport& r) {
   const auto onRows = [](DiffusionMethod m) {
     return m == DiffusionMethod::ConjugateGradient || m == DiffusionMethod::SuperTimeStepping;
   };
-  if (onRows(r.densityMethod)) {
-    noteChanged(diffusionScratch_.densityActive.data(), r.densityActiveVertices);
-  } else if (r.densityMethod == DiffusionMethod::Direct && r.directSupportVertices >= 0) {
-    noteChanged(diffusionScratch_.directSupport.data(), r.directSupportVertices);
-  } else if (r.densityMethod != DiffusionMethod::None) {
-    noteAllChanged();
-  }
-  // Liquid the density solve carried past the reach set: the interaction
-  // processes it this step, as it does the reach set.
+  // The densities' written set is noted, and the liquid it holds past the
+  // reach set listed: the interaction processes it this step, as it does
+  // the reach set (list == nullptr: every vertex).
   diffusedPastReach_.clear();
-  const auto collectPastReach = [&](int i) {
-    if (band_.reachMask[static_cast<size_t>(i)] == 0 && state_.solvent[i] + state_.solute[i] > 0.0)
-      diffusedPastReach_.push_back(i);
+  const auto densitiesWritten = [&](const int* list, int count) {
+    if (list != nullptr) {
+      noteChanged(list, count);
+    } else {
+      noteAllChanged();
+      count = state_.vertexCount();
+    }
+    for (int k = 0; k < count; ++k) {
+      const int i = list != nullptr ? list[k] : k;
+      if (band_.reachMask[static_cast<size_t>(i)] == 0 && state_.solvent[i] + state_.solute[i] > 0.0)
+        diffusedPastReach_.push_back(i);
+    }
   };
   if (onRows(r.densityMethod)) {
-    for (int k = 0; k < r.densityActiveVertices; ++k) collectPastReach(diffusionScratch_.densityActive[static_cast<size_t>(k)]);
+    densitiesWritten(diffusionScratch_.densityActive.data(), r.densityActiveVertices);
   } else if (r.densityMethod == DiffusionMethod::Direct && r.directSupportVertices >= 0) {
-    for (int k = 0; k < r.directSupportVertices; ++k) collectPastReach(diffusionScratch_.directSupport[static_cast<size_t>(k)]);
+    densitiesWritten(diffusionScratch_.directSupport.data(), r.directSupportVertices);
   } else if (r.densityMethod != DiffusionMethod::None) {
-    for (int i = 0; i < state_.vertexCount(); ++i) collectPastReach(i);
+    densitiesWritten(nullptr, 0);
   }
   if (onRows(r.velocityMethod)) {
     noteChanged(diffusionScratch_.velocityActive.data(), r.velocityActiveVertices);

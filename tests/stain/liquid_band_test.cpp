@@ -608,6 +608,15 @@ double leastAltitude(const TriangleMesh& mesh, int v) {
   return least;
 }
 
+/// A drop of radius 0.08 m at `centre`, thrown at `velocity`.
+void addMovingDrop(StainSolver& solver, const Vector3& centre, const Vector3& velocity) {
+  DropDef drop;
+  drop.centerPoint = centre;
+  drop.radius = 0.08;
+  drop.velocity = velocity;
+  solver.addDrop(drop);
+}
+
 // A slow drop's foot points stay in their vertices' stars: the band stops at
 // the reach set's one ring, the reach set is the velocity solve's rows, and
 // every foot point read is in the band, step after step, on a regular grid
@@ -625,11 +634,7 @@ TEST(LiquidBand, FootPointsInTheirStarsStopTheBandAtTheReachSetsRing) {
         StainSolver solver(topology, mesh->vertexPositions,
                            isotropicFabricField(static_cast<int>(mesh->faces.rows()), 1e-4, 1e-4),
                            transportOnly(viscous));
-        DropDef drop;
-        drop.centerPoint = Vector3(0.4, 0.5, 0.0);
-        drop.radius = 0.08;
-        drop.velocity = Vector3(speed, 0.3 * speed, 0.0);
-        solver.addDrop(drop);
+        addMovingDrop(solver, Vector3(0.4, 0.5, 0.0), Vector3(speed, 0.3 * speed, 0.0));
         const double h = 0.02;
         for (int step = 1; step <= 8; ++step) {
           const StepReport report = solver.step(h, mesh->vertexPositions);
@@ -709,11 +714,7 @@ TEST(LiquidBand, TheReachSetIsTheRingsTheSubStepsCanReach) {
                            isotropicFabricField(static_cast<int>(mesh->faces.rows()), 1e-4, 1e-4), transportOnly(true));
         const Vector3 axis = Vector3(0.3, -0.2, 1.0).normalized();
         if (turning) solver.setInitialMotion(mesh->vertexPositions, testing::spinVelocities(mesh->vertexPositions, axis));
-        DropDef drop;
-        drop.centerPoint = Vector3(0.45, 0.5, 0.0);
-        drop.radius = 0.08;
-        drop.velocity = Vector3(speed, 0.4 * speed, 0.0);
-        solver.addDrop(drop);
+        addMovingDrop(solver, Vector3(0.45, 0.5, 0.0), Vector3(speed, 0.4 * speed, 0.0));
         const double h = 0.01;
         for (int step = 1; step <= 10; ++step) {
           const Matrix3 R = Eigen::AngleAxisd(step * h, axis).toRotationMatrix();

@@ -328,7 +328,8 @@ class StainSolver {
   bool strainExceededAroundLiquid();
   /// Marks each term whose condition is true as run this step.
   void markTerms(std::initializer_list<std::pair<StepTerm, bool>> terms);
-  /// The profile's record of a density advection and of a diffusion.
+  /// The profile's record of a density advection and of a diffusion (which
+  /// also notes what the solves wrote and lists diffusedPastReach_).
   void recordAdvection(const DensityAdvectionReport& report);
   SolverStatus recordDiffusion(const DiffusionReport& report);
   /// Stage Validate: every value finite, no negative density; then the
