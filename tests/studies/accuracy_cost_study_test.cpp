@@ -12,7 +12,7 @@
 //  (c) paper Fig. 5: centroid of liquid moving in a straight line in the
 //      inertial frame on a disc rotating at 2 rad/s, through the StainSolver,
 //      vs h, for ExactRotation, SplitRotation, Explicit and no Coriolis.
-//  (d) homogenization (eq. 1) vs the refinement K, against a K = 128 solve.
+//  (d) homogenization (eq. 1) vs the refinement K, against a K = 64 solve.
 //  (e) diffusion at a game's frame step h = 1/60 s: every method (the
 //      factor, CG on the support, RKL2 on the support, forward Euler
 //      sub-stepped at 95 % of its limit, and Auto) on one error-against-cost
