@@ -994,8 +994,8 @@ SolverStatus StainSolver::recordDiffusion(const DiffusionReport& r) {
   };
   // The densities' written set is noted, and the liquid it holds past the
   // reach set listed: the interaction processes it this step, as it does
-  // the reach set (list == nullptr: every vertex).
-  diffusedPastReach_.clear();
+  // the reach set (list == nullptr: every vertex; runStages emptied the
+  // list before the stages).
   const auto densitiesWritten = [&](const int* list, int count) {
     if (list != nullptr) {
       noteChanged(list, count);

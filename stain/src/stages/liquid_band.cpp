@@ -260,9 +260,12 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
   // always in reach (a step with u = 0 moves nothing, and takes no sub-step).
   const auto subStepDistance = [&](int level) {
     if (courantFactor < 0.0) {
-      double largest = havePositions ? 0.0 : std::numeric_limits<double>::infinity();
-      for (int k = 0; k < wetCount && havePositions; ++k)
-        largest = std::max(largest, dualPerimeterOverArea(band.vertices[static_cast<size_t>(k)]));
+      double largest = std::numeric_limits<double>::infinity();
+      if (havePositions) {
+        largest = 0.0;
+        for (int k = 0; k < wetCount; ++k)
+          largest = std::max(largest, dualPerimeterOverArea(band.vertices[static_cast<size_t>(k)]));
+      }
       // NaN too: no limit from the sub-steps.
       courantFactor = largest < std::numeric_limits<double>::infinity() ? largest * (1.0 + 1e-9)
                                                                         : std::numeric_limits<double>::infinity();
