@@ -27,6 +27,7 @@ void expectInvariants(const TriangleMesh& mesh, int expectedEuler, size_t expect
   // ring is counter-clockwise (consecutive neighbours span a face of the ring
   // whose orientation agrees with the vertex order (v, n_m, n_m+1)).
   int ringFaceTotal = 0;
+  ASSERT_EQ(t.ringCorners().size(), t.ringFaces().size());
   for (int v = 0; v < t.vertexCount(); ++v) {
     const int b = t.ringOffsets()[static_cast<size_t>(v)], e = t.ringOffsets()[static_cast<size_t>(v) + 1];
     const bool boundary = t.vertexIsBoundary()[static_cast<size_t>(v)];
@@ -36,15 +37,18 @@ void expectInvariants(const TriangleMesh& mesh, int expectedEuler, size_t expect
       EXPECT_EQ(std::min(v, n), t.edgeVertices()(edge, 0));
       EXPECT_EQ(std::max(v, n), t.edgeVertices()(edge, 1));
       const int f = t.ringFaces()[static_cast<size_t>(m)];
+      const int corner = t.ringCorners()[static_cast<size_t>(m)];
       if (f < 0) {
         EXPECT_TRUE(boundary);
         EXPECT_EQ(m, e - 1);
+        EXPECT_EQ(corner, -1);
         continue;
       }
       ++ringFaceTotal;
       const int next = t.ringNeighbors()[static_cast<size_t>(m + 1 < e ? m + 1 : b)];
       int k = 0;
       while (t.faces()(f, k) != v) ++k;
+      EXPECT_EQ(corner, k) << "vertex " << v << " ring entry " << m << ": the corner of its ring face at it";
       EXPECT_EQ(t.faces()(f, (k + 1) % 3), n) << "vertex " << v << " ring entry " << m;
       EXPECT_EQ(t.faces()(f, (k + 2) % 3), next) << "vertex " << v << " ring entry " << m;
     }

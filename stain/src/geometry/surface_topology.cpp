@@ -125,6 +125,7 @@ SurfaceTopology::SurfaceTopology(const Triangles& faces, int vertexCount,
   ringNeighbors_.reserve(static_cast<size_t>(H + vertexCount));
   ringEdges_.reserve(static_cast<size_t>(H + vertexCount));
   ringFaces_.reserve(static_cast<size_t>(H + vertexCount));
+  ringCorners_.reserve(static_cast<size_t>(H + vertexCount));
   for (int v = 0; v < vertexCount; ++v) {
     const auto vs = static_cast<size_t>(v);
     if (ringStart[vs] < 0) {
@@ -138,6 +139,7 @@ SurfaceTopology::SurfaceTopology(const Triangles& faces, int vertexCount,
       ringNeighbors_.push_back(halfedgeHead(h));
       ringEdges_.push_back(halfedgeEdges_[static_cast<size_t>(h)]);
       ringFaces_.push_back(h / 3);
+      ringCorners_.push_back(static_cast<signed char>(h % 3));  // h leaves v: v = faces(h / 3, h % 3)
       ++facesSeen;
       const int p = prev(h);  // (k -> v) in the same face
       const int t = halfedgeTwins_[static_cast<size_t>(p)];
@@ -145,6 +147,7 @@ SurfaceTopology::SurfaceTopology(const Triangles& faces, int vertexCount,
         ringNeighbors_.push_back(halfedgeTail(p));
         ringEdges_.push_back(halfedgeEdges_[static_cast<size_t>(p)]);
         ringFaces_.push_back(-1);
+        ringCorners_.push_back(-1);
         break;
       }
       h = t;

@@ -15,10 +15,6 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kTwoPi = 2.0 * kPi;
 
-int cornerOf(const Triangles& faces, int f, int v) {
-  return faces(f, 0) == v ? 0 : (faces(f, 1) == v ? 1 : 2);
-}
-
 }  // namespace
 
 void fillRingTransports(const SurfaceTopology& topology, const Vector& edgeTransportAngles, int v, Complex* out) {
@@ -58,9 +54,9 @@ void geodesicPolarMap(const SurfaceTopology& topology, const Eigen::MatrixX3d& f
 
 void updateGeodesicPolarMap(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles,
                             const int* vertices, int count, PolarMap& map) {
-  const Triangles& faces = topology.faces();
   const std::vector<int>& offsets = topology.ringOffsets();
   const std::vector<int>& ringFaces = topology.ringFaces();
+  const std::vector<signed char>& ringCorners = topology.ringCorners();
   for (int n = 0; n < count; ++n) {
     const int v = vertices[n];
     const int begin = offsets[static_cast<size_t>(v)], end = offsets[static_cast<size_t>(v) + 1];
@@ -69,7 +65,7 @@ void updateGeodesicPolarMap(const SurfaceTopology& topology, const Eigen::Matrix
     for (int m = begin; m < end; ++m) {
       map.ringAngles(m) = cumulative;
       const int f = ringFaces[static_cast<size_t>(m)];
-      if (f >= 0) cumulative += faceCornerAngles(f, cornerOf(faces, f, v));
+      if (f >= 0) cumulative += faceCornerAngles(f, ringCorners[static_cast<size_t>(m)]);
     }
     const bool boundary = topology.vertexIsBoundary()[static_cast<size_t>(v)] != 0;
     const double scale = boundary ? 1.0 : kTwoPi / cumulative;
@@ -140,8 +136,8 @@ void faceTransportAngles(const SurfaceTopology& topology, const Eigen::MatrixX3d
 
 void updateFaceTransportAngles(const SurfaceTopology& topology, const Eigen::MatrixX3d& faceCornerAngles,
                                const PolarMap& polarMap, const int* vertices, int count, Eigen::MatrixX3d& phi) {
-  const Triangles& faces = topology.faces();
   const std::vector<int>& ringFaces = topology.ringFaces();
+  const std::vector<signed char>& ringCorners = topology.ringCorners();
   for (int n = 0; n < count; ++n) {
     const int v = vertices[n];
     const int begin = topology.ringOffsets()[static_cast<size_t>(v)];
@@ -152,7 +148,7 @@ void updateFaceTransportAngles(const SurfaceTopology& topology, const Eigen::Mat
       // neighbour m + 1 (= v_{k+2}), counter-clockwise.
       const int f = ringFaces[static_cast<size_t>(m)];
       if (f < 0) continue;
-      const int k = cornerOf(faces, f, v);
+      const int k = ringCorners[static_cast<size_t>(m)];
       const double corner = faceCornerAngles(f, k);
       double faceAngle = 0.0;  // angle of edge v_k -> v_{k+1} in the face frame
       if (k == 1) faceAngle = kPi - faceCornerAngles(f, 1);

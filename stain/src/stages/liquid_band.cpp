@@ -158,6 +158,7 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
   }
   const std::vector<int>& ringEdges = topology.ringEdges();
   const std::vector<int>& ringFaces = topology.ringFaces();
+  const std::vector<signed char>& ringCorners = topology.ringCorners();
   const Triangles& faces = topology.faces();
   const Eigen::MatrixX3i& faceEdges = topology.faceEdges();
   const bool haveLengths = intrinsic.edgeLengths.size() > 0;
@@ -179,7 +180,7 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
         shortest = std::min(shortest, intrinsic.edgeLengths[ringEdges[static_cast<size_t>(m)]]);
         const int f = ringFaces[static_cast<size_t>(m)];
         if (!haveAreas || f < 0) continue;
-        const int corner = faces(f, 0) == v ? 0 : faces(f, 1) == v ? 1 : 2;
+        const int corner = ringCorners[static_cast<size_t>(m)];
         const double opposite = intrinsic.edgeLengths[faceEdges(f, (corner + 1) % 3)];
         starRadius = std::min(starRadius, opposite > 0.0 ? 2.0 * intrinsic.faceAreas[f] / opposite : 0.0);
       }
@@ -234,7 +235,7 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
     for (int m = offsets[static_cast<size_t>(i)]; m < offsets[static_cast<size_t>(i) + 1]; ++m) {
       const int f = ringFaces[static_cast<size_t>(m)];
       if (f < 0) continue;
-      const int corner = faces(f, 0) == i ? 0 : faces(f, 1) == i ? 1 : 2;
+      const int corner = ringCorners[static_cast<size_t>(m)];
       const Vector3 pi = positions.row(i).transpose();
       const Vector3 pj = positions.row(faces(f, (corner + 1) % 3)).transpose();
       const Vector3 pk = positions.row(faces(f, (corner + 2) % 3)).transpose();

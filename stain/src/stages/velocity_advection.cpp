@@ -23,15 +23,12 @@ inline double cross(const Complex& a, const Complex& b) { return a.real() * b.im
 
 inline Complex unitFromAngle(double angle) { return {std::cos(angle), std::sin(angle)}; }
 
-inline int cornerOf(const Triangles& faces, int f, int v) {
-  return faces(f, 0) == v ? 0 : (faces(f, 1) == v ? 1 : 2);
-}
-
 struct Tables {
   const Triangles& faces;
   const std::vector<int>& offsets;
   const std::vector<int>& neighbors;
   const std::vector<int>& ringFaces;
+  const std::vector<signed char>& ringCorners;
   const std::vector<int>& twins;
   const std::vector<char>& isBoundary;
   const ComplexVector& ringPoints;
@@ -159,7 +156,7 @@ Walk backtrack(const Tables& t, const ComplexVector& u, int i, const Complex& d)
   // The ray leaves the ring through the far edge j_m -> j_m2 (half-edge of
   // ring face f after i's corner) at t = 1/s.
   const int f = t.ringFaces[static_cast<size_t>(m)];
-  const int farHalfedge = 3 * f + (cornerOf(t.faces, f, i) + 1) % 3;
+  const int farHalfedge = 3 * f + (t.ringCorners[static_cast<size_t>(m)] + 1) % 3;
   int h = t.twins[static_cast<size_t>(farHalfedge)];
   // Where the ray crosses the far edge: the fallback of a degenerate strip face.
   const Complex edgeValue = (l1 * u1 + l2 * u2) / s;
@@ -263,10 +260,10 @@ VelocityAdvectionReport advectVelocity(const StepContext& ctx, const SurfaceTopo
       scratch.ringRebuildCounts.size() != static_cast<size_t>(n)) {
     scratch.prepare(topology);
   }
-  const Tables tables{topology.faces(),      topology.ringOffsets(),   topology.ringNeighbors(),
-                      topology.ringFaces(),  topology.halfedgeTwins(), topology.vertexIsBoundary(),
-                      scratch.ringPoints,    scratch.ringTransports,   geometry,
-                      topology.faceEdges()};
+  const Tables tables{topology.faces(),       topology.ringOffsets(),   topology.ringNeighbors(),
+                      topology.ringFaces(),   topology.ringCorners(),   topology.halfedgeTwins(),
+                      topology.vertexIsBoundary(), scratch.ringPoints, scratch.ringTransports,
+                      geometry,               topology.faceEdges()};
   const int rebuildCount = geometry.rebuildCount;
   const ComplexVector& u = state.velocities;
   ComplexVector& advected = scratch.advected;

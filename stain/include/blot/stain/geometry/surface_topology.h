@@ -56,6 +56,10 @@ class SurfaceTopology {
   /// Per ring entry m: the face between neighbour m and neighbour m+1
   /// (wrapping for interior vertices); -1 at a boundary vertex's last entry.
   const std::vector<int>& ringFaces() const { return ringFaces_; }
+  /// Per ring entry m of vertex i: the corner k of ringFaces()[m] at i
+  /// (faces(f, k) == i), −1 where the ring face is −1. What a search of the
+  /// face's three vertices would find, without the search.
+  const std::vector<signed char>& ringCorners() const { return ringCorners_; }
   int ringSize(int i) const { return ringOffsets_[i + 1] - ringOffsets_[i]; }
 
   const std::vector<char>& vertexIsBoundary() const { return vertexIsBoundary_; }
@@ -69,6 +73,7 @@ class SurfaceTopology {
   Eigen::MatrixX3i faceEdges_;
   std::vector<int> halfedgeEdges_, halfedgeTwins_, edgeHalfedges_;
   std::vector<int> ringOffsets_, ringNeighbors_, ringEdges_, ringFaces_;
+  std::vector<signed char> ringCorners_;
   std::vector<char> vertexIsBoundary_;
   std::vector<std::vector<int>> boundaryLoops_;
 };
