@@ -170,31 +170,6 @@ bool badVertex(const StainState& s, int i, double floor) {
   return !std::isfinite(s.velocities[i].real()) || !std::isfinite(s.velocities[i].imag());
 }
 
-/// First vertex holding a NaN or an infinity in any field, or -1; `value`
-/// then names the first such field and its value ("solvent = nan").
-int firstNonFiniteVertex(const StainState& s, std::string& value) {
-  const auto fields = densityFields(s);
-  const auto named = [&value](const char* name, double v) {
-    std::ostringstream text;
-    text << name << " = " << v;
-    value = text.str();
-  };
-  for (int i = 0; i < s.vertexCount(); ++i) {
-    for (const auto& [name, field] : fields)
-      if (!std::isfinite((*field)[i])) {
-        named(name, (*field)[i]);
-        return i;
-      }
-    const Complex u = s.velocities[i];
-    if (!std::isfinite(u.real()) || !std::isfinite(u.imag())) {
-      named(std::isfinite(u.real()) ? "velocity (imaginary part)" : "velocity (real part)",
-            std::isfinite(u.real()) ? u.imag() : u.real());
-      return i;
-    }
-  }
-  return -1;
-}
-
 /// First vertex with a non-finite or negative (below −tol·max) density, or -1.
 int firstBadVertex(const StainState& s, double relativeTolerance) {
   const FieldScan scan = scanFields<false>(s, nullptr, s.vertexCount());
@@ -203,6 +178,21 @@ int firstBadVertex(const StainState& s, double relativeTolerance) {
   for (int i = 0; i < s.vertexCount(); ++i)
     if (badVertex(s, i, floor)) return i;
   return -1;
+}
+
+/// The first field of vertex i that is non-finite or below `floor`, as
+/// "solvent = -1" (empty when none is).
+std::string badValueAt(const StainState& s, int i, double floor) {
+  std::ostringstream text;
+  for (const auto& [name, field] : densityFields(s))
+    if (!std::isfinite((*field)[i]) || (*field)[i] < floor) {
+      text << name << " = " << (*field)[i];
+      return text.str();
+    }
+  const Complex u = s.velocities[i];
+  if (!std::isfinite(u.real())) text << "velocity (real part) = " << u.real();
+  else if (!std::isfinite(u.imag())) text << "velocity (imaginary part) = " << u.imag();
+  return text.str();
 }
 
 /// firstBadVertex over `vertices` only (the ones a step changed): the
@@ -496,18 +486,11 @@ bool StainSolver::runStage(Stage stage, bool active, StepReport& report, Work&& 
       restoreBackup();
       report.status = StepStatus::SolverFailure;
       report.stage = stage;
-      report.message = toString(status);
-      // A solve that met a NaN or an infinity: the vertex that holds one in
-      // the state the step started from (put in from outside, e.g. through
-      // mutableState, where no earlier check of this step looked), if any.
-      if (status == SolverStatus::NonFinite) {
-        std::string value;
-        report.vertex = firstNonFiniteVertex(state_, value);
-        if (report.vertex >= 0)
-          report.message += ": stage '" + std::string(stageName(stage)) + "' of step " + std::to_string(steps_ + 1) +
-                            " met a non-finite value; vertex " + std::to_string(report.vertex) + " holds " + value +
-                            " in the state the step started from; state restored";
-      }
+      // The state the step started from was valid (validated whole after a
+      // write from outside, by the step's checks otherwise): the solve met
+      // something this step made, and the restored state holds nothing to name.
+      report.message = "stage '" + std::string(stageName(stage)) + "' of step " + std::to_string(steps_ + 1) + ": " +
+                       toString(status) + "; state restored";
       return false;
     }
   } else {
@@ -696,6 +679,38 @@ PhysicsSwitches StainSolver::activeTerms(bool surfaceMoved, bool anyLiquid) cons
   return active;
 }
 
+bool StainSolver::validStateWrittenOutside(StepReport& report) {
+  const auto refuse = [&](StepStatus status, int vertex, const std::string& what) {
+    report.status = status;
+    report.vertex = vertex;
+    report.message = what + ", written outside a step (mutableState or restore); expected finite densities >= 0, "
+                     "finite velocities and finite totals >= 0: step " + std::to_string(steps_ + 1) +
+                     " not taken, nothing changed";
+    return false;
+  };
+  const std::pair<const char*, double> totals[] = {{"evaporatedSolvent", state_.evaporatedSolvent},
+                                                   {"addedSolvent", state_.addedSolvent},
+                                                   {"addedSolute", state_.addedSolute}};
+  for (const auto& [name, value] : totals)
+    if (!(std::isfinite(value) && value >= 0)) {
+      std::ostringstream text;
+      text << name << " = " << value;
+      return refuse(std::isfinite(value) ? StepStatus::NegativeMass : StepStatus::NonFinite, -1, text.str());
+    }
+  const int bad = firstBadVertex(state_, kNegativeDensityTolerance);
+  if (bad < 0) {
+    // Every vertex passed: from here on the step's own checks (the band
+    // after each stage, the vertices it changed at the end) cover the state.
+    validateAll_ = false;
+    return true;
+  }
+  const FieldScan scan = scanFields<false>(state_, nullptr, state_.vertexCount());
+  const bool finite = !badVertex(state_, bad, -std::numeric_limits<double>::infinity());
+  return refuse(finite ? StepStatus::NegativeMass : StepStatus::NonFinite, bad,
+                "vertex " + std::to_string(bad) + " holds " +
+                    badValueAt(state_, bad, scan.floor(kNegativeDensityTolerance)));
+}
+
 StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositions, const Matrix3* rigidRotation) {
   StepReport report;
   report.stage = Stage::Guard;
@@ -718,6 +733,7 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
     report.message = "stepRigid: rotation must be a rotation matrix";
     return report;
   }
+  if (validateAll_ && !validStateWrittenOutside(report)) return report;
   // A probe of the threads needs idle cores to measure anything but waiting
   // (ThreadChoice, "skipProbe").
   if (def_.adaptiveThreads && threadChoice_.laterProbeStarting() &&
@@ -1059,10 +1075,8 @@ StepReport StainSolver::finishStep() {
   StepReport report;
   inStep_ = false;
   // The vertices this step changed: the others hold values that passed an
-  // earlier validation, unless written from outside (mutableState, drops,
-  // restore), which makes this validation (and each later one until it
-  // passes) scan every vertex: a bad value put in through mutableState is
-  // reported the same way even when nothing ran. Restored only if changed.
+  // earlier validation (a write from outside is validated whole before the
+  // step runs: validStateWrittenOutside). Restored only if changed.
   const bool everyVertex = validateAll_ || backup_.all();
   const int bad = everyVertex ? firstBadVertex(state_, kNegativeDensityTolerance)
                               : firstBadVertexAmong(state_, backup_.vertices(), kNegativeDensityTolerance);

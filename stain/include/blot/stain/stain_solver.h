@@ -312,6 +312,13 @@ class StainSolver {
   /// and negative densities. Fills `report` and restores the state when one
   /// is bad; returns false then.
   bool checkStage(Stage stage, StepReport& report);
+  /// At the start of a step after a write from outside (validateAll_): true
+  /// when every vertex and total is valid (validateAll_ then cleared); false
+  /// with `report` naming the vertex or total, its value and what was
+  /// expected, nothing run. A bad value at a held region's vertex would be
+  /// topped up by Sources before any later check (a density of −1 counted
+  /// as added mass, −inf as infinite added mass).
+  bool validStateWrittenOutside(StepReport& report);
   /// The band is small enough for the stages to visit its list (vertex_visits.h).
   bool smallBand() const;
   /// The vertices the interaction visits (interaction.h's `among`), or null
