@@ -388,6 +388,46 @@ TEST(DiffusionSystems, PreparedPatternsLetTheFirstAssemblyAllocateNothing) {
   EXPECT_EQ(prepared.scalarSolver().analysisCount(), 1);
 }
 
+// The direct solves of DiffusionSystems' public API: the factor is made at
+// the first solve after assemble() and only then (lazily, once), a solve of
+// (M + h L) x = b satisfies it to round-off, and the in-place pair solve the
+// diffusion stage uses gives each right-hand side bitwise what solveScalar
+// gives it alone.
+TEST(DiffusionSystems, DirectSolvesFactorizeOnceLazilyAndAgreeBitwise) {
+  const int n = 12;
+  const LiquidMesh g(gridMesh(n, n, 1, 1), isotropicFabric(2 * n * n));
+  const double h = 0.01;
+  DiffusionSystems systems;
+  ASSERT_EQ(systems.assemble(g.intrinsic, h), SolverStatus::Ok);
+  EXPECT_EQ(systems.factorizationCount(), 0) << "assemble factorizes nothing";
+  Vector b1(g.vertexCount()), b2(g.vertexCount());
+  for (int i = 0; i < g.vertexCount(); ++i) {
+    b1[i] = std::sin(0.37 * i) + 1.5;
+    b2[i] = std::cos(0.11 * i * i);
+  }
+  Vector x1, x2;
+  ASSERT_EQ(systems.solveScalar(b1, x1), SolverStatus::Ok);
+  EXPECT_EQ(systems.factorizationCount(), 1) << "the scalar factor only";
+  ASSERT_EQ(systems.solveScalar(b2, x2), SolverStatus::Ok);
+  EXPECT_EQ(systems.factorizationCount(), 1) << "a second solve reuses the factor";
+  const SparseMatrix& A = systems.scalarSystem();
+  EXPECT_LE((A * x1 - b1).norm(), 1e-12 * b1.norm());
+  EXPECT_LE((A * x2 - b2).norm(), 1e-12 * b2.norm());
+  Vector a = b1, b = b2;
+  ASSERT_EQ(systems.solveScalarInPlace(a, &b), SolverStatus::Ok);
+  EXPECT_TRUE((a.array() == x1.array()).all());
+  EXPECT_TRUE((b.array() == x2.array()).all());
+  Vector alone = b2;
+  ASSERT_EQ(systems.solveScalarInPlace(alone), SolverStatus::Ok);
+  EXPECT_TRUE((alone.array() == x2.array()).all());
+  // New values (another h): the next solve factorizes again, once.
+  ASSERT_EQ(systems.assemble(g.intrinsic, 2 * h), SolverStatus::Ok);
+  ASSERT_EQ(systems.solveScalar(b1, x1), SolverStatus::Ok);
+  ASSERT_EQ(systems.solveScalar(b2, x2), SolverStatus::Ok);
+  EXPECT_EQ(systems.factorizationCount(), 2);
+  EXPECT_LE((systems.scalarSystem() * x1 - b1).norm(), 1e-12 * b1.norm());
+}
+
 TEST(DiffusionSystems, RefactorizationReusesTheScalarAnalysisForBothSystems) {
   const int n = 10;
   const LiquidMesh g(gridMesh(n, n, 1, 1), isotropicFabric(2 * n * n));
