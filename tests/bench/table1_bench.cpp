@@ -204,11 +204,24 @@ void measureInChild(benchmark::State& state, SceneId id, int steps) {
 }
 
 // Args: scene id, warm-up steps before timing (the drop lands, the first step
-// factorizes, a dropped cloth reaches the table). Real time per iteration is
-// the coupled internal step (manual time); counters are ms per step.
+// factorizes, a dropped cloth reaches the table), and the step a second,
+// longer window ends at. Real time per iteration is the coupled internal
+// step (manual time); counters are ms per step.
+//
+// Design note: two windows. The timed iterations (100 steps on the Bullet
+// rows, from step 30) start when the liquid has just landed: the splash's
+// wide band, and on the two-way flag the glass's impact, which strains the
+// cloth past the tolerance 0.8 times a step in steps 30-60 and not once
+// after step 90. The paper's Table 1 gives the cost of "the entire process
+// of the formation of the stain" (its sec. 6). So the same engine then steps
+// on to step `through` (300: 3 s of every scene) untimed by the benchmark
+// and the "_through" counters give the stain's mean over steps warmup..through
+// from the engine's own phase totals: the whole stain formation of the
+// scene's first 3 s after the warm-up, beside the window at the impact.
 void BM_Table1(benchmark::State& state) {
   const auto id = static_cast<SceneId>(state.range(0));
   const int warmup = static_cast<int>(state.range(1));
+  const int through = static_cast<int>(state.range(2));
   state.SetLabel(kSceneNames[id]);
   const EngineDef def = makeDef(id);
   const auto loadStart = Clock::now();
@@ -300,29 +313,52 @@ void BM_Table1(benchmark::State& state) {
   state.counters["faces"] = static_cast<double>(engine.faces().rows());
   state.counters["load_ms_inproc"] = loadMs;
   state.counters["healthy"] = engine.surface().motion().isHealthy() && bare.isHealthy() ? 1 : 0;
+  // The longer window (design note above): on from the timed steps to `through`.
+  long throughRefreshes = refreshes;
+  while (engine.statistics().steps < through) {
+    const stain::StepReport report = engine.advanceSteps(1);
+    if (report.status != stain::StepStatus::Ok) {
+      state.SkipWithError(("step failed in stage " + std::string(report.stageName()) + ": " + report.message).c_str());
+      return;
+    }
+    throughRefreshes += engine.surface().stain().profile().intrinsicRefreshes;
+  }
+  const EngineStatistics end = engine.statistics();
+  const double m = static_cast<double>(end.steps - before.steps);
+  if (through > 0 && m > 0) {
+    const double stainThrough = (end.totals.stain - b.stain) / m;
+    state.counters["through_step"] = static_cast<double>(end.steps);
+    state.counters["stain_through"] = stainThrough;
+    state.counters["geometry_through"] = (end.totals.stage(Stage::Geometry) - b.stage(Stage::Geometry)) / m;
+    state.counters["band_through"] = (end.totals.stage(Stage::LiquidBand) - b.stage(Stage::LiquidBand)) / m;
+    state.counters["refreshes_per_step_through"] = static_cast<double>(throughRefreshes) / m;
+    if (kPaperStainMs[id] > 0) state.counters["paper_over_stain_through"] = kPaperStainMs[id] / stainThrough;
+  }
 }
 
 // Warm-up steps: 30 (0.3 s: the tablecloth lands, the flag settles); timed
-// iterations sized so that a run stays within a few seconds per row.
+// iterations sized so that a run stays within a few seconds per row; the
+// longer window to step 300 (3 s at h = 0.01 s, every row's step).
+constexpr int kThrough = 300;
 BENCHMARK(BM_Table1)
-    ->ArgNames({"scene", "warmup"})
-    ->Args({Tablecloth, 30})
-    ->Args({Flag, 30})
-    ->Args({FlagTwoWay, 30})
+    ->ArgNames({"scene", "warmup", "through"})
+    ->Args({Tablecloth, 30, kThrough})
+    ->Args({Flag, 30, kThrough})
+    ->Args({FlagTwoWay, 30, kThrough})
     ->Iterations(100)
     ->UseManualTime()
     ->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Table1)
-    ->ArgNames({"scene", "warmup"})
-    ->Args({RotatingCloth, 20})
+    ->ArgNames({"scene", "warmup", "through"})
+    ->Args({RotatingCloth, 20, kThrough})
     ->Iterations(40)
     ->UseManualTime()
     ->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Table1)
-    ->ArgNames({"scene", "warmup"})
-    ->Args({Bunny, 10})
-    ->Args({BunnyAddedFluid, 10})
-    ->Args({BunnyMultiTensors, 10})
+    ->ArgNames({"scene", "warmup", "through"})
+    ->Args({Bunny, 10, kThrough})
+    ->Args({BunnyAddedFluid, 10, kThrough})
+    ->Args({BunnyMultiTensors, 10, kThrough})
     ->Iterations(15)
     ->UseManualTime()
     ->Unit(benchmark::kMillisecond);
