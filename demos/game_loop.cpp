@@ -46,7 +46,7 @@ bool parse(int argc, char** argv, Options& o) {
     else {
       std::fprintf(stderr,
                    "usage: %s [--scene SCENE.json] [--seconds S] [--rate HZ] [--drop-interval S] [--seed N]\n"
-                   "          [--frames-csv FILE]  (one row per frame: times, stain stages, rebuilds, drops, threads of its last step)\n", argv[0]);
+                   "          [--frames-csv FILE]  (one row per frame: times, stain stages, rebuilds, drops; threads, wet and band vertices, band and reach rings, advection sub-steps of its last step)\n", argv[0]);
       return false;
     }
   }
@@ -90,7 +90,8 @@ int main(int argc, char** argv) {
   csv << "frame,step_ms,cloth_ms,stain_ms,coupling_ms";
   for (int k = static_cast<int>(blot::stain::kFirstStainStage); k <= static_cast<int>(blot::stain::kLastStainStage); ++k)
     csv << "," << blot::stain::stageName(static_cast<blot::stain::Stage>(k)) << "_ms";
-  csv << ",internal_steps,metric_rebuilds,drops,threads\n";
+  csv << ",internal_steps,metric_rebuilds,drops,threads,wet_vertices,band_vertices,band_rings,reach_rings,"
+         "advection_substeps\n";
   csv.precision(6);
   blot::engine::PhaseTotals before = engine->statistics().totals;
   std::int64_t stepsBefore = engine->statistics().steps;
@@ -134,7 +135,9 @@ int main(int argc, char** argv) {
            ++k)
         csv << "," << after.stageMilliseconds[static_cast<size_t>(k)] - before.stageMilliseconds[static_cast<size_t>(k)];
       csv << "," << stats.steps - stepsBefore << "," << stats.intrinsicRefreshes - rebuildsBefore << "," << frameDrops
-          << "," << stats.lastProfile.threads << "\n";
+          << "," << stats.lastProfile.threads << "," << stats.lastProfile.wetVertices << ","
+          << stats.lastProfile.bandVertices << "," << stats.lastProfile.bandRings << ","
+          << stats.lastProfile.reachRings << "," << stats.lastProfile.advectionSubsteps << "\n";
       stepsBefore = stats.steps;
       rebuildsBefore = stats.intrinsicRefreshes;
     }
