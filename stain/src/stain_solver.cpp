@@ -697,18 +697,19 @@ bool StainSolver::validStateWrittenOutside(StepReport& report) {
       text << name << " = " << value;
       return refuse(std::isfinite(value) ? StepStatus::NegativeMass : StepStatus::NonFinite, -1, text.str());
     }
-  const int bad = firstBadVertex(state_, kNegativeDensityTolerance);
-  if (bad < 0) {
+  const FieldScan scan = scanFields<false>(state_, nullptr, state_.vertexCount());
+  const double floor = scan.floor(kNegativeDensityTolerance);
+  if (scan.passes(floor)) {
     // Every vertex passed: from here on the step's own checks (the band
     // after each stage, the vertices it changed at the end) cover the state.
     validateAll_ = false;
     return true;
   }
-  const FieldScan scan = scanFields<false>(state_, nullptr, state_.vertexCount());
+  int bad = 0;
+  while (!badVertex(state_, bad, floor)) ++bad;  // one exists: the scan did not pass
   const bool finite = !badVertex(state_, bad, -std::numeric_limits<double>::infinity());
   return refuse(finite ? StepStatus::NegativeMass : StepStatus::NonFinite, bad,
-                "vertex " + std::to_string(bad) + " holds " +
-                    badValueAt(state_, bad, scan.floor(kNegativeDensityTolerance)));
+                "vertex " + std::to_string(bad) + " holds " + badValueAt(state_, bad, floor));
 }
 
 StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositions, const Matrix3* rigidRotation) {
@@ -1077,7 +1078,7 @@ StepReport StainSolver::finishStep() {
   // The vertices this step changed: the others hold values that passed an
   // earlier validation (a write from outside is validated whole before the
   // step runs: validStateWrittenOutside). Restored only if changed.
-  const bool everyVertex = validateAll_ || backup_.all();
+  const bool everyVertex = backup_.all();  // validateAll_ is false here: refreshGeometry cleared it
   const int bad = everyVertex ? firstBadVertex(state_, kNegativeDensityTolerance)
                               : firstBadVertexAmong(state_, backup_.vertices(), kNegativeDensityTolerance);
   if (bad >= 0) {
@@ -1089,7 +1090,6 @@ StepReport StainSolver::finishStep() {
                      std::to_string(steps_ + 1) + "; state restored";
     return report;
   }
-  if (everyVertex) validateAll_ = false;
   time_ += ctx_.h;
   ++steps_;
   undoable_ = true;
