@@ -7,7 +7,6 @@
 
 #include <blot/engine/engine.h>
 
-#include <cstdint>
 #include <functional>
 #include <vector>
 
