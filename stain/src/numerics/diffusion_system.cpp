@@ -134,9 +134,6 @@ double maxFromZero(const Vector& v) {
   return m;
 }
 
-
-
-
 }  // namespace
 
 DiffusionSystems::DiffusionSystems() = default;
