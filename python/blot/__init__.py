@@ -15,6 +15,7 @@ return copies.
 blot.sweep(...) (blot.sweeps) runs parameter sweeps (docs/sweeps.md).
 """
 import json as _json
+import math as _math
 
 from ._blot import (AUTO_SUBDIVISIONS, Engine, MeshError, PatternError, SceneError, StepError,  # noqa: F401
                     homogenize, load_mesh, scene_mesh_order)
@@ -23,9 +24,37 @@ __all__ = ["Engine", "SceneError", "MeshError", "StepError", "PatternError", "lo
            "homogenize", "AUTO_SUBDIVISIONS", "sweep"]
 
 
+def _non_finite_key(value, path):
+    """(key path such as a.b[2], the number) of the first NaN or infinity in value, or None."""
+    if isinstance(value, float) and not _math.isfinite(value):
+        return path, value
+    if isinstance(value, dict):
+        for key, item in value.items():
+            found = _non_finite_key(item, f"{path}.{key}" if path else str(key))
+            if found is not None:
+                return found
+    elif isinstance(value, (list, tuple)):
+        for index, item in enumerate(value):
+            found = _non_finite_key(item, f"{path}[{index}]")
+            if found is not None:
+                return found
+    return None
+
+
 def _from_dict(scene, base_directory=".", source_name="<dict>", patch_resolution=0):
-    """An engine from a scene as a Python dict (the JSON of docs/scene-format.md)."""
-    return Engine.from_scene_json(_json.dumps(scene), base_directory=base_directory, source_name=source_name,
+    """An engine from a scene as a Python dict (the JSON of docs/scene-format.md).
+
+    A NaN or infinity raises SceneError naming its key: JSON has no such numbers.
+    """
+    try:
+        text = _json.dumps(scene, allow_nan=False)
+    except ValueError:
+        found = _non_finite_key(scene, "")
+        if found is None:
+            raise
+        key, bad = found
+        raise SceneError(f"{source_name}: {key}: expected a finite number, got {bad}") from None
+    return Engine.from_scene_json(text, base_directory=base_directory, source_name=source_name,
                                   patch_resolution=patch_resolution)
 
 

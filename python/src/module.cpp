@@ -131,18 +131,160 @@ py::dict statisticsDict(const blot::engine::EngineStatistics& s) {
   return d;
 }
 
+/// The Python Engine: a blot::Engine and what the bindings keep per engine.
+/// A step runs with the GIL released, so another Python thread could call
+/// into the same engine meanwhile; `stepping` (read and written with the GIL
+/// held) turns that into a RuntimeError instead of a data race. The `*Viewed`
+/// flags say which derived buffers (computed on request, engine.h) have been
+/// handed out as views: they are refreshed after every step, so a view taken
+/// before a step shows the state after it, as the views of the state do.
+struct PyEngine {
+  std::unique_ptr<Engine> engine;
+  bool stepping = false;
+  bool normalsViewed = false, velocitiesViewed = false, worldVelocitiesViewed = false, colorsViewed = false;
+};
+
+/// The engine, for a call named `what`, if no step of it is running on
+/// another thread.
+Engine& idle(PyEngine& w, const char* what) {
+  if (w.stepping)
+    throw std::runtime_error(std::string("Engine.") + what +
+                             ": this engine is stepping on another thread (a step releases the GIL); one engine is "
+                             "used by one thread at a time: wait for that step to return, or give each thread its "
+                             "own Engine");
+  return *w.engine;
+}
+
+/// Marks the engine as stepping from construction to destruction; both run
+/// with the GIL held (declare it before the gil_scoped_release).
+class SteppingGuard {
+ public:
+  explicit SteppingGuard(PyEngine& w) : w_(w) { w_.stepping = true; }
+  ~SteppingGuard() { w_.stepping = false; }
+  SteppingGuard(const SteppingGuard&) = delete;
+  SteppingGuard& operator=(const SteppingGuard&) = delete;
+
+ private:
+  PyEngine& w_;
+};
+
+/// Recomputes the derived buffers that views were taken of (in place).
+void refreshViewed(PyEngine& w) {
+  const Engine& e = *w.engine;
+  if (w.normalsViewed) e.normals();
+  if (w.velocitiesViewed) e.liquidVelocities();
+  if (w.worldVelocitiesViewed) e.liquidWorldVelocities();
+  if (w.colorsViewed) e.colors();
+}
+
+/// Runs `count` steps (or one step(frameDt)) of the engine with the GIL released.
+template <class Call>
+void stepUnlocked(PyEngine& w, const char* what, Call call) {
+  Engine& e = idle(w, what);
+  blot::stain::StepReport r;
+  {
+    SteppingGuard guard(w);
+    py::gil_scoped_release release;
+    r = call(e);
+  }
+  refreshViewed(w);
+  if (!r.ok()) throw StepFailure(r);
+}
+
+std::unique_ptr<PyEngine> runUnlocked(const std::function<std::unique_ptr<Engine>()>& build) {
+  auto w = std::make_unique<PyEngine>();
+  {
+    py::gil_scoped_release release;
+    w->engine = build();
+  }
+  return w;
+}
+
+/// The Python type's name of `o`, for messages.
+std::string typeName(py::handle o) { return py::str(py::type::handle_of(o).attr("__name__")); }
+
+/// Three numbers (a list, tuple or numpy array) as a vector, or a TypeError /
+/// ValueError naming the argument `what`.
+Eigen::Vector3d vector3(py::handle o, const std::string& what) {
+  // numpy would make None a 0-d NaN array.
+  if (o.is_none()) throw py::type_error(what + ": expected 3 numbers (x, y, z), got None");
+  auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(o);
+  if (!a) {
+    PyErr_Clear();
+    throw py::type_error(what + ": expected 3 numbers (x, y, z), got " + typeName(o));
+  }
+  if (a.ndim() != 1 || a.shape(0) != 3) {
+    std::string shape;
+    for (py::ssize_t d = 0; d < a.ndim(); ++d) shape += (d ? ", " : "") + std::to_string(a.shape(d));
+    throw py::value_error(what + ": expected 3 numbers (x, y, z), got an array of shape (" + shape +
+                          (a.ndim() == 1 ? ",)" : ")"));
+  }
+  return {a.at(0), a.at(1), a.at(2)};
+}
+
+/// A vertex index (a Python or numpy integer) in [0, count), or a TypeError /
+/// ValueError naming the argument `what`.
+int vertexIndex(py::handle o, const std::string& what, int count) {
+  if (!PyIndex_Check(o.ptr()))
+    throw py::type_error(what + ": expected an integer vertex index, got " + typeName(o) + " " +
+                         std::string(py::repr(o)));
+  const py::int_ value = py::reinterpret_steal<py::int_>(PyNumber_Index(o.ptr()));
+  if (!value) throw py::error_already_set();
+  if (value < py::int_(0) || value >= py::int_(count))
+    throw py::value_error(what + ": vertex index " + std::string(py::repr(value)) + " out of range [0, " +
+                          std::to_string(count) + ")");
+  return value.cast<int>();
+}
+
+/// #F x 3 vertex indices as int, refusing what a cast would change: non-integer
+/// arrays (0.9 would become 0) and indices past int's range (2^32 would wrap
+/// to 0); out-of-range ones get validateMesh's message.
+Eigen::MatrixX3i faceIndices(py::handle o, int vertexCount) {
+  const py::array given = py::array::ensure(o);
+  if (!given) {
+    PyErr_Clear();
+    throw py::type_error("from_mesh: faces: expected #F x 3 integer vertex indices, got " + typeName(o));
+  }
+  const char kind = given.dtype().kind();
+  if (given.size() != 0 && kind != 'i' && kind != 'u')
+    throw py::type_error("from_mesh: faces: expected integer vertex indices, got an array of " +
+                         std::string(py::str(given.dtype())));
+  const auto a = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(given);
+  if (!a) throw py::error_already_set();
+  if (a.ndim() != 2 || a.shape(1) != 3) {
+    std::string shape;
+    for (py::ssize_t d = 0; d < a.ndim(); ++d) shape += (d ? ", " : "") + std::to_string(a.shape(d));
+    throw py::value_error("from_mesh: faces: expected #F x 3 vertex indices, got an array of shape (" + shape +
+                          (a.ndim() == 1 ? ",)" : ")"));
+  }
+  Eigen::MatrixX3i faces(a.shape(0), 3);
+  const auto r = a.unchecked<2>();
+  for (py::ssize_t f = 0; f < r.shape(0); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const std::int64_t index = r(f, k);
+      if (index < 0 || index >= vertexCount)
+        throw blot::stain::MeshError("from_mesh: face " + std::to_string(f) + ": vertex index " +
+                                     std::to_string(index) + " out of range [0, " + std::to_string(vertexCount - 1) +
+                                     "]");
+      faces(f, k) = static_cast<int>(index);
+    }
+  }
+  return faces;
+}
+
 blot::stain::DropDef dropDef(py::object vertex, py::object point, double radius, double solventMass,
-                             double soluteMass, py::object velocity, double splashSpeed, std::uint64_t splashSeed) {
+                             double soluteMass, py::object velocity, double splashSpeed, std::uint64_t splashSeed,
+                             int vertexCount) {
   blot::stain::DropDef d;
   if (!vertex.is_none() == !point.is_none())
     throw std::invalid_argument("add_drop: give exactly one of vertex= or point=");
-  if (!vertex.is_none()) d.centerVertex = vertex.cast<int>();
-  if (!point.is_none()) d.centerPoint = point.cast<Eigen::Vector3d>();
+  if (!vertex.is_none()) d.centerVertex = vertexIndex(vertex, "add_drop: vertex", vertexCount);
+  if (!point.is_none()) d.centerPoint = vector3(point, "add_drop: point");
   d.radius = radius;
   d.solventMass = solventMass;
   d.soluteMass = soluteMass;
   if (!velocity.is_none()) {
-    d.velocity = velocity.cast<Eigen::Vector3d>();
+    d.velocity = vector3(velocity, "add_drop: velocity");
   } else {
     d.velocityIsWorld = false;  // lands and moves with the cloth, as a scene drop without "velocity"
   }
@@ -156,11 +298,6 @@ blot::stain::TriangleMesh meshFromArrays(const Eigen::MatrixX3d& vertices, const
   mesh.vertexPositions = vertices;
   mesh.faces = faces;
   return mesh;
-}
-
-std::unique_ptr<Engine> runUnlocked(const std::function<std::unique_ptr<Engine>()>& build) {
-  py::gil_scoped_release release;
-  return build();
 }
 
 }  // namespace
@@ -189,14 +326,23 @@ PYBIND11_MODULE(_blot, m) {
     }
   });
 
-  py::class_<Engine, std::unique_ptr<Engine>> engine(m, "Engine", R"doc(
+  py::class_<PyEngine, std::unique_ptr<PyEngine>> engine(m, "Engine", R"doc(
 A stain simulation on one moving surface (blot::Engine).
 
 Build it with Engine.from_scene_file, Engine.from_scene_json (a dict is
 turned into JSON by blot.Engine.from_dict) or Engine.from_mesh. Array
 properties are read-only numpy views of the engine's buffers (no copy) that
-keep the engine alive; read them again after a step (docs: python/README.md).
+keep the engine alive and show the state after each step (docs:
+python/README.md). One engine is used by one thread at a time: a call while
+a step of it runs on another thread raises RuntimeError.
 )doc");
+  // A view of an engine buffer, `self` (the Python Engine) its base.
+  const auto view = [](auto read, const char* name) {
+    return [read, name](py::object self) {
+      PyEngine& w = self.cast<PyEngine&>();
+      return readOnlyView(read(w, idle(w, name)), self);
+    };
+  };
   engine
       .def_static(
           "from_scene_file",
@@ -226,119 +372,130 @@ keep the engine alive; read them again after a step (docs: python/README.md).
           "The same from scene JSON text; relative paths resolve against base_directory.")
       .def_static(
           "from_mesh",
-          [](const Eigen::MatrixX3d& vertices, const Eigen::MatrixX3i& faces, double timeStep, double diffusivity,
-             double viscosity, const Eigen::Vector3d& gravity, py::object angularVelocity, py::object pivot,
+          [](const Eigen::MatrixX3d& vertices, py::object faces, double timeStep, double diffusivity,
+             double viscosity, py::object gravity, py::object angularVelocity, py::object pivot,
              py::object linearVelocity, double strainTolerance, int threads) {
             EngineDef def;
-            def.mesh = meshFromArrays(vertices, faces);
+            def.mesh = meshFromArrays(vertices, faceIndices(faces, static_cast<int>(vertices.rows())));
             blot::stain::validateMesh(def.mesh, "from_mesh");
             def.timeStep = timeStep;
             def.diffusivity = diffusivity;
             def.viscosity = viscosity;
-            def.stain.gravity = gravity;
+            def.stain.gravity = vector3(gravity, "from_mesh: gravity");
             def.stain.strainTolerance = strainTolerance;
             def.stain.threads = threads;
             if (!angularVelocity.is_none() || !linearVelocity.is_none()) {
               def.source = blot::engine::MotionSource::Rigid;
-              if (!angularVelocity.is_none()) def.rigid.angularVelocity = angularVelocity.cast<Eigen::Vector3d>();
-              if (!pivot.is_none()) def.rigid.pivot = pivot.cast<Eigen::Vector3d>();
-              if (!linearVelocity.is_none()) def.rigid.linearVelocity = linearVelocity.cast<Eigen::Vector3d>();
+              if (!angularVelocity.is_none())
+                def.rigid.angularVelocity = vector3(angularVelocity, "from_mesh: angular_velocity");
+              if (!pivot.is_none()) def.rigid.pivot = vector3(pivot, "from_mesh: pivot");
+              if (!linearVelocity.is_none())
+                def.rigid.linearVelocity = vector3(linearVelocity, "from_mesh: linear_velocity");
             }
             return runUnlocked([&] { return std::make_unique<Engine>(def); });
           },
           py::arg("vertices"), py::arg("faces"), py::kw_only(), py::arg("time_step") = 1.0 / 120.0,
           py::arg("diffusivity") = 0.01, py::arg("viscosity") = 2e-3,
-          py::arg("gravity") = Eigen::Vector3d(0, 0, -9.8), py::arg("angular_velocity") = py::none(),
+          py::arg("gravity") = py::make_tuple(0.0, 0.0, -9.8), py::arg("angular_velocity") = py::none(),
           py::arg("pivot") = py::none(), py::arg("linear_velocity") = py::none(),
           py::arg("strain_tolerance") = 1e-3, py::arg("threads") = 0,
-          "An engine on your own mesh (vertices #V x 3 in m, faces #F x 3), isotropic fabric, no files: a static "
-          "surface, or a rigid motion when angular_velocity or linear_velocity is given. For Bullet cloth, fabric "
-          "patterns and every other key use a scene (from_dict / from_scene_json).")
+          "An engine on your own mesh (vertices #V x 3 in m, faces #F x 3 integer indices), isotropic fabric, no "
+          "files: a static surface, or a rigid motion when angular_velocity or linear_velocity is given. For Bullet "
+          "cloth, fabric patterns and every other key use a scene (from_dict / from_scene_json).")
       .def(
           "step",
-          [](Engine& e, double frameDt) {
-            blot::stain::StepReport r;
-            {
-              py::gil_scoped_release release;
-              r = e.step(frameDt);
-            }
-            if (!r.ok()) throw StepFailure(r);
+          [](PyEngine& w, double frameDt) {
+            stepUnlocked(w, "step", [frameDt](Engine& e) { return e.step(frameDt); });
           },
           py::arg("frame_dt"),
           "Adds frame_dt (s) of frame time and runs the whole internal steps it covers (GIL released). A failed "
           "step raises StepError with the engine's report (stage, vertex, step); the state stays the last good one.")
       .def(
           "advance_steps",
-          [](Engine& e, int count) {
-            blot::stain::StepReport r;
-            {
-              py::gil_scoped_release release;
-              r = e.advanceSteps(count);
-            }
-            if (!r.ok()) throw StepFailure(r);
+          [](PyEngine& w, int count) {
+            stepUnlocked(w, "advance_steps", [count](Engine& e) { return e.advanceSteps(count); });
           },
           py::arg("count"), "Runs exactly count internal steps (GIL released); raises StepError on a failed step.")
       .def(
           "add_drop",
-          [](Engine& e, py::object vertex, py::object point, double radius, double solventMass, double soluteMass,
+          [](PyEngine& w, py::object vertex, py::object point, double radius, double solventMass, double soluteMass,
              py::object velocity, double splashSpeed, std::uint64_t splashSeed) {
-            e.addDrop(dropDef(vertex, point, radius, solventMass, soluteMass, velocity, splashSpeed, splashSeed));
+            Engine& e = idle(w, "add_drop");
+            e.addDrop(dropDef(vertex, point, radius, solventMass, soluteMass, velocity, splashSpeed, splashSeed,
+                              e.vertexCount()));
           },
           py::kw_only(), py::arg("vertex") = py::none(), py::arg("point") = py::none(), py::arg("radius") = 0.05,
           py::arg("solvent_mass") = 1e-3, py::arg("solute_mass") = 1e-4, py::arg("velocity") = py::none(),
           py::arg("splash_speed") = 0.0, py::arg("splash_seed") = 0,
           "Queues a drop for the next internal step, centred at a vertex or where a world point lands on the cloth "
           "(kg, m, m/s). Without velocity it lands moving with the cloth.")
-      .def_property_readonly("vertex_count", &Engine::vertexCount)
-      .def_property_readonly("time", &Engine::time, "simulated time (s)")
-      .def_property_readonly("step_count", &Engine::stepCount)
-      .def_property_readonly("time_step", &Engine::timeStep)
-      .def_property("threads", &Engine::threadCount, &Engine::setThreadCount)
-      .def_property("adaptive_threads", &Engine::adaptiveThreads, &Engine::setAdaptiveThreads)
-      .def_property_readonly("state_hash", &Engine::stateHash,
-                             "FNV-1a over every simulation array; equal to `blot run`'s summary state_hash")
-      .def_property_readonly("faces", [](const Engine& e) { return copyOf(e.faces()); }, "#F x 3 int32 (a copy)")
+      .def_property_readonly("vertex_count", [](PyEngine& w) { return idle(w, "vertex_count").vertexCount(); })
+      .def_property_readonly("time", [](PyEngine& w) { return idle(w, "time").time(); }, "simulated time (s)")
+      .def_property_readonly("step_count", [](PyEngine& w) { return idle(w, "step_count").stepCount(); })
+      .def_property_readonly("time_step", [](PyEngine& w) { return idle(w, "time_step").timeStep(); })
+      .def_property(
+          "threads", [](PyEngine& w) { return idle(w, "threads").threadCount(); },
+          [](PyEngine& w, int threads) { idle(w, "threads").setThreadCount(threads); })
+      .def_property(
+          "adaptive_threads", [](PyEngine& w) { return idle(w, "adaptive_threads").adaptiveThreads(); },
+          [](PyEngine& w, bool adaptive) { idle(w, "adaptive_threads").setAdaptiveThreads(adaptive); })
       .def_property_readonly(
-          "rest_positions", [](py::object self) { return readOnlyView(self.cast<const Engine&>().definition().mesh.vertexPositions, self); },
+          "state_hash", [](PyEngine& w) { return idle(w, "state_hash").stateHash(); },
+          "FNV-1a over every simulation array, an int: f\"{e.state_hash:016x}\" is `blot run`'s summary state_hash "
+          "(a hex string)")
+      .def_property_readonly("faces", [](PyEngine& w) { return copyOf(idle(w, "faces").faces()); },
+                             "#F x 3 int32 (a copy)")
+      .def_property_readonly(
+          "rest_positions",
+          view([](PyEngine&, const Engine& e) -> const auto& { return e.definition().mesh.vertexPositions; },
+               "rest_positions"),
           "#V x 3 rest shape (m), read-only view")
       .def_property_readonly(
-          "uvs", [](py::object self) { return readOnlyView(self.cast<const Engine&>().definition().mesh.vertexUVs, self); },
+          "uvs", view([](PyEngine&, const Engine& e) -> const auto& { return e.definition().mesh.vertexUVs; }, "uvs"),
           "#V x 2 texture coordinates of the rest mesh (0 rows when it has none), read-only view")
       .def_property_readonly(
-          "positions", [](py::object self) { return readOnlyView(self.cast<const Engine&>().positions(), self); },
+          "positions", view([](PyEngine&, const Engine& e) -> const auto& { return e.positions(); }, "positions"),
           "#V x 3 (m) at time, read-only view")
+      .def_property_readonly("normals", view([](PyEngine& w, const Engine& e) -> const auto& {
+                                               w.normalsViewed = true;
+                                               return e.normals();
+                                             }, "normals"),
+                             "#V x 3 unit vertex normals at time, read-only view")
       .def_property_readonly(
-          "normals", [](py::object self) { return readOnlyView(self.cast<const Engine&>().normals(), self); })
-      .def_property_readonly(
-          "solvent", [](py::object self) { return readOnlyView(self.cast<const Engine&>().solvent(), self); },
+          "solvent", view([](PyEngine&, const Engine& e) -> const auto& { return e.solvent(); }, "solvent"),
           "free solvent density (kg/m²), read-only view")
-      .def_property_readonly(
-          "solute", [](py::object self) { return readOnlyView(self.cast<const Engine&>().solute(), self); })
+      .def_property_readonly("solute",
+                             view([](PyEngine&, const Engine& e) -> const auto& { return e.solute(); }, "solute"))
       .def_property_readonly(
           "absorbed_solvent",
-          [](py::object self) { return readOnlyView(self.cast<const Engine&>().absorbedSolvent(), self); })
+          view([](PyEngine&, const Engine& e) -> const auto& { return e.absorbedSolvent(); }, "absorbed_solvent"))
       .def_property_readonly(
           "absorbed_solute",
-          [](py::object self) { return readOnlyView(self.cast<const Engine&>().absorbedSolute(), self); })
+          view([](PyEngine&, const Engine& e) -> const auto& { return e.absorbedSolute(); }, "absorbed_solute"))
       .def_property_readonly(
           "adsorbed_solute",
-          [](py::object self) { return readOnlyView(self.cast<const Engine&>().adsorbedSolute(), self); })
-      .def_property_readonly(
-          "velocities",
-          [](py::object self) { return readOnlyView(self.cast<const Engine&>().liquidVelocities(), self); },
-          "#V x 3 liquid velocity relative to the cloth (m/s), read-only view")
-      .def_property_readonly(
-          "world_velocities",
-          [](py::object self) { return readOnlyView(self.cast<const Engine&>().liquidWorldVelocities(), self); })
-      .def_property_readonly(
-          "colors", [](py::object self) { return readOnlyView(self.cast<const Engine&>().colors(), self); },
-          "#V x 3 linear RGB in [0, 1], read-only view")
+          view([](PyEngine&, const Engine& e) -> const auto& { return e.adsorbedSolute(); }, "adsorbed_solute"))
+      .def_property_readonly("velocities", view([](PyEngine& w, const Engine& e) -> const auto& {
+                                                  w.velocitiesViewed = true;
+                                                  return e.liquidVelocities();
+                                                }, "velocities"),
+                             "#V x 3 liquid velocity relative to the cloth (m/s), read-only view")
+      .def_property_readonly("world_velocities", view([](PyEngine& w, const Engine& e) -> const auto& {
+                                                        w.worldVelocitiesViewed = true;
+                                                        return e.liquidWorldVelocities();
+                                                      }, "world_velocities"),
+                             "#V x 3 liquid velocity in the world frame (m/s), read-only view")
+      .def_property_readonly("colors", view([](PyEngine& w, const Engine& e) -> const auto& {
+                                              w.colorsViewed = true;
+                                              return e.colors();
+                                            }, "colors"),
+                             "#V x 3 linear RGB in [0, 1], read-only view")
       .def_property_readonly(
           "vertex_areas",
-          [](const Engine& e) {
+          [](PyEngine& w) {
             // Lumped mass (one third of the one-ring area at the rest shape), the
             // weights of the sweeps' mass-weighted metrics: a copy.
-            const auto& mesh = e.definition().mesh;
+            const auto& mesh = idle(w, "vertex_areas").definition().mesh;
             py::array_t<double> a(static_cast<py::ssize_t>(mesh.vertexPositions.rows()));
             auto r = a.mutable_unchecked<1>();
             for (py::ssize_t i = 0; i < r.shape(0); ++i) r(i) = 0;
@@ -352,13 +509,14 @@ keep the engine alive; read them again after a step (docs: python/README.md).
             return a;
           },
           "#V rest-shape lumped vertex areas (m², one third of the one-ring), a copy")
-      .def("statistics", [](const Engine& e) { return statisticsDict(e.statistics()); },
+      .def("statistics", [](PyEngine& w) { return statisticsDict(idle(w, "statistics").statistics()); },
            "Counters, timings (last step and sums in ms), the mass budget (kg): a dict")
-      .def("mass_budget", [](const Engine& e) { return massBudgetDict(e.statistics().massBudget); })
-      .def("last_profile", [](const Engine& e) { return profileDict(e.statistics().lastProfile); },
+      .def("mass_budget", [](PyEngine& w) { return massBudgetDict(idle(w, "mass_budget").statistics().massBudget); })
+      .def("last_profile", [](PyEngine& w) { return profileDict(idle(w, "last_profile").statistics().lastProfile); },
            "Per-stage times (ms) and counters of the last internal step")
       .def("inject_fault_for_testing",
-           [](Engine& e, const std::string& stage, int step, int vertex) {
+           [](PyEngine& w, const std::string& stage, int step, int vertex) {
+             Engine& e = idle(w, "inject_fault_for_testing");
              blot::stain::InjectedFault f;
              if (!blot::stain::parseStage(stage, f.stage))
                throw std::invalid_argument("inject_fault_for_testing: unknown stage \"" + stage + "\"");

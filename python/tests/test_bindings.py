@@ -180,6 +180,37 @@ class Engine(unittest.TestCase):
         with self.assertRaises(blot.MeshError):
             blot.Engine.from_mesh(vertices, bad)
 
+    def test_arguments_are_checked_and_named(self):
+        vertices, faces = self.grid()
+        e = blot.Engine.from_mesh(vertices, faces)
+        cases = [
+            (lambda: e.add_drop(point=[0, 0]), ValueError, r"add_drop: point: expected 3 numbers \(x, y, z\), got an array of shape \(2,\)"),
+            (lambda: e.add_drop(point="abc"), TypeError, "add_drop: point: expected 3 numbers"),
+            (lambda: e.add_drop(vertex=1.5), TypeError, "add_drop: vertex: expected an integer vertex index, got float 1.5"),
+            (lambda: e.add_drop(vertex=2 ** 40), ValueError, r"add_drop: vertex: vertex index 1099511627776 out of range \[0, 121\)"),
+            (lambda: e.add_drop(vertex=-1), ValueError, r"vertex index -1 out of range \[0, 121\)"),
+            (lambda: e.add_drop(vertex=np.int64(3), velocity=[1, 0, 0, 0]), ValueError, "add_drop: velocity: expected 3 numbers"),
+            (lambda: e.add_drop(vertex=3, splash_speed=1e300), ValueError, "splashSpeed must be finite and at most 1000000"),
+            (lambda: blot.Engine.from_mesh(vertices, faces, angular_velocity=[1, 0]), ValueError, "from_mesh: angular_velocity"),
+            (lambda: blot.Engine.from_mesh(vertices, faces, gravity=None), TypeError, "from_mesh: gravity"),
+            (lambda: blot.Engine.from_mesh(vertices, faces.astype(np.float64) + 0.9), TypeError, "from_mesh: faces: expected integer vertex indices, got an array of float64"),
+            (lambda: blot.Engine.from_mesh(vertices, faces[:, :2]), ValueError, r"from_mesh: faces: expected #F x 3 vertex indices, got an array of shape \(200, 2\)"),
+            (lambda: blot.Engine.from_mesh(vertices, faces, time_step=1e300), ValueError, r"timeStep must be in \[1e-06, 1\] s"),
+            (lambda: blot.Engine.from_dict({"time_step": float("nan")}), blot.SceneError, "<dict>: time_step: expected a finite number, got nan"),
+            (lambda: blot.Engine.from_dict({"liquid": {"drops": [{"radius": float("inf")}]}}), blot.SceneError, r"liquid.drops\[0\].radius: expected a finite number, got inf"),
+            (lambda: blot.homogenize("plain", subdivisions=759250125), ValueError, "more than the limit of 500000"),
+        ]
+        for call, kind, message in cases:
+            with self.assertRaisesRegex(kind, message):
+                call()
+        wrapped = faces.astype(np.int64)
+        wrapped[0, 0] += 2 ** 32  # a cast to int32 would make it vertex 0 again
+        with self.assertRaisesRegex(blot.MeshError, "from_mesh: face 0: vertex index 4294967296 out of range"):
+            blot.Engine.from_mesh(vertices, wrapped)
+        self.assertEqual(e.step_count, 0)
+        e.advance_steps(1)  # nothing refused above was queued
+        self.assertEqual(e.statistics()["drops_applied"], 0)
+
     def test_a_failed_step_raises_step_error_and_keeps_the_state(self):
         e = blot.Engine.from_dict(small_flag())
         e.advance_steps(2)
@@ -203,6 +234,46 @@ class Engine(unittest.TestCase):
         elapsed = time.perf_counter() - start
         # With the GIL held through the steps this loop could not run until they end.
         self.assertGreater(ticks, 10, f"{elapsed:.3f} s of steps")
+
+    def test_one_engine_refuses_a_call_from_another_thread_while_it_steps(self):
+        # Two threads stepping one engine crashed the interpreter (the step
+        # releases the GIL); now every call while a step runs raises.
+        e = blot.Engine.from_dict(small_flag(resolution=24))
+        refused, extra_steps = [], 0
+        worker = threading.Thread(target=e.advance_steps, args=(40,))
+        worker.start()
+        while worker.is_alive():
+            try:
+                e.advance_steps(1)
+                extra_steps += 1  # between the worker's start and its step, or after it
+            except RuntimeError as error:
+                refused.append(str(error))
+            for read in (lambda: e.step_count, lambda: e.solute, lambda: e.statistics()):
+                try:
+                    read()
+                except RuntimeError as error:
+                    refused.append(str(error))
+            time.sleep(0.001)
+        worker.join()
+        self.assertTrue(refused)
+        self.assertTrue(all("this engine is stepping on another thread" in m for m in refused), refused[:3])
+        self.assertEqual(e.step_count, 40 + extra_steps)  # the refused steps did not run
+        alone = blot.Engine.from_dict(small_flag(resolution=24))
+        alone.advance_steps(40 + extra_steps)
+        self.assertEqual(e.state_hash, alone.state_hash)
+
+    def test_views_of_derived_arrays_show_the_state_after_a_step(self):
+        vertices, faces = self.grid()
+        e = blot.Engine.from_mesh(vertices, faces, angular_velocity=[0.3, 0.0, 2.0])
+        e.add_drop(vertex=60, radius=0.2, solvent_mass=0.01, solute_mass=0.002)
+        e.advance_steps(2)
+        held = {name: getattr(e, name) for name in ("normals", "velocities", "world_velocities", "colors")}
+        before = {name: view.copy() for name, view in held.items()}
+        e.advance_steps(3)
+        for name, view in held.items():
+            self.assertTrue(np.array_equal(view, getattr(e, name)), name)
+        self.assertFalse(np.array_equal(before["normals"], held["normals"]))
+        self.assertFalse(np.array_equal(before["world_velocities"], held["world_velocities"]))
 
     def test_frame_time_accumulates_into_internal_steps(self):
         e = blot.Engine.from_dict(small_flag())
