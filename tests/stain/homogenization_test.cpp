@@ -9,6 +9,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -262,6 +263,18 @@ TEST(Homogenization, DefaultSubdivisionsFollowTheUnknownBudget) {
     EXPECT_LE(n * n * K * K, 16384) << n;
   }
   EXPECT_THROW(homogenize(presetWeavePattern("plain"), -1), std::invalid_argument);
+  // Past the budget by any amount, however large: cells K^2 as a long wrapped
+  // past 2^63 from K = 759250125 on a 4x4 tile, and such a K passed the check.
+  for (const int K : {177, 759250124, 759250125, 1000000000, std::numeric_limits<int>::max()}) {
+    try {
+      homogenize(presetWeavePattern("plain"), K);
+      ADD_FAILURE() << K << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("unknowns, more than the limit of 500000 (largest K for this tile: 176)"),
+                std::string::npos)
+          << e.what();
+    }
+  }
 }
 
 }  // namespace

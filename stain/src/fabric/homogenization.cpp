@@ -9,6 +9,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <iomanip>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -221,6 +223,14 @@ CellProblemBounds cellProblemBounds(const WeavePattern& pattern, const CellMesh&
 
 namespace {
 
+/// A count held in a double: its digits up to 1e15, then as 1.23e+20.
+std::string formatCount(double count) {
+  if (count < 1e15) return std::to_string(static_cast<long long>(count));
+  std::ostringstream out;
+  out << std::setprecision(3) << count;
+  return out.str();
+}
+
 void checkOptions(const WeavePattern& pattern, const HomogenizationOptions& options) {
   const std::string name = pattern.sourceName() + ": homogenize: ";
   const long cells = static_cast<long>(pattern.rows()) * pattern.cols();
@@ -238,10 +248,13 @@ void checkOptions(const WeavePattern& pattern, const HomogenizationOptions& opti
     throw std::invalid_argument(name + "subdivisions must be >= 1 (or 0 for refinement), got " +
                                 std::to_string(options.subdivisions));
   const long K = options.subdivisions;
-  if (K > 0 && cells * K * K > options.maxUnknowns)
+  // cells K² in double: as a long it wraps past 2^63 (K ≥ 759250125 on a
+  // 4x4 tile) and the check passed; a double is exact up to 2^53, far past the limit.
+  const double unknowns = static_cast<double>(cells) * static_cast<double>(K) * static_cast<double>(K);
+  if (K > 0 && unknowns > static_cast<double>(options.maxUnknowns))
     throw std::invalid_argument(name + "subdivisions " + std::to_string(K) + " on a " + std::to_string(pattern.rows()) +
                                 "x" + std::to_string(pattern.cols()) + "-cell tile needs " +
-                                std::to_string(cells * K * K) + " unknowns, more than the limit of " +
+                                formatCount(unknowns) + " unknowns, more than the limit of " +
                                 std::to_string(options.maxUnknowns) + " (largest K for this tile: " +
                                 std::to_string(static_cast<long>(std::sqrt(static_cast<double>(options.maxUnknowns) / cells))) + ")");
 }
