@@ -115,9 +115,11 @@ class Reader {
     check(static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols) * sizeof(typename Derived::Scalar), what);
     m.resize(rows, cols);
     take(m.data(), sizeof(typename Derived::Scalar) * static_cast<std::size_t>(m.size()), what);
-    if constexpr (std::is_floating_point_v<typename Derived::Scalar>) {
+    // Real and complex entries alike (u is stored complex: a NaN there
+    // loaded and failed every step after it).
+    if constexpr (!std::is_integral_v<typename Derived::Scalar>) {
       for (Eigen::Index k = 0; k < m.size(); ++k)
-        if (!std::isfinite(m.data()[k]))
+        if (!finite(m.data()[k]))
           fail(std::string(what) + ": entry " + std::to_string(k) + " of " + std::to_string(m.size()) + " is not finite");
     }
   }
@@ -179,6 +181,9 @@ class Reader {
     } else if constexpr (std::is_base_of_v<Eigen::DenseBase<T>, T>) {
       for (std::size_t k = 0; k < v.size(); ++k)
         if (!v[k].allFinite()) fail(std::string(what) + ": entry " + std::to_string(k) + " is not finite");
+    } else if constexpr (std::is_base_of_v<Eigen::QuaternionBase<T>, T>) {
+      for (std::size_t k = 0; k < v.size(); ++k)
+        if (!v[k].coeffs().allFinite()) fail(std::string(what) + ": entry " + std::to_string(k) + " is not finite");
     }
   }
   template <typename Scalar>

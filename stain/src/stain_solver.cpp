@@ -1169,13 +1169,17 @@ void StainSolver::restore(const StainSolverSnapshot& s) {
   stateWrittenOutside();
   // As saved, so that a restored solver tests strain exactly where the one
   // that saved it did (everHeldLiquid), also after a write from outside that
-  // was cleared again; and set by any liquid in the state, which a state put
-  // together elsewhere may hold without either flag (a saving solver with
-  // liquid always had a drop, a source or a write from outside).
+  // was cleared again; and set by any liquid in a state that records none
+  // added, which a state put together elsewhere may hold without either
+  // flag (a saving solver with liquid always had a drop, a source or a write
+  // from outside). Where liquid was added, everHeldLiquid holds already and
+  // the flag stays as saved, so a resumed run saves what the uninterrupted
+  // one does, to the byte.
   writtenOutside_ = s.writtenOutside;
-  for (const Vector* f : {&state_.solvent, &state_.solute, &state_.absorbedSolvent, &state_.absorbedSolute,
-                          &state_.adsorbedSolute})
-    writtenOutside_ = writtenOutside_ || (f->array() != 0.0).any();
+  if (!(state_.addedSolvent > 0 || state_.addedSolute > 0))
+    for (const Vector* f : {&state_.solvent, &state_.solute, &state_.absorbedSolvent, &state_.absorbedSolute,
+                            &state_.adsorbedSolute})
+      writtenOutside_ = writtenOutside_ || (f->array() != 0.0).any();
   backup_.commit(state_);  // the rollback point is the restored state (as a full backup of it was)
   backupAssembledStep_ = systems_.assembledStep();
   heldRegions_ = s.heldRegions;
