@@ -394,7 +394,16 @@ void BulletCloth::setPinTarget(int vertex, const Eigen::Vector3d& position) {
   if (released_[p])
     throw std::invalid_argument("BulletCloth::setPinTarget: the pin at vertex " + std::to_string(vertex) +
                                 " was released");
-  if (!position.allFinite()) throw std::invalid_argument("BulletCloth::setPinTarget: position must be finite");
+  // Bounded as a scene's magnitudes are: a target past float's range (1e39)
+  // became infinite in Bullet, and the failed step's rollback, which restores
+  // the target with the rest, refused it and left the cloth half restored.
+  if (!position.allFinite() || !(position.cwiseAbs().maxCoeff() <= kMaxPinTarget)) {
+    std::ostringstream message;
+    message << std::setprecision(12) << "BulletCloth::setPinTarget: position (" << position.x() << ", "
+            << position.y() << ", " << position.z() << ") must be finite, each coordinate within "
+            << std::setprecision(3) << kMaxPinTarget << " m";
+    throw std::invalid_argument(message.str());
+  }
   moved_[p] = 1;
   pinTargets_.row(static_cast<Eigen::Index>(p)) = position.transpose();
   // A shared world steps before the next advance(): the pin gets the

@@ -17,6 +17,7 @@
 #include <cstring>
 #include <exception>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <memory>
@@ -106,6 +107,12 @@ blotStatus copyRows(const char* function, const blotEngine* engine, View view, f
 /// A file the caller named that cannot be opened is an I/O error, told apart
 /// from a scene the parser rejects.
 bool checkReadable(const char* function, const char* path, blotStatus& status) {
+  // A directory opens as a stream on Linux; it is a file that cannot be read.
+  std::error_code ignored;
+  if (std::filesystem::is_directory(path, ignored)) {
+    status = fail(BLOT_ERROR_IO, std::string(function) + ": " + path + ": cannot open (a directory, not a file)");
+    return false;
+  }
   std::ifstream in(path, std::ios::binary);
   if (in) return true;
   const int error = errno;
@@ -225,6 +232,17 @@ blot::engine::EngineDef toEngineDef(const blotEngineDef& d) {
   def.timeStep = d.timeStep;
   def.maxStepsPerCall = d.maxStepsPerCall;
   return def;
+}
+
+/// BLOT_OK, or a step's report as the status and message both stepping calls
+/// give: an invalid argument as such, anything else numerical.
+blotStatus failedStep(const char* function, const blot::stain::StepReport& report) {
+  if (report.status == blot::stain::StepStatus::Ok) return BLOT_OK;
+  const blotStatus status = report.status == blot::stain::StepStatus::InvalidArgument ? BLOT_ERROR_INVALID_ARGUMENT
+                                                                                       : BLOT_ERROR_NUMERICAL;
+  return fail(status, std::string(function) + ": stage '" + report.stageName() + "'" +
+                          (report.vertex >= 0 ? ", vertex " + std::to_string(report.vertex) : std::string()) + ": " +
+                          report.message);
 }
 
 }  // namespace
@@ -395,15 +413,7 @@ void blotDestroyEngine(blotEngine* engine) { delete engine; }
 
 blotStatus blotEngine_Step(blotEngine* engine, double frameDt) {
   if (engine == nullptr) return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_Step: null engine");
-  return guarded("blotEngine_Step", [&] {
-    const blot::stain::StepReport report = engine->engine->step(frameDt);
-    if (report.status == blot::stain::StepStatus::Ok) return BLOT_OK;
-    const blotStatus status = report.status == blot::stain::StepStatus::InvalidArgument ? BLOT_ERROR_INVALID_ARGUMENT
-                                                                                         : BLOT_ERROR_NUMERICAL;
-    return fail(status, "blotEngine_Step: stage '" + std::string(report.stageName()) + "'" +
-                            (report.vertex >= 0 ? ", vertex " + std::to_string(report.vertex) : std::string()) + ": " +
-                            report.message);
-  });
+  return guarded("blotEngine_Step", [&] { return failedStep("blotEngine_Step", engine->engine->step(frameDt)); });
 }
 
 blotStatus blotEngine_AddDropAtVertex(blotEngine* engine, int vertex, const blotDropDef* drop) {
@@ -457,11 +467,8 @@ blotStatus blotEngine_AdvanceSteps(blotEngine* engine, int count) {
   if (engine == nullptr) return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_AdvanceSteps: null engine");
   if (count < 0)
     return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_AdvanceSteps: count " + std::to_string(count) + " is negative");
-  return guarded("blotEngine_AdvanceSteps", [&] {
-    const blot::stain::StepReport report = engine->engine->advanceSteps(count);
-    if (report.status != blot::stain::StepStatus::Ok) return fail(BLOT_ERROR_NUMERICAL, report.message);
-    return BLOT_OK;
-  });
+  return guarded("blotEngine_AdvanceSteps",
+                 [&] { return failedStep("blotEngine_AdvanceSteps", engine->engine->advanceSteps(count)); });
 }
 
 blotStatus blotEngine_SetPinTarget(blotEngine* engine, int vertex, const double position[3]) {

@@ -14,6 +14,7 @@
 #include <cmath>
 #include <type_traits>
 #include <cstring>
+#include <iomanip>
 #include <limits>
 #include <sstream>
 
@@ -67,6 +68,20 @@ void requirePlausible(double value, const char* field) {
                                 std::to_string(value));
 }
 
+/// A vector of the definition within a scene's magnitudes, or an error
+/// naming it: past them values overflow Bullet's floats (gravity -1e39 made
+/// every step fail as "non-finite position") or a rotation's positions
+/// (1e300 rad/s was reported as a non-finite rest position).
+void requireSceneMagnitude(const Eigen::Vector3d& v, const char* field) {
+  if (!v.allFinite() || !(v.cwiseAbs().maxCoeff() <= kMaxSceneMagnitude)) {
+    std::ostringstream message;
+    message << std::setprecision(12) << "EngineDef." << field << " = (" << v.x() << ", " << v.y() << ", " << v.z()
+            << "): each component must be finite and at most " << std::setprecision(3) << kMaxSceneMagnitude
+            << " in size";
+    throw std::invalid_argument(message.str());
+  }
+}
+
 void validateDrop(const stain::DropDef& d, int vertexCount) {
   if (d.centerVertex < -1 || d.centerVertex >= vertexCount)
     throw std::invalid_argument("drop: centerVertex = " + std::to_string(d.centerVertex) + " is out of range [0, " +
@@ -87,6 +102,9 @@ void validateDrop(const stain::DropDef& d, int vertexCount) {
   requirePlausible(d.soluteMass, "soluteMass");
   if (!(d.splashSpeed >= 0) || !std::isfinite(d.splashSpeed))
     throw std::invalid_argument("drop: splashSpeed must be finite and >= 0");
+  // As a scene's splash_speed: a 1e300 m/s splash made the first step's
+  // velocities non-finite, and the queued drop failed every step after it.
+  requirePlausible(d.splashSpeed, "splashSpeed");
 }
 
 /// Folds every field of a state struct into a content hash, in its field
@@ -108,8 +126,12 @@ struct HashVisitor {
 // ------------------------------------------------------------------ construction
 
 Engine::Engine(const EngineDef& def) : def_(def) {
-  if (!(def_.timeStep > 0) || !std::isfinite(def_.timeStep))
-    throw std::invalid_argument("EngineDef.timeStep must be finite and > 0, got " + std::to_string(def_.timeStep));
+  // The range a scene's time_step has (docs/scene-format.md).
+  if (!(def_.timeStep >= kMinTimeStep && def_.timeStep <= 1.0)) {
+    std::ostringstream message;
+    message << "EngineDef.timeStep must be in [" << kMinTimeStep << ", 1] s, got " << def_.timeStep;
+    throw std::invalid_argument(message.str());
+  }
   if (def_.maxStepsPerCall < 1)
     throw std::invalid_argument("EngineDef.maxStepsPerCall must be >= 1, got " + std::to_string(def_.maxStepsPerCall));
   if (def_.dropQueueCapacity < 0) throw std::invalid_argument("EngineDef.dropQueueCapacity must be >= 0");
@@ -117,8 +139,24 @@ Engine::Engine(const EngineDef& def) : def_(def) {
     throw std::invalid_argument("EngineDef.diffusivity must be finite and > 0");
   if (!(def_.viscosity >= 0) || !std::isfinite(def_.viscosity))
     throw std::invalid_argument("EngineDef.viscosity must be finite and >= 0");
+  // Finite but huge positions first: validateMesh would call the faces degenerate.
+  for (Eigen::Index i = 0; i < def_.mesh.vertexPositions.rows(); ++i) {
+    const auto row = def_.mesh.vertexPositions.row(i);
+    if (row.allFinite() && row.cwiseAbs().maxCoeff() > kMaxSceneMagnitude) {
+      const std::string field = "mesh.vertexPositions[" + std::to_string(i) + "]";
+      requireSceneMagnitude(row.transpose(), field.c_str());
+    }
+  }
   stain::validateMesh(def_.mesh, "EngineDef.mesh");
   const int n = static_cast<int>(def_.mesh.vertexPositions.rows());
+  // Gravity also goes into the Bullet cloth's floats; a static or moved
+  // surface keeps it in double (the C API's copies refuse what then exceeds
+  // float range).
+  if (def_.source == MotionSource::Bullet) requireSceneMagnitude(def_.stain.gravity, "stain.gravity");
+  requireSceneMagnitude(def_.rigid.angularVelocity, "rigid.angularVelocity");
+  requireSceneMagnitude(def_.rigid.pivot, "rigid.pivot");
+  requireSceneMagnitude(def_.rigid.linearVelocity, "rigid.linearVelocity");
+  requireSceneMagnitude(def_.rigid.linearAcceleration, "rigid.linearAcceleration");
   topology_ = std::make_unique<stain::SurfaceTopology>(def_.mesh.faces, n, "EngineDef.mesh");
 
   // Fabric: isotropic, or patches laid out with patterns homogenized once.
@@ -231,8 +269,10 @@ stain::StepReport Engine::step(double frameDt) {
     stain::StepReport report;
     report.status = stain::StepStatus::InvalidArgument;
     report.stage = stain::Stage::Guard;
-    report.message = "Engine::step: frameDt must be finite and in [0, " + std::to_string(kMaxFrameSeconds) +
-                     "] s, got " + std::to_string(frameDt);
+    std::ostringstream message;  // not std::to_string: 1.0000001 printed as 1.000000 contradicted the range
+    message << "Engine::step: frameDt must be finite and in [0, " << kMaxFrameSeconds << "] s, got "
+            << std::setprecision(12) << frameDt;
+    report.message = message.str();
     return report;
   }
   accumulator_ += frameDt / def_.timeStep;

@@ -35,6 +35,13 @@ TEST(CApiTest, BadSceneIsASceneErrorNamingTheKey) {
   EXPECT_EQ(blotCreateEngineFromSceneFile("/nonexistent.json", &engine), BLOT_ERROR_IO);
   EXPECT_NE(std::string(blotGetLastError()).find("/nonexistent.json: cannot open"), std::string::npos) << blotGetLastError();
   EXPECT_EQ(blotCreateEngineFromSceneFile(nullptr, &engine), BLOT_ERROR_INVALID_ARGUMENT);
+  // So is a directory, which opens as a stream on Linux (it was a rejected scene).
+  const std::string folder = std::filesystem::temp_directory_path().string();
+  EXPECT_EQ(blotCreateEngineFromSceneFile(folder.c_str(), &engine), BLOT_ERROR_IO);
+  EXPECT_NE(std::string(blotGetLastError()).find(folder + ": cannot open (a directory, not a file)"),
+            std::string::npos)
+      << blotGetLastError();
+  EXPECT_EQ(engine, nullptr);
 }
 
 TEST(CApiTest, CopiesMatchTheEngineAndBadArgumentsAreStatuses) {
@@ -360,9 +367,12 @@ TEST(CApiTest, AbsurdFrameTimesAndTamperedStatesAreRefusedAndTheEngineStaysUsabl
   ASSERT_EQ(blotCreateEngineFromSceneJson(kScene, nullptr, &engine), BLOT_OK) << blotGetLastError();
   for (const double dt : {1e308, 2.0, std::numeric_limits<double>::infinity(), std::nan("")}) {
     EXPECT_EQ(blotEngine_Step(engine, dt), BLOT_ERROR_INVALID_ARGUMENT) << dt;
-    EXPECT_NE(std::string(blotGetLastError()).find("frameDt must be finite and in [0, 1"), std::string::npos)
+    EXPECT_NE(std::string(blotGetLastError()).find("blotEngine_Step: stage 'guard': Engine::step: frameDt must be finite and in [0, 1] s, got"), std::string::npos)
         << blotGetLastError();
   }
+  // Just past the limit reads as past it (std::to_string printed 1.000000 for both).
+  EXPECT_EQ(blotEngine_Step(engine, 1.0000001), BLOT_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(blotGetLastError()).find("in [0, 1] s, got 1.0000001"), std::string::npos) << blotGetLastError();
   EXPECT_EQ(blotEngine_GetTime(engine), 0.0);
   ASSERT_EQ(blotEngine_Step(engine, 1.0), BLOT_OK) << blotGetLastError();  // the limit itself: 8 steps (the cap)
   EXPECT_NEAR(blotEngine_GetTime(engine), 0.08, 1e-12);
@@ -453,6 +463,22 @@ TEST(CApiTest, PinsMoveAtRuntimeAndCallerSurfacesTakeTheirFrames) {
   EXPECT_NE(std::string(blotGetLastError()).find("vertex 5 is not a pin"), std::string::npos) << blotGetLastError();
   EXPECT_EQ(blotEngine_AdvanceSteps(cloth, -1), BLOT_ERROR_INVALID_ARGUMENT);
   EXPECT_EQ(blotEngine_SetSurfaceFrame(cloth, positions.data(), nullptr, def.vertexCount), BLOT_ERROR_INVALID_ARGUMENT);
+  // A target past a scene's magnitudes is refused; one within them that tears
+  // the cloth apart fails the step, reported as blotEngine_Step reports one,
+  // and the engine keeps its last good state.
+  const double beyond[3] = {1e39, 0.0, 0.5};
+  EXPECT_EQ(blotEngine_SetPinTarget(cloth, 0, beyond), BLOT_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(blotGetLastError()).find("each coordinate within 1e+06 m"), std::string::npos)
+      << blotGetLastError();
+  const double tearing[3] = {1e6, 0.0, 0.5};
+  ASSERT_EQ(blotEngine_SetPinTarget(cloth, 0, tearing), BLOT_OK) << blotGetLastError();
+  EXPECT_EQ(blotEngine_AdvanceSteps(cloth, 1), BLOT_ERROR_NUMERICAL);
+  EXPECT_EQ(std::string(blotGetLastError()).rfind("blotEngine_AdvanceSteps: stage '", 0), 0u) << blotGetLastError();
+  std::vector<float> kept(positions.size());
+  EXPECT_EQ(blotEngine_CopyPositions(cloth, kept.data(), static_cast<int>(kept.size())), BLOT_OK);
+  EXPECT_TRUE(kept == p);
+  ASSERT_EQ(blotEngine_SetPinTarget(cloth, 0, target), BLOT_OK);
+  EXPECT_EQ(blotEngine_AdvanceSteps(cloth, 1), BLOT_OK) << blotGetLastError();
   blotDestroyEngine(cloth);
 
   // The same patch as a caller surface, lifted 1 cm per step.

@@ -244,7 +244,20 @@ TEST(EngineTest, SaveThenLoadContinuesBitIdentically) {
   EXPECT_EQ(restored.stateHash(), expected);
   EXPECT_EQ((restored.positions() - original.positions()).cwiseAbs().maxCoeff(), 0.0);
   EXPECT_EQ((restored.adsorbedSolute() - original.adsorbedSolute()).cwiseAbs().maxCoeff(), 0.0);
-  std::remove(path.c_str());
+  // And what each saves now, to the byte: a game comparing checkpoints to
+  // find a desync must not see one (the restored solver used to mark its
+  // liquid as written from outside).
+  const std::string originalPath = temporaryPath("rigid_original.state");
+  const std::string restoredPath = temporaryPath("rigid_restored.state");
+  original.save(originalPath);
+  restored.save(restoredPath);
+  const auto bytesOf = [](const std::string& file) {
+    std::ifstream in(file, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  };
+  EXPECT_FALSE(bytesOf(originalPath).empty());
+  EXPECT_TRUE(bytesOf(originalPath) == bytesOf(restoredPath));
+  for (const std::string& file : {path, originalPath, restoredPath}) std::remove(file.c_str());
 }
 
 /// A two-way Bullet flag (xz plane) pinned at its two top corners, with a heavy drop.
@@ -424,6 +437,16 @@ TEST(EngineTest, TamperedStateFilesAreRefusedBeforeAnythingIsBuilt) {
             std::string::npos);
   EXPECT_NE(errorOfLoading(poke(density, -largest)).find("state.solvent[" + std::to_string(wettest) + "] = "),
             std::string::npos);
+  // The velocity is stored complex: a NaN in its real part loaded, and every
+  // step after it failed.
+  const stain::ComplexVector& velocities = engine.surface().stain().state().velocities;
+  Eigen::Index fastest = 0;
+  velocities.cwiseAbs().maxCoeff(&fastest);
+  const std::complex<double> velocity = velocities[fastest];
+  ASSERT_NE(velocity.real(), 0.0);
+  const std::size_t u = find(&velocity, sizeof velocity);
+  EXPECT_NE(errorOfLoading(poke(u, std::nan(""))).find("velocities: entry " + std::to_string(fastest) + " of 81 is not finite"),
+            std::string::npos);
 
   // The density stiffness matrix: rows, cols, nnz, column pointers, row indices, values.
   const stain::SparseMatrix& stiffness = engine.surface().stain().geometry().intrinsic().densityStiffness;
@@ -595,6 +618,72 @@ TEST(EngineTest, PinMovedAtRuntimeDragsTheClothDeterministically) {
   EXPECT_THROW(moved.setPinTarget(pin, Eigen::Vector3d(0, std::nan(""), 0)), std::invalid_argument);
   Engine rigid(rotatingPatch(6));
   EXPECT_THROW(rigid.setPinTarget(0, target), std::invalid_argument);
+}
+
+// A pin target past what Bullet's floats hold (1e39) was accepted; the step
+// failed and its rollback, restoring that target with the rest, failed too,
+// leaving NaN positions, a state every later step refused, and a checkpoint
+// the library would not load. Targets past a scene's magnitudes are refused
+// and the engine steps on as before.
+TEST(EngineTest, APinTargetBeyondASceneMagnitudeIsRefusedAndChangesNothing) {
+  const int pin = 16 * 17;
+  Engine engine(twoWayFlag()), reference(twoWayFlag());
+  ASSERT_EQ(engine.advanceSteps(3).status, stain::StepStatus::Ok);
+  ASSERT_EQ(reference.advanceSteps(3).status, stain::StepStatus::Ok);
+  for (const double far : {1e300, 1e39, 2e6}) {
+    try {
+      engine.setPinTarget(pin, Eigen::Vector3d(far, 0, 0.5));
+      ADD_FAILURE() << far << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("within 1e+06 m"), std::string::npos) << e.what();
+    }
+  }
+  ASSERT_EQ(engine.advanceSteps(3).status, stain::StepStatus::Ok);
+  ASSERT_EQ(reference.advanceSteps(3).status, stain::StepStatus::Ok);
+  EXPECT_EQ(engine.stateHash(), reference.stateHash());
+}
+
+// The definition's time step, rigid motion and a Bullet cloth's gravity are
+// held to a scene's ranges, and a drop's splash speed to a scene's bound, each
+// refused with the field's name (before, 1e300 rad/s was reported as "non-finite
+// rest position", Bullet gravity -1e39 failed every step, a 1e300 m/s splash
+// failed every step after it was queued).
+TEST(EngineTest, DefinitionsBeyondASceneRangeNameTheField) {
+  const auto errorOf = [](const EngineDef& def) {
+    try {
+      Engine engine(def);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  for (const double h : {1e300, 2.0, 1e-7, -1e-9}) {
+    EngineDef def = rotatingPatch(4);
+    def.timeStep = h;
+    EXPECT_NE(errorOf(def).find("EngineDef.timeStep must be in [1e-06, 1] s, got"), std::string::npos) << h;
+  }
+  EngineDef spin = rotatingPatch(4);
+  spin.rigid.angularVelocity = Eigen::Vector3d(0, 0, 1e300);
+  EXPECT_NE(errorOf(spin).find("EngineDef.rigid.angularVelocity = (0, 0, 1e+300)"), std::string::npos) << errorOf(spin);
+  EngineDef far = rotatingPatch(4);
+  far.mesh.vertexPositions(3, 1) = 2.5e39;
+  EXPECT_NE(errorOf(far).find("EngineDef.mesh.vertexPositions[3]"), std::string::npos) << errorOf(far);
+  EngineDef heavy = twoWayFlag();
+  heavy.stain.gravity = Eigen::Vector3d(0, 0, -1e39);
+  EXPECT_NE(errorOf(heavy).find("EngineDef.stain.gravity = (0, 0, -1e+39)"), std::string::npos)
+      << errorOf(heavy);
+  Engine engine(rotatingPatch(4));
+  stain::DropDef drop;
+  drop.centerVertex = 3;
+  drop.splashSpeed = 1e300;
+  try {
+    engine.addDrop(drop);
+    ADD_FAILURE() << "a 1e300 m/s splash was queued";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("splashSpeed must be finite and at most 1000000"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(engine.advanceSteps(2).status, stain::StepStatus::Ok);
 }
 
 // Per-engine threads: the two-way flag gives the same bits with 1 and 2

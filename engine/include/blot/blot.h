@@ -122,7 +122,7 @@ typedef struct blotEngineDef {
   blotFabricDef fabric;
   blotLiquidDef liquid;
   double gravity[3];        /**< m/s², also given to the Bullet cloth */
-  double timeStep;          /**< the fixed internal step h (s, > 0) */
+  double timeStep;          /**< the fixed internal step h (s, in [1e-6, 1], as a scene's time_step) */
   int maxStepsPerCall;      /**< >= 1 */
 } blotEngineDef;
 
@@ -177,7 +177,9 @@ blotStatus blotCreateEngineFromSceneJson(const char* json, const char* baseDirec
 /** Destroys an engine (NULL is ignored). */
 void blotDestroyEngine(blotEngine* engine);
 
-/** Advances by frameDt seconds of frame time (fixed internal steps, accumulator; see Engine::step). */
+/** Advances by frameDt seconds of frame time, frameDt in [0, 1] (fixed internal steps, accumulator; see
+ *  Engine::step). BLOT_ERROR_INVALID_ARGUMENT for a frameDt outside that range, BLOT_ERROR_NUMERICAL for a
+ *  step the engine undid; the message names the stage (and vertex) as blotEngine_AdvanceSteps's does. */
 blotStatus blotEngine_Step(blotEngine* engine, double frameDt);
 /** Queues a drop centred at a vertex, applied at the next internal step. */
 blotStatus blotEngine_AddDropAtVertex(blotEngine* engine, int vertex, const blotDropDef* drop);
@@ -241,7 +243,8 @@ blotStatus blotEngine_AdvanceSteps(blotEngine* engine, int count);
 
 /** Bullet cloth: moves the pin at `vertex` (one of blotClothDef.pinnedVertices) to `position` (m) in a
  *  straight line during the next internal step and holds it there. BLOT_ERROR_INVALID_ARGUMENT for
- *  another source, a vertex that is no pin, a non-finite position. */
+ *  another source, a vertex that is no pin, a position that is not finite or has a coordinate beyond
+ *  1e6 m. */
 blotStatus blotEngine_SetPinTarget(blotEngine* engine, int vertex, const double position[3]);
 
 /** BLOT_MOTION_CALLER: the surface at the end of the next internal step: `positions` and (or NULL for

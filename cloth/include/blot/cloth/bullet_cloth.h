@@ -22,6 +22,10 @@ class btSoftBody;
 
 namespace blot::cloth {
 
+/// Largest |coordinate| of a pin target set at runtime (m): a scene's bound
+/// on its magnitudes (engine/scene.h, kMaxSceneMagnitude).
+inline constexpr double kMaxPinTarget = 1e6;
+
 /// Prescribed motion of one pinned vertex. Its target position is
 ///   x(t) = x̄ + velocity·t + amplitude ⊙ (sin(2π·frequency·t + phase) − sin(phase)),
 /// (x̄ the rest position, ⊙ per axis), so x(0) = x̄. The defaults hold the
@@ -297,7 +301,8 @@ class BulletCloth final : public SurfaceMotion {
   void advance(double h) override;
 
   /// Moves the pin at `vertex` at runtime: during the next advance() it goes
-  /// in a straight line from where it is to `position` (m, finite) and is held
+  /// in a straight line from where it is to `position` (m, finite, each
+  /// coordinate within kMaxPinTarget) and is held
   /// there afterwards; its PinMotion (drift, waving, release) no longer
   /// applies. A later call replaces the target. Deterministic, saved with the
   /// state. Throws std::invalid_argument unless `vertex` is a pin not yet

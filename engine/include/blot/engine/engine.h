@@ -52,7 +52,7 @@ struct EngineDef {
   /// vertex i is mesh vertex i for every source.
   stain::TriangleMesh mesh;
   MotionSource source = MotionSource::Static;
-  cloth::RigidMotionDef rigid;        ///< used when source == Rigid
+  cloth::RigidMotionDef rigid;        ///< used when source == Rigid (components at most kMaxSceneMagnitude)
   cloth::MeshSequenceDef sequence;    ///< used when source == Sequence (frames read with stain::loadMesh)
   /// Used when source == Bullet. Its mesh-derived fields are filled from
   /// `mesh` by coupling::describeClothMesh; set only the physical ones.
@@ -84,12 +84,13 @@ struct EngineDef {
   std::vector<stain::Matrix2> fabricPatchEffectiveTensors;
   int homogenizationSubdivisions = stain::kAutoSubdivisions;  ///< K for the patterns' cell problems
 
-  /// Switches, liquid parameters, gravity (m/s², also given to a Bullet cloth)
-  /// and the intrinsic-rebuild strain tolerance.
+  /// Switches, liquid parameters, gravity (m/s², also given to a Bullet cloth,
+  /// and then each component at most kMaxSceneMagnitude) and the
+  /// intrinsic-rebuild strain tolerance.
   stain::StainSolverDef stain;
   coupling::CouplingMode coupling = coupling::CouplingMode::OneWay;
 
-  double timeStep = 1.0 / 120.0;  ///< internal step h (s, > 0)
+  double timeStep = 1.0 / 120.0;  ///< internal step h (s, in [kMinTimeStep, 1], as a scene's time_step)
   /// Most internal steps one step(frameDt) call runs (≥ 1); frame time beyond
   /// that is dropped (counted in EngineStatistics::droppedTime), so a slow
   /// frame cannot trigger a spiral of ever longer catch-up frames.
@@ -211,7 +212,7 @@ class Engine {
   /// to `position` (m) in a straight line during the next internal step and
   /// holds it there (cloth::BulletCloth::setPinTarget). Throws
   /// std::invalid_argument naming the problem (not a Bullet cloth, not a pin,
-  /// released, not finite).
+  /// released, not finite or beyond cloth::kMaxPinTarget).
   void setPinTarget(int vertex, const Eigen::Vector3d& position);
   /// Caller source: the surface positions (#V by 3, m) at the end of the next
   /// internal step, and their velocities (m/s) or null for the finite
