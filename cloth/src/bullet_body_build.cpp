@@ -48,7 +48,7 @@ double automaticVoxelSize(const ClothDef& def) {
     if (col.shape == ClothCollider::Shape::Sphere) size = std::min(size, col.radius / 4);
     if (col.shape == ClothCollider::Shape::Box) size = std::min(size, col.halfExtents.minCoeff() / 4);
   }
-  return size;
+  return std::max(size, kMinCollisionVoxelSize);
 }
 
 }  // namespace blot::cloth::detail

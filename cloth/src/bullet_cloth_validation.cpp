@@ -2,7 +2,11 @@
 // built from it; every error names the field and row.
 #include "bullet_cloth_impl.h"
 
+#include <algorithm>
 #include <cmath>
+#include <iomanip>
+#include <limits>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -75,6 +79,22 @@ void validate(const ClothDef& def) {
   validateMesh(def);
   require(def.body == nullptr || def.world != nullptr, "body is set but world is null (a caller's body lives in the caller's world)");
   require(std::isfinite(def.totalMass) && def.totalMass > 0, "totalMass must be positive (kg)");
+  {
+    // The lightest node's mass (its share of the area) must have a float
+    // inverse: 1e-300 kg became an infinite inverse mass in Bullet, and the
+    // first failed step could not be rolled back.
+    double lightest = std::numeric_limits<double>::infinity();
+    for (Eigen::Index i = 0; i < def.nodeAreas.size(); ++i)
+      if (def.nodeAreas[i] > 0) lightest = std::min(lightest, def.nodeAreas[i]);
+    const double share = lightest / def.nodeAreas.sum();
+    if (!(def.totalMass * share >= kMinNodeMass)) {
+      std::ostringstream message;
+      message << std::setprecision(12) << "totalMass = " << def.totalMass << " kg gives the lightest node "
+              << def.totalMass * share << " kg, below " << kMinNodeMass
+              << " kg (Bullet keeps 1 / mass in a float): expected at least " << kMinNodeMass / share << " kg";
+      require(false, message.str());
+    }
+  }
   require(def.stretchStiffness > 0 && def.stretchStiffness <= 1, "stretchStiffness must be in (0, 1]");
   require(def.shearStiffness > 0 && def.shearStiffness <= 1, "shearStiffness must be in (0, 1]");
   require(inUnitInterval(def.bendStiffness), "bendStiffness must be in [0, 1]");
@@ -91,7 +111,13 @@ void validate(const ClothDef& def) {
   require(std::isfinite(def.wind.airDensity) && def.wind.airDensity >= 0, "wind.airDensity must be >= 0 (kg/m³)");
   require(def.contactHardness > 0 && def.contactHardness <= 1, "contactHardness must be in (0, 1]");
   require(std::isfinite(def.collisionMargin) && def.collisionMargin >= 0, "collisionMargin must be >= 0 (m)");
-  require(std::isfinite(def.collisionVoxelSize) && def.collisionVoxelSize >= 0, "collisionVoxelSize must be >= 0 (m)");
+  if (!(def.collisionVoxelSize == 0 ||
+        (def.collisionVoxelSize >= kMinCollisionVoxelSize && std::isfinite(def.collisionVoxelSize)))) {
+    std::ostringstream message;
+    message << std::setprecision(12) << "collisionVoxelSize must be 0 (automatic) or in [" << kMinCollisionVoxelSize
+            << ", inf) m, got " << def.collisionVoxelSize;
+    require(false, message.str());
+  }
   const auto vertexCount = def.restPositions.rows();
   std::vector<char> seen(static_cast<size_t>(vertexCount), 0);
   for (size_t p = 0; p < def.pins.size(); ++p) {

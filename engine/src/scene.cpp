@@ -458,6 +458,10 @@ void parseBullet(ObjectReader& r, const stain::TriangleMesh& mesh, cloth::ClothD
   d.collisionMargin = r.number("collision_margin", d.collisionMargin, nonNegative());
   d.contactHardness = r.number("contact_hardness", d.contactHardness, leftOpen(0, 1));
   d.collisionVoxelSize = r.number("collision_voxel_size", d.collisionVoxelSize, nonNegative());
+  if (d.collisionVoxelSize != 0 && d.collisionVoxelSize < cloth::kMinCollisionVoxelSize)
+    ctx.fail(r.path("collision_voxel_size"), "expected 0 (automatic) or a number >= " +
+                                                 formatNumber(cloth::kMinCollisionVoxelSize) + " m, got " +
+                                                 formatNumber(d.collisionVoxelSize));
 }
 
 void parseCloth(ObjectReader& r, const stain::TriangleMesh& mesh, EngineDef& def) {

@@ -386,6 +386,20 @@ TEST(BulletCloth, SphereAndTableHoldTheClothOutside) {
   EXPECT_TRUE(cloth.isHealthy());
 }
 
+// A collider far smaller than Bullet's float positions resolve: its
+// automatic voxel (a quarter of its size, 2.5e-13 m) overflowed the cache's
+// int cell index and crashed in btSoftBody::checkContact. The voxel stops at
+// kMinCollisionVoxelSize; the cloth falls past the speck.
+TEST(BulletCloth, ASpeckOfAColliderDoesNotCrashTheContacts) {
+  ClothDef def = flatSheet(12, 0.5);
+  def.colliders = {ClothCollider::sphere(Eigen::Vector3d(0.5, 0.5, 0.2), 1e-12),
+                   ClothCollider::box(Eigen::Vector3d(0.3, 0.3, 0.1), Eigen::Vector3d::Constant(1e-20))};
+  BulletCloth cloth(def);
+  for (int frame = 0; frame < 30; ++frame) cloth.advance(kFrame);
+  EXPECT_TRUE(cloth.isHealthy());
+  EXPECT_LT(cloth.boundingBox().max().z(), 0.5);
+}
+
 TEST(BulletCloth, WindDragsTheClothAlong) {
   ClothDef def = flatSheet(12, 0);
   def.gravity.setZero();
@@ -454,6 +468,16 @@ TEST(BulletCloth, InvalidDefinitionsNameTheField) {
   def = hangingFlag(4);
   def.substeps = 0;
   EXPECT_NE(message(def).find("substeps"), std::string::npos);
+  // Below a float inverse mass for the lightest node, or a voxel whose cell
+  // index overflows int (both crashed or failed unrecoverably in a step).
+  def = hangingFlag(4);
+  def.totalMass = 1e-38;
+  EXPECT_NE(message(def).find("totalMass = 1e-38 kg gives the lightest node"), std::string::npos) << message(def);
+  def = hangingFlag(4);
+  def.collisionVoxelSize = 1e-20;
+  EXPECT_NE(message(def).find("collisionVoxelSize must be 0 (automatic) or in [0.001, inf) m, got 1e-20"),
+            std::string::npos)
+      << message(def);
   // The mesh arrays: each error names the field and the row.
   def = hangingFlag(4);
   def.faces(3, 1) = 25;

@@ -25,6 +25,14 @@ namespace blot::cloth {
 /// Largest |coordinate| of a pin target set at runtime (m): a scene's bound
 /// on its magnitudes (engine/scene.h, kMaxSceneMagnitude).
 inline constexpr double kMaxPinTarget = 1e6;
+/// Smallest voxel of Bullet's signed-distance cache (m). Bullet indexes its
+/// cells by position / voxel in int: a 1e-12 m sphere's automatic voxel
+/// (2.5e-13 m) or an explicit 1e-20 m overflowed it and crashed inside
+/// btSoftBody::checkContact; at 1 mm a scene's 1e6 m stays within int.
+inline constexpr double kMinCollisionVoxelSize = 1e-3;
+/// Smallest mass of a cloth node (kg): Bullet keeps 1 / mass in a float.
+/// totalMass is refused where the lightest node would be lighter.
+inline constexpr double kMinNodeMass = 1e-30;
 
 /// Prescribed motion of one pinned vertex. Its target position is
 ///   x(t) = x̄ + velocity·t + amplitude ⊙ (sin(2π·frequency·t + phase) − sin(phase)),
@@ -181,8 +189,9 @@ struct ClothDef {
   /// (±2 cm/s, 0.1 mm: Bullet turns the push-out into velocity).
   double contactHardness = 0.5;
   /// Voxel size (m) of Bullet's sparse signed-distance cache used for
-  /// cloth–collider contact. 0 = automatic: the smaller of 0.25 m and a quarter
-  /// of the smallest sphere radius or box half extent.
+  /// cloth–collider contact: 0 or at least kMinCollisionVoxelSize. 0 =
+  /// automatic: the smaller of 0.25 m and a quarter of the smallest sphere
+  /// radius or box half extent, but not below kMinCollisionVoxelSize.
   double collisionVoxelSize = 0;
   /// Bullet 3.24 allocates scratch arrays on every substep (4 mallocs, in
   /// btSoftBody::applyClusters, even without clusters). With true, the first
