@@ -10,6 +10,7 @@
 #include <blot/stain/fabric/weave_pattern.h>
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <filesystem>
 #include <fstream>
@@ -401,6 +402,28 @@ TEST(BadMesh, ByteOrderMarkBeforeTheFirstVertexIsSkipped) {
   const TriangleMesh mesh = loadMesh(test::testDataPath("good/bom_triangle.obj"));
   EXPECT_EQ(mesh.vertexPositions.rows(), 3);
   EXPECT_EQ(mesh.faces.rows(), 1);
+}
+
+// A named pipe nobody writes to: open() waited for a writer forever (a scene,
+// a mesh or a pattern path naming a stray FIFO hung blot). It reads as empty
+// at once and is named as what it is.
+TEST(BadMesh, ANamedPipeWithoutAWriterIsRefusedAtOnce) {
+  const fs::path fifo = fs::temp_directory_path() / "blot_mesh_fifo.obj";
+  fs::remove(fifo);
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  try {
+    loadMesh(fifo.string());
+    ADD_FAILURE() << "accepted";
+  } catch (const MeshError& error) {
+    expectMentions(error.what(), {fifo.string() + ": file is a named pipe with nothing written to it (no writer)"});
+  }
+  try {
+    loadWeavePattern(fifo.string());
+    ADD_FAILURE() << "accepted";
+  } catch (const PatternError& error) {
+    expectMentions(error.what(), {"pattern file is a named pipe with nothing written to it"});
+  }
+  fs::remove(fifo);
 }
 
 // An endless stream or a file past the 1 GiB budget is refused before it is read.

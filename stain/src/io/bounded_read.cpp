@@ -4,13 +4,16 @@
 // the read allocates. A regular file is refused by its stat size before one
 // byte is read; a non-regular one (a FIFO, a character device such as
 // /dev/zero, a file that grows while read) has no meaningful size, so it is
-// read in chunks and refused as soon as it passes the budget.
+// read in chunks and refused as soon as it passes the budget. A named pipe
+// is opened without waiting for a writer (below).
 #include <blot/stain/io/bounded_read.h>
 
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <fcntl.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 namespace blot::stain {
 
@@ -25,9 +28,25 @@ std::string readFileBounded(const std::string& path, std::size_t maxBytes, const
   if (S_ISDIR(info.st_mode)) throw FileReadError(path + ": " + what + " is a directory");
   const bool regular = S_ISREG(info.st_mode);
   if (regular && static_cast<unsigned long long>(info.st_size) > maxBytes) throw tooLarge(std::to_string(info.st_size));
+  // Opened without blocking, then read blocking: open() of a named pipe
+  // waits for a writer, which a stray FIFO never gets (blot hung there); a
+  // pipe without one reads as empty at once, one with a writer (a shell's
+  // <(...)) delivers its bytes as before.
   errno = 0;
-  std::FILE* file = std::fopen(path.c_str(), "rb");
-  if (file == nullptr) throw FileReadError(path + ": cannot open " + what + ": " + std::strerror(errno));
+  const int descriptor = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (descriptor < 0) throw FileReadError(path + ": cannot open " + what + ": " + std::strerror(errno));
+  const int flags = ::fcntl(descriptor, F_GETFL);
+  if (flags < 0 || ::fcntl(descriptor, F_SETFL, flags & ~O_NONBLOCK) != 0) {
+    const int error = errno;
+    ::close(descriptor);
+    throw FileReadError(path + ": cannot open " + what + ": " + std::strerror(error));
+  }
+  std::FILE* file = ::fdopen(descriptor, "rb");
+  if (file == nullptr) {
+    const int error = errno;
+    ::close(descriptor);
+    throw FileReadError(path + ": cannot open " + what + ": " + std::strerror(error));
+  }
   std::string text;
   if (regular) text.reserve(static_cast<std::size_t>(info.st_size));
   char buffer[1 << 16];
@@ -44,6 +63,8 @@ std::string readFileBounded(const std::string& path, std::size_t maxBytes, const
   const int readErrno = errno;
   std::fclose(file);
   if (readError) throw FileReadError(path + ": cannot read " + what + ": " + std::strerror(readErrno));
+  if (S_ISFIFO(info.st_mode) && text.empty())
+    throw FileReadError(path + ": " + what + " is a named pipe with nothing written to it (no writer)");
   return text;
 }
 
