@@ -157,6 +157,19 @@ Engine::Engine(const EngineDef& def) : def_(def) {
   requireSceneMagnitude(def_.rigid.pivot, "rigid.pivot");
   requireSceneMagnitude(def_.rigid.linearVelocity, "rigid.linearVelocity");
   requireSceneMagnitude(def_.rigid.linearAcceleration, "rigid.linearAcceleration");
+  // The colour mapping as a scene's display holds it: an infinite absorbance
+  // times a zero density made colors() NaN on every dry vertex.
+  const auto requireColorRange = [](const Eigen::Array3d& v, double most, const char* field) {
+    if (!(v.allFinite() && v.minCoeff() >= 0 && v.maxCoeff() <= most)) {
+      std::ostringstream message;
+      message << std::setprecision(12) << "EngineDef.colors." << field << " = (" << v[0] << ", " << v[1] << ", "
+              << v[2] << "): each channel must be in [0, " << most << "]";
+      throw std::invalid_argument(message.str());
+    }
+  };
+  requireColorRange(def_.colors.clothColor, 1.0, "clothColor");
+  requireColorRange(def_.colors.soluteAbsorbance, 1e6, "soluteAbsorbance");
+  requireColorRange(def_.colors.solventAbsorbance, 1e6, "solventAbsorbance");
   topology_ = std::make_unique<stain::SurfaceTopology>(def_.mesh.faces, n, "EngineDef.mesh");
 
   // Fabric: isotropic, or patches laid out with patterns homogenized once.

@@ -994,6 +994,14 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
                                                 ", expected at most the cloth's " + formatNumber(cloth[c]) +
                                                 " (a pigment only absorbs)");
         def.colors.soluteAbsorbance[c] = -std::log(color[c] / cloth[c]) / density;  // Beer–Lambert solved for ε
+        // Held to pigment_absorbance's range: a density of 5e-324 gave an
+        // infinite ε, and ∞ · 0 made every dry vertex's colour NaN.
+        if (!(def.colors.soluteAbsorbance[c] <= 1e6))
+          ctx.fail("display.pigment_color_density",
+                   "with pigment_color channel " + std::to_string(c) + " at " + formatNumber(color[c]) +
+                       " this gives an absorbance of " + formatNumber(def.colors.soluteAbsorbance[c]) +
+                       " m²/kg, more than 1e6 (pigment_absorbance's range): expected a density of at least " +
+                       formatNumber(-std::log(color[c] / cloth[c]) / 1e6) + " kg/m², got " + formatNumber(density));
       }
     } else if (d.find("pigment_color_density") != nullptr) {
       ctx.fail("display.pigment_color_density", "only meaningful with pigment_color");

@@ -668,6 +668,11 @@ TEST(EngineTest, DefinitionsBeyondASceneRangeNameTheField) {
   EngineDef far = rotatingPatch(4);
   far.mesh.vertexPositions(3, 1) = 2.5e39;
   EXPECT_NE(errorOf(far).find("EngineDef.mesh.vertexPositions[3]"), std::string::npos) << errorOf(far);
+  EngineDef dark = rotatingPatch(4);
+  dark.colors.soluteAbsorbance[1] = std::numeric_limits<double>::infinity();
+  EXPECT_NE(errorOf(dark).find("EngineDef.colors.soluteAbsorbance = (0.77, inf, 2.4): each channel must be in [0, 1000000]"),
+            std::string::npos)
+      << errorOf(dark);
   EngineDef heavy = twoWayFlag();
   heavy.stain.gravity = Eigen::Vector3d(0, 0, -1e39);
   EXPECT_NE(errorOf(heavy).find("EngineDef.stain.gravity = (0, 0, -1e+39)"), std::string::npos)

@@ -297,6 +297,10 @@ INSTANTIATE_TEST_SUITE_P(
                  "display.pigment_color", "at most the cloth's"},
         BadScene{"two pigments", withExtra(R"("display": {"pigment": "ink", "pigment_color": [0.5, 0.1, 0.1]})"),
                  "display.pigment_color", "give one of"},
+        // ε = −ln(0.1 / cloth) / 5e-324 is infinite: every dry vertex's colour was NaN.
+        BadScene{"a denormal pigment colour density",
+                 withExtra(R"("display": {"pigment_color": [0.1, 0.1, 0.1], "pigment_color_density": 5e-324})"),
+                 "display.pigment_color_density", "more than 1e6 (pigment_absorbance's range): expected a density of at least"},
         BadScene{"unknown liquid", withExtra(R"("liquid": {"preset": "milk"})"), "liquid.preset",
                  "unknown liquid \"milk\" (expected one of water, wine, coffee, ink)"},
         BadScene{"unknown liquid shorthand", withExtra(R"("liquid": "blood")"), "liquid",
