@@ -345,8 +345,9 @@ void applyExportOptions(const RunOptions& o, engine::FrameExportSettings& s) {
     }
     s.images.enabled = true;
   }
-  if (o.textureSize < 0 || o.textureSize > 16384)
-    throw std::invalid_argument("--texture: expected a size in [1, 16384], got " + std::to_string(o.textureSize));
+  if (o.textureSize < 0 || o.textureSize > 8192)
+    throw std::invalid_argument("--texture: expected a size in [1, 8192] (at most 2^26 texels, the baking budget), got " +
+                                std::to_string(o.textureSize));
   if (o.textureSize > 0) {
     s.texture.enabled = true;
     s.texture.width = s.texture.height = o.textureSize;

@@ -826,8 +826,12 @@ void parseOutputs(ObjectReader& r, SceneOutputs& o) {
     SceneTexture& t = o.texture;
     t.enabled = p.boolean("enabled", true);
     t.everyFrame = p.boolean("every_frame", t.everyFrame);
-    t.width = p.integer("width", t.width, closed(1, 16384));
-    t.height = p.integer("height", t.height, closed(1, 16384));
+    t.width = p.integer("width", t.width, closed(1, kMaxImageSide));
+    t.height = p.integer("height", t.height, closed(1, kMaxImageSide));
+    if (double(t.width) * double(t.height) > kMaxTextureTexels)
+      r.context().fail(p.path("width"), "a " + std::to_string(t.width) + " x " + std::to_string(t.height) +
+                                            " texture has more than 2^26 texels (8192 x 8192), the baking "
+                                            "budget (about 38 bytes a texel)");
     t.padding = p.integer("padding", t.padding, closed(0, 256));
     t.densityScale = p.number("density_scale", t.densityScale, leftOpen(0, 1e6));
     p.finish();

@@ -297,6 +297,10 @@ INSTANTIATE_TEST_SUITE_P(
                  "display.pigment_color", "at most the cloth's"},
         BadScene{"two pigments", withExtra(R"("display": {"pigment": "ink", "pigment_color": [0.5, 0.1, 0.1]})"),
                  "display.pigment_color", "give one of"},
+        // About 38 bytes a texel: 16384 x 16384 would have held about 10 GB after the run.
+        BadScene{"a texture past the baking budget",
+                 withExtra(R"("outputs": {"texture": {"width": 16384, "height": 16384}})"), "outputs.texture.width",
+                 "more than 2^26 texels (8192 x 8192)"},
         // ε = −ln(0.1 / cloth) / 5e-324 is infinite: every dry vertex's colour was NaN.
         BadScene{"a denormal pigment colour density",
                  withExtra(R"("display": {"pigment_color": [0.1, 0.1, 0.1], "pigment_color_density": 5e-324})"),

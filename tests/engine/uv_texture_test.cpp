@@ -139,6 +139,12 @@ TEST(UvTexture, BadInputNamesTheArgument) {
   UvBakeOptions tiny = options;
   tiny.width = 0;
   expectInvalid(uvs, faces, colors, tiny, "0x8");
+  UvBakeOptions huge = options;  // refused before anything is allocated
+  huge.width = huge.height = 16384;
+  expectInvalid(uvs, faces, colors, huge, "16384x16384, expected each side at most 16384 and at most 2^26 texels");
+  huge.width = 1 << 20;
+  huge.height = 1;
+  expectInvalid(uvs, faces, colors, huge, "1048576x1, expected each side at most 16384");
 }
 
 }  // namespace

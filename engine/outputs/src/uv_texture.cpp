@@ -16,6 +16,7 @@
 #include <blot/engine/uv_texture.h>
 
 #include <blot/engine/color_space.h>
+#include <blot/engine/output_options.h>
 
 #include <algorithm>
 #include <cmath>
@@ -35,6 +36,11 @@ void checkInputs(const Eigen::MatrixX2d& uvs, const Eigen::MatrixX3i& faces, con
   if (options.width < 1 || options.height < 1)
     throw std::invalid_argument(who + ": texture size " + std::to_string(options.width) + "x" +
                                 std::to_string(options.height) + ", expected at least 1x1");
+  if (options.width > kMaxImageSide || options.height > kMaxImageSide ||
+      double(options.width) * double(options.height) > kMaxTextureTexels)
+    throw std::invalid_argument(who + ": texture size " + std::to_string(options.width) + "x" +
+                                std::to_string(options.height) + ", expected each side at most " +
+                                std::to_string(kMaxImageSide) + " and at most 2^26 texels in all (8192 x 8192)");
   if (options.padding < 0)
     throw std::invalid_argument(who + ": padding " + std::to_string(options.padding) + ", expected >= 0");
   if (uvs.rows() != values.rows())

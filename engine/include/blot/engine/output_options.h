@@ -15,6 +15,12 @@ enum class Projection { Perspective, Orthographic };
 inline constexpr int kMaxImageSide = 16384;           ///< width and height, pixels
 inline constexpr int kMaxSupersampling = 4;           ///< samples per pixel along each axis
 inline constexpr double kMaxImageSamples = 1 << 26;   ///< width x height x supersampling^2 (16 bytes each)
+/// UV texture limits (UvBakeOptions), checked by the scene parser and the
+/// command line too, before the simulation: a side of at most kMaxImageSide
+/// and at most kMaxTextureTexels in all (8192 x 8192). Baking holds about 38
+/// bytes a texel (measured: 633 MB at 4096 x 4096), so about 2.5 GB at the
+/// limit; 16384 x 16384 would have needed about 10 GB.
+inline constexpr double kMaxTextureTexels = 1 << 26;
 
 /// Encoding of the PLY frames (PlyFrameWriter).
 enum class PlyFormat { BinaryLittleEndian, Ascii };
