@@ -104,19 +104,22 @@ struct Checkpoint {
   std::string stateFile;  // file name inside the output folder
   std::uint64_t stateHash = 0;
   std::uint64_t fileHash = 0;  // of the state file's bytes, checked before Engine::load parses them
+  std::uint64_t sceneHash = 0;  // SceneDef::sourceHash of the scene that wrote it (--resume refuses another)
 };
 
 using stain::kMaxThreads;  // --threads
 
 /// The hash over checkpoint.json's own fields ("record_hash"): an edited
 /// frame number or file name is refused, not resumed from.
-std::uint64_t recordHash(int frame, const std::string& stateFile, std::uint64_t stateHash, std::uint64_t fileHash) {
+std::uint64_t recordHash(int frame, const std::string& stateFile, std::uint64_t stateHash, std::uint64_t fileHash,
+                         std::uint64_t sceneHash) {
   std::uint64_t h = stain::kContentHashBasis;
   const std::int64_t f = frame;
   stain::hashBytes(h, &f, sizeof f);
   stain::hashBytes(h, stateFile.data(), stateFile.size());
   stain::hashBytes(h, &stateHash, sizeof stateHash);
   stain::hashBytes(h, &fileHash, sizeof fileHash);
+  stain::hashBytes(h, &sceneHash, sizeof sceneHash);
   return h;
 }
 
@@ -143,7 +146,7 @@ std::string hexHash(std::uint64_t hash) {
 }
 
 void writeCheckpoint(const engine::Engine& engine, const std::filesystem::path& directory, int frame,
-                     const std::string& previousStateFile) {
+                     const std::string& previousStateFile, std::uint64_t sceneHash) {
   const std::string stateFile = "checkpoint_" + std::to_string(frame) + ".state";
   const std::string statePath = (directory / stateFile).string();
   engine.save(statePath);
@@ -153,7 +156,8 @@ void writeCheckpoint(const engine::Engine& engine, const std::filesystem::path& 
                                  {"state", stateFile},
                                  {"state_hash", hexHash(stateHash)},
                                  {"file_hash", hexHash(fileHash)},
-                                 {"record_hash", hexHash(recordHash(frame, stateFile, stateHash, fileHash))}};
+                                 {"scene_hash", hexHash(sceneHash)},
+                                 {"record_hash", hexHash(recordHash(frame, stateFile, stateHash, fileHash, sceneHash))}};
   const std::string text = record.dump(2) + "\n";
   stain::writeFileAtomically((directory / "checkpoint.json").string(), text.data(), text.size());
   if (!previousStateFile.empty() && previousStateFile != stateFile) {
@@ -191,7 +195,8 @@ Checkpoint readCheckpoint(const std::filesystem::path& directory) {
   c.stateFile = name;
   c.stateHash = parseHexHash(json.string(), "state_hash", record);
   c.fileHash = parseHexHash(json.string(), "file_hash", record);
-  const std::uint64_t expected = recordHash(c.frame, c.stateFile, c.stateHash, c.fileHash);
+  c.sceneHash = parseHexHash(json.string(), "scene_hash", record);
+  const std::uint64_t expected = recordHash(c.frame, c.stateFile, c.stateHash, c.fileHash, c.sceneHash);
   if (parseHexHash(json.string(), "record_hash", record) != expected)
     throw std::runtime_error(json.string() + ": record_hash does not match the record's frame, state and hashes "
                              "(the file was edited or is damaged)");
@@ -440,6 +445,12 @@ int runScene(const RunOptions& options) {
     try {
       removeStaleTemporaries(directory);
       const Checkpoint c = readCheckpoint(directory);
+      // The rest of the run would follow the new scene's physics from the old
+      // one's state: a hybrid no single run gives. Only the same text resumes.
+      if (c.sceneHash != scene.sourceHash)
+        throw std::runtime_error("the scene file " + options.scenePath + " is not the one the checkpoint was written "
+                                 "with (scene hash " + hexHash(scene.sourceHash) + ", checkpoint.json's " +
+                                 hexHash(c.sceneHash) + "); run without --resume to start over");
       const std::string statePath = (std::filesystem::path(directory) / c.stateFile).string();
       // The bytes are checked against the record before Engine::load parses them.
       const std::uint64_t fileHash =
@@ -474,6 +485,29 @@ int runScene(const RunOptions& options) {
     exporter->writeFrame(0, *engine, frames == 0);
   }
 
+  // A failed run still writes summary.json, with "status": "failed": the
+  // folder may hold an earlier run's summary and frames, and without it that
+  // summary told of a success while this run's first frames had replaced its
+  // own (files written by this run are listed; each PLY names its scene).
+  const std::string summaryPath = (std::filesystem::path(directory) / "summary.json").string();
+  const auto writeFailedSummary = [&](const std::string& error, int frame, const std::string& statePath) {
+    const nlohmann::json failed = {{"scene", options.scenePath},
+                                   {"name", scene.name},
+                                   {"status", "failed"},
+                                   {"error", error},
+                                   {"failed_frame", frame},
+                                   {"steps", engine->stepCount()},
+                                   {"state_hash", hexHash(engine->stateHash())},
+                                   {"last_good_state", statePath},
+                                   {"outputs", {{"directory", directory}, {"ply", plyPaths}, {"summary", summaryPath}}}};
+    const std::string text = failed.dump(2) + "\n";
+    try {
+      stain::writeFileAtomically(summaryPath, text.data(), text.size());
+    } catch (const std::exception& e) {
+      std::cerr << "blot run: could not write the failed run's summary: " << e.what() << "\n";
+    }
+  };
+
   Progress progress(frames, options.quiet);
   progress.expectEncoding(exporter->encodeFrames() + (frames - firstFrame + 1) / std::max(1, exportSettings.images.every) *
                                                          ((exportSettings.video.mp4 ? 1 : 0) + (exportSettings.video.gif ? 1 : 0)),
@@ -493,14 +527,16 @@ int runScene(const RunOptions& options) {
       progress.interrupt();
       std::cerr << "blot run: numerical failure in frame " << frame << ": " << failure
                 << "\nblot run: last good frame written: " << lastGood << "\n";
-      const std::string statePath = (std::filesystem::path(directory) / "last_good.state").string();
+      std::string statePath = (std::filesystem::path(directory) / "last_good.state").string();
       try {
         engine->save(statePath);
         std::cerr << "blot run: state at the last good internal step " << engine->stepCount() << " (t = "
                   << engine->time() << " s) saved to " << statePath << "\n";
       } catch (const std::exception& e) {
         std::cerr << "blot run: could not save the last good state: " << e.what() << "\n";
+        statePath.clear();
       }
+      writeFailedSummary("numerical failure in frame " + std::to_string(frame) + ": " + failure, frame, statePath);
       return 3;
     }
     if (every > 0 && (frame % every == 0 || frame == frames)) writeFrame(frame);
@@ -509,15 +545,17 @@ int runScene(const RunOptions& options) {
     } catch (const std::exception& e) {
       progress.interrupt();
       std::cerr << "blot run: error: frame " << frame << " outputs: " << e.what() << "\n";
+      writeFailedSummary(std::string("frame ") + std::to_string(frame) + " outputs: " + e.what(), frame, "");
       return 1;
     }
     if (options.checkpointEvery > 0 && frame % options.checkpointEvery == 0 && frame < frames) {
       try {
-        writeCheckpoint(*engine, directory, frame, checkpointState);
+        writeCheckpoint(*engine, directory, frame, checkpointState, scene.sourceHash);
         checkpointState = "checkpoint_" + std::to_string(frame) + ".state";
       } catch (const std::exception& e) {
         progress.interrupt();
         std::cerr << "blot run: error: checkpoint after frame " << frame << ": " << e.what() << "\n";
+        writeFailedSummary(std::string("checkpoint after frame ") + std::to_string(frame) + ": " + e.what(), frame, "");
         return 1;
       }
     }
@@ -528,6 +566,7 @@ int runScene(const RunOptions& options) {
     exporter->finish([&](const std::string& video, int done, int total) { progress.encoding(video, done, total); });
   } catch (const std::exception& e) {
     std::cerr << "blot run: error: video: " << e.what() << "\n";
+    writeFailedSummary(std::string("video: ") + e.what(), frames, "");
     return 1;
   }
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -540,10 +579,10 @@ int runScene(const RunOptions& options) {
 
   const engine::EngineStatistics s = engine->statistics();
   const engine::EngineDef& d = scene.engine;
-  const std::string summaryPath = (std::filesystem::path(directory) / "summary.json").string();
   const nlohmann::json summary = {
       {"scene", options.scenePath},
       {"name", scene.name},
+      {"status", "ok"},
       {"mesh", scene.meshDescription},
       {"vertices", engine->vertexCount()},
       {"faces", engine->faces().rows()},

@@ -10,6 +10,8 @@
 // Rejected: a JSON-Schema file and a validator library — it would add a
 // dependency and still not know the mesh's vertex count.
 #include <blot/engine/scene.h>
+
+#include <blot/stain/content_hash.h>
 #include <blot/stain/io/bounded_read.h>
 #include <blot/stain/thread_limit.h>
 #include <blot/stain/io/mesh_io.h>
@@ -874,6 +876,10 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
   ObjectReader r(ctx, root, "");
   SceneDef scene;
   scene.sourceName = sourceName;
+  scene.sourceHash = stain::kContentHashBasis;
+  stain::hashBytes(scene.sourceHash, jsonText.data(), jsonText.size());
+  const std::int64_t resolution = options.patchResolution;
+  stain::hashBytes(scene.sourceHash, &resolution, sizeof resolution);
   scene.name = r.string("name", std::filesystem::path(sourceName).stem().string());
   // The name becomes file names inside the output folder (<name>_0001.ply,
   // <name>.png): it may not name a path.

@@ -48,12 +48,16 @@ for limit in "6 $scene full" "2 $work/noframes.json summary"; do
   grep -q "cannot write" "$work/err.txt" || { cat "$work/err.txt"; fail "no 'cannot write' message"; }
   grep -q "File too large" "$work/err.txt" || { cat "$work/err.txt"; fail "the message does not give EFBIG"; }
   no_temporaries "$work/$3"
-  [ -e "$work/$3/summary.json" ] && fail "a failed run wrote a summary"
+  # A failed run's summary, where there was room for one, says it failed.
+  if [ -e "$work/$3/summary.json" ]; then
+    grep -q '"status": "failed"' "$work/$3/summary.json" || fail "a failed run wrote a summary that does not say so"
+  fi
 done
 # A real full disk (ENOSPC): a 24 KiB tmpfs (root with CAP_SYS_ADMIN, as in
 # CI; skipped with a message elsewhere) holds three 7 KB frames, the fourth
 # does not fit: exit 1 naming the file and the error, no temporary, no
-# summary, and the frames written before are those of a run with room.
+# summary but a failed one, and the frames written before are those of a run
+# with room.
 mkdir -p "$work/tiny"
 if mount -t tmpfs -o size=24k tmpfs "$work/tiny" 2> "$work/mount.err"; then
   trap 'umount -l "$work/tiny" 2> /dev/null' EXIT
@@ -61,7 +65,9 @@ if mount -t tmpfs -o size=24k tmpfs "$work/tiny" 2> "$work/mount.err"; then
   expect 1 "No space left on device" -- "$blot" run "$scene" --quiet --threads 1 --out "$work/tiny/out"
   grep -q "tiny/out/small_000[0-9].ply: cannot write" "$work/err.txt" || { cat "$work/err.txt"; fail "ENOSPC message does not name the frame"; }
   no_temporaries "$work/tiny/out"
-  [ -e "$work/tiny/out/summary.json" ] && fail "a run that hit ENOSPC wrote a summary"
+  if [ -e "$work/tiny/out/summary.json" ]; then
+    grep -q '"status": "failed"' "$work/tiny/out/summary.json" || fail "a run that hit ENOSPC wrote a summary that does not say it failed"
+  fi
   kept=0
   for f in "$work/tiny/out"/*.ply; do
     cmp -s "$f" "$work/roomy/$(basename "$f")" || fail "$(basename "$f") written before the disk filled differs"
@@ -94,7 +100,7 @@ expect 1 "summary.json: cannot write" -- "$blot" run "$scene" --quiet --threads 
 no_temporaries "$work/dir"
 
 # Checkpoints: an edited frame, an edited state file, a bad hash field, a
-# state name with a folder; a stale temporary is removed by --resume.
+# state name with a folder, another scene; a stale temporary is removed by --resume.
 "$blot" run "$scene" --quiet --threads 1 --out "$work/ck" --checkpoint-every 2 --frames 4 > /dev/null 2>&1 || fail "checkpoint run"
 "$blot" run "$scene" --quiet --threads 1 --out "$work/ref" --frames 4 > "$work/ref.json" 2>/dev/null || fail "reference run"
 cp "$work/ck/checkpoint.json" "$work/good.json"
@@ -109,6 +115,10 @@ cp "$work/ck/checkpoint_2.state" "$work/state.bak"
 printf '\x01' | dd of="$work/ck/checkpoint_2.state" bs=1 seek=200 conv=notrunc status=none
 expect 1 "does not match checkpoint.json's" -- "$blot" run "$scene" --quiet --out "$work/ck" --resume
 cp "$work/state.bak" "$work/ck/checkpoint_2.state"
+# Another scene (here one space more) would continue the old state with new physics.
+sed 's/"ply_every": 1/"ply_every":  1/' "$scene" > "$work/changed.json"
+cmp -s "$scene" "$work/changed.json" && fail "the changed scene is the same"
+expect 1 "is not the one the checkpoint was written with" -- "$blot" run "$work/changed.json" --quiet --out "$work/ck" --resume
 echo partial > "$work/ck/small_0003.ply.12345.tmp"
 "$blot" run "$scene" --quiet --threads 1 --out "$work/ck" --resume > "$work/resumed.json" 2>/dev/null || fail "resume"
 no_temporaries "$work/ck"

@@ -24,7 +24,11 @@ for expected in "numerical failure in frame 5" "stage 'cloth'" "vertex 1300" "in
                 "last good frame written: $work/faulty/" "last_good.state"; do
   grep -qF "$expected" "$work/faulty.err" || { echo "FAIL: the message lacks '$expected'"; exit 1; }
 done
-[ -f "$work/faulty/summary.json" ] && { echo "FAIL: a failed run wrote a summary"; exit 1; }
+# The summary says the run failed, where and why (an earlier run's summary in
+# the folder would otherwise stand beside this run's frames).
+grep -q '"status": "failed"' "$work/faulty/summary.json" || { echo "FAIL: no summary saying the run failed"; exit 1; }
+grep -q '"failed_frame": 5' "$work/faulty/summary.json" || { echo "FAIL: the summary lacks the failed frame"; exit 1; }
+grep -qF "last_good.state" "$work/faulty/summary.json" || { echo "FAIL: the summary lacks the last good state"; exit 1; }
 [ -s "$work/faulty/last_good.state" ] || { echo "FAIL: no last good state saved"; exit 1; }
 last=$(sed -n 's/.*last good frame written: //p' "$work/faulty.err")
 [ -f "$last" ] || { echo "FAIL: the last good frame $last is not there"; exit 1; }

@@ -14,6 +14,7 @@
 #include <blot/stain/geometry/mesh_order.h>
 
 #include <stdexcept>
+#include <cstdint>
 #include <string>
 
 namespace blot::engine {
@@ -71,6 +72,9 @@ inline constexpr int kMaxSequenceFrames = 100000;
 /// A parsed scene: the engine definition and the outputs.
 struct SceneDef {
   std::string sourceName;       ///< file path or the name given for JSON text
+  /// FNV-1a of the JSON text as read (with the patch resolution override):
+  /// blot run's checkpoints record it, and --resume refuses a changed scene.
+  std::uint64_t sourceHash = 0;
   std::string name;             ///< "name" key, or the file stem
   std::string description;      ///< "description" key (free text)
   std::string meshDescription;  ///< e.g. "patch 1 x 1 m, 50 x 50 quads (2601 vertices)"
