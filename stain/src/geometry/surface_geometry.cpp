@@ -845,7 +845,10 @@ bool SurfaceGeometry::refreshExtrinsicWith(const RowVectors3& nextPositions, dou
   rotationFitStats_ = RotationFitStats();
 
   const bool unchanged = nextPositions == ex.nextPositions;
-  if (unchanged && dynamic_.unchangedRefreshes >= 2 && (strainMeasured_ || !strainTest)) {
+  // A still surface whose slots are rigid never measures strain (below), so
+  // the shortcut does not wait for a measurement there: after a restore,
+  // which clears strainMeasured_, a static surface re-shifted every step.
+  if (unchanged && dynamic_.unchangedRefreshes >= 2 && (strainMeasured_ || !strainTest || ex.nextRigid)) {
     // t − h, t and t + h all hold these positions already; ω = p̈ = 0, and
     // every vertex prepared since the last shift keeps its values.
     dynamic_.lastH = h;
