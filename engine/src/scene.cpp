@@ -26,6 +26,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <initializer_list>
 #include <fstream>
 #include <iomanip>
 #include <limits>
@@ -225,6 +226,13 @@ class ObjectReader {
     if (v == nullptr) return empty;
     if (!v->is_array()) ctx_.fail(path(key), "expected an array, got " + describe(*v));
     return *v;
+  }
+  /// Refuses, before any value is read, a key not among `keys` (finish()'s
+  /// message): a misspelt "liquid2" was reported as the error its missing
+  /// "liquid" caused elsewhere (drops[0].mass: needs the liquid's solute fraction).
+  void allowOnly(std::initializer_list<const char*> keys) {
+    for (const char* key : keys) find(key);
+    finish();
   }
   void finish() const {
     for (auto it = object_.begin(); it != object_.end(); ++it) {
@@ -874,6 +882,9 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
     throw SceneError(sourceName + ": " + e.what());
   }
   ObjectReader r(ctx, root, "");
+  r.allowOnly({"name", "description", "mesh", "cloth", "fabric", "liquid", "physics", "gravity", "strain_tolerance",
+               "strain_test", "intrinsic_refresh", "threads", "adaptive_threads", "coupling", "time_step",
+               "max_steps_per_call", "drops", "held_regions", "display", "outputs"});
   SceneDef scene;
   scene.sourceName = sourceName;
   scene.sourceHash = stain::kContentHashBasis;
@@ -886,7 +897,7 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
   if (scene.name.empty() || scene.name.size() > 200 || scene.name.front() == '.' ||
       scene.name.find_first_of("/\\") != std::string::npos ||
       std::any_of(scene.name.begin(), scene.name.end(), [](char c) { return static_cast<unsigned char>(c) < 32; }))
-    ctx.fail("name", "expected a file name (1 to 200 characters, no '/', '\\' or control characters, not starting "
+    ctx.fail("name", "expected a file name (1 to 200 bytes of UTF-8, no '/', '\\' or control characters, not starting "
                      "with '.'), got " + describe(json(scene.name)));
   scene.description = r.string("description", "");
   EngineDef& def = scene.engine;

@@ -172,6 +172,27 @@ TEST(SceneTest, UnconvergedHomogenizationIsRefusedUnlessAccepted) {
   EXPECT_EQ(errorOf(withExtra(R"("fabric": {"patches": [{"preset": "twill-2-1", "faces": "all"}]})")), "");
 }
 
+// A name is at most 200 bytes; one of 67 "€" (201 bytes) is refused, and the
+// message echoes it cut at a whole character (it was cut inside one: invalid
+// UTF-8 on stderr).
+TEST(SceneTest, AnOverlongUtf8NameIsEchoedAsValidUtf8) {
+  std::string name;
+  for (int k = 0; k < 67; ++k) name += "\xE2\x82\xAC";
+  const std::string message = errorOf(withExtra("\"name\": \"" + name + "\""));
+  ASSERT_NE(message.find("name: expected a file name (1 to 200 bytes of UTF-8"), std::string::npos) << message;
+  for (std::size_t i = 0; i < message.size();) {
+    const auto lead = static_cast<unsigned char>(message[i]);
+    const std::size_t length = lead < 0x80 ? 1 : (lead >> 5) == 0x6 ? 2 : (lead >> 4) == 0xE ? 3 : (lead >> 3) == 0x1E ? 4 : 0;
+    ASSERT_NE(length, 0u) << "byte " << i << " starts no character";
+    ASSERT_LE(i + length, message.size()) << "a character cut at the end";
+    for (std::size_t k = 1; k < length; ++k)
+      ASSERT_EQ(static_cast<unsigned char>(message[i + k]) & 0xC0, 0x80) << "byte " << i + k;
+    i += length;
+  }
+  name.resize(198);  // 66 "€": accepted
+  EXPECT_EQ(errorOf(withExtra("\"name\": \"" + name + "\"")), "");
+}
+
 TEST(SceneTest, FileMeshResolvesAgainstTheSceneFolder) {
   const std::filesystem::path dir = std::filesystem::temp_directory_path() / "blot_scene_test";
   std::filesystem::create_directories(dir / "meshes");
@@ -219,6 +240,9 @@ INSTANTIATE_TEST_SUITE_P(
         BadScene{"pin vertex out of range", withCloth(kBullet + R"("pins": [{"vertex": 0}, {"vertex": 1}, {"vertex": 9000}]})"),
                  "cloth.pins[2].vertex", "expected an integer in [0, 121), got 9000"},
         BadScene{"unknown top-level key", withExtra(R"("tme_step": 0.01)"), "tme_step", "unknown key"},
+        // Named before the drops are read, which without "liquid" fail on their own.
+        BadScene{"misspelt liquid", withExtra(R"("drops": [{"vertex": 5, "mass": 0.001}], "liquid2": {"preset": "wine"})"),
+                 "liquid2", "unknown key (expected one of: name, description, mesh, cloth, fabric, liquid,"},
         BadScene{"unknown nested key", withExtra(R"("liquid": {"absorption": 0.1})"), "liquid.absorption",
                  "unknown key (expected one of: preset, solute_fraction, wicking_factor, viscosity_factor, absorption_rate"},
         BadScene{"wrong type", withExtra(R"("time_step": "fast")"), "time_step", "expected a number in [1e-06, 1], got a string"},
@@ -285,7 +309,7 @@ INSTANTIATE_TEST_SUITE_P(
                  withExtra(R"("outputs": {"preview": {"width": 8192, "height": 8192, "supersampling": 2}})"),
                  "outputs.preview", "width x height x supersampling^2 = 8192 x 8192 x 2^2 is more than the renderer's"},
         BadScene{"name with a folder", withExtra(R"("name": "../escape")"), "name",
-                 "expected a file name (1 to 200 characters, no '/'"},
+                 "expected a file name (1 to 200 bytes of UTF-8, no '/'"},
         BadScene{"name starting with a dot", withExtra(R"("name": "..")"), "name", "not starting with '.'"},
         BadScene{"duplicate top-level key", withExtra(R"("time_step": 0.01, "time_step": 0.02)"), "time_step",
                  "duplicate key (an object gives it twice"},

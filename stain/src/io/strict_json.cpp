@@ -71,6 +71,14 @@ nlohmann::json parseStrictJson(const std::string& text) {
 
 namespace {
 
+/// The first at most n bytes of s, shortened to a whole UTF-8 character: a
+/// name of 101 "é" was echoed cut inside one (invalid UTF-8 on stderr).
+std::string utf8Prefix(const std::string& s, std::size_t n) {
+  if (s.size() <= n) return s;
+  while (n > 0 && (static_cast<unsigned char>(s[n]) & 0xC0) == 0x80) --n;  // s[n] continues a character
+  return s.substr(0, n);
+}
+
 void appendBrief(const nlohmann::json& value, std::size_t maxChars, int depth, std::string& out) {
   if (out.size() > maxChars) return;
   if (value.is_array() || value.is_object()) {
@@ -90,7 +98,7 @@ void appendBrief(const nlohmann::json& value, std::size_t maxChars, int depth, s
     out += object ? '}' : ']';
   } else if (value.is_string()) {
     const std::string& s = value.get_ref<const std::string&>();
-    out += nlohmann::json(s.size() > maxChars ? s.substr(0, maxChars) : s).dump();
+    out += nlohmann::json(utf8Prefix(s, maxChars)).dump();
   } else {
     out += value.dump();
   }
@@ -101,7 +109,7 @@ void appendBrief(const nlohmann::json& value, std::size_t maxChars, int depth, s
 std::string briefJson(const nlohmann::json& value, std::size_t maxChars) {
   std::string text;
   appendBrief(value, maxChars, 0, text);
-  if (text.size() > maxChars) text = text.substr(0, maxChars > 3 ? maxChars - 3 : 0) + "...";
+  if (text.size() > maxChars) text = utf8Prefix(text, maxChars > 3 ? maxChars - 3 : 0) + "...";
   return text;
 }
 
