@@ -343,11 +343,16 @@ void applyExportOptions(const RunOptions& o, engine::FrameExportSettings& s) {
   }
   if (!o.video.empty()) {
     std::stringstream list(o.video);
+    bool mp4 = false, gif = false;
     for (std::string format; std::getline(list, format, ',');) {
-      if (format == "mp4") s.video.mp4 = true;
-      else if (format == "gif") s.video.gif = true;
-      else throw std::invalid_argument("--video: expected mp4, gif or mp4,gif, got '" + o.video + "'");
+      bool& chosen = format == "mp4" ? mp4 : gif;
+      if ((format != "mp4" && format != "gif") || chosen)  // unknown, or named twice
+        throw std::invalid_argument("--video: expected mp4, gif or mp4,gif, got '" + o.video + "'");
+      chosen = true;
     }
+    s.video.mp4 = s.video.mp4 || mp4;
+    s.video.gif = s.video.gif || gif;
+    if (o.video.back() == ',') throw std::invalid_argument("--video: expected mp4, gif or mp4,gif, got '" + o.video + "'");
     s.images.enabled = true;
   }
   if (o.textureSize < 0 || o.textureSize > 8192)
@@ -413,6 +418,21 @@ int runScene(const RunOptions& options) {
       return 1;
     }
   }
+  engine::FrameExportSettings exportSettings{scene.outputs.images, scene.outputs.video, scene.outputs.texture,
+                                             scene.outputs.gltf};
+  try {
+    applyExportOptions(options, exportSettings);  // refused options create no folder
+  } catch (const std::exception& e) {
+    std::cerr << "blot run: error: " << e.what() << "\n";
+    return 1;
+  }
+  // Named as the folder it is (--out or outputs.directory), not as a raw
+  // filesystem_error ("cannot create directories: Not a directory [x]").
+  if (std::error_code error; !std::filesystem::create_directories(directory, error) && error) {
+    std::cerr << "blot run: error: output folder " << directory << ": cannot create it: " << error.message()
+              << (options.outputDirectory.empty() ? " (the scene's outputs.directory)" : " (--out)") << "\n";
+    return 1;
+  }
   engine::FrameWriterOptions outputs;
   outputs.directory = directory;
   outputs.name = scene.name;
@@ -420,12 +440,8 @@ int runScene(const RunOptions& options) {
   outputs.ply.comment = "blot run " + options.scenePath;
   outputs.preview = scene.outputs.preview;
   const engine::FrameWriter writer(*engine, outputs);
-  engine::FrameExportSettings exportSettings{scene.outputs.images, scene.outputs.video, scene.outputs.texture,
-                                             scene.outputs.gltf};
   std::unique_ptr<engine::FrameExporter> exporter;
   try {
-    applyExportOptions(options, exportSettings);
-    std::filesystem::create_directories(directory);
     exporter = std::make_unique<engine::FrameExporter>(exportSettings, directory, scene.name, *engine);
   } catch (const std::exception& e) {
     std::cerr << "blot run: error: " << e.what() << "\n";
@@ -622,14 +638,21 @@ void registerRunCommand(CLI::App& app, int& exitCode) {
       "run", "Run a scene file (docs/scene-format.md): PLY frames, a PNG of the last frame, JSON summary");
   command->add_option("scene", options->scenePath, "Scene file (JSON)")->required()->transform(assetPath());
   command->add_option("--frames", options->frames, "Frames to run (default: the scene's outputs.frames)");
-  command->add_option("--out", options->outputDirectory, "Output folder (default: the scene's outputs.directory)");
+  command
+      ->add_option("--out", options->outputDirectory, "Output folder (default: the scene's outputs.directory)")
+      ->check([](const std::string& value) {
+        return value.empty() ? std::string("expected a folder, got an empty string") : std::string();
+      });
   command->add_option("--threads", options->threads, "threads of the engine's steps (default: the scene's \"threads\", else OpenMP's default)");
   command->add_flag("--fixed-threads", options->fixedThreads,
                     "every step on all the threads (default: all or one per step, whichever measured faster; scene: adaptive_threads)");
   command->add_flag("--quiet", options->quiet, "No progress output");
   command->add_flag("--images", options->images, "A PNG per frame, <out>/<name>_frame_<k>.png (scene: outputs.images)");
   command->add_option("--camera", options->camera, "Frame images: follow (world view following the cloth) or rest");
-  command->add_option("--video", options->video, "mp4, gif or mp4,gif: videos of the frame images (needs ffmpeg on PATH)");
+  command->add_option("--video", options->video, "mp4, gif or mp4,gif: videos of the frame images (needs ffmpeg on PATH)")
+      ->check([](const std::string& value) {
+        return value.empty() ? std::string("expected mp4, gif or mp4,gif, got an empty string") : std::string();
+      });
   command->add_option("--texture", options->textureSize,
                       "Bake the final stain into the mesh's UVs at NxN texels: <name>_color.png, <name>_density.png");
   command->add_flag("--texture-every-frame", options->textureEveryFrame, "Bake the texture for every written frame");

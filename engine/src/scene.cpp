@@ -187,7 +187,11 @@ class ObjectReader {
     const json* v = find(key);
     if (v == nullptr) return fallback;
     if (!v->is_string()) ctx_.fail(path(key), "expected a string, got " + describe(*v));
-    return v->get<std::string>();
+    // A \u0000 would cut the path (and the message naming it) short.
+    const std::string& text = v->get_ref<const std::string&>();
+    if (const auto nul = text.find('\0'); nul != std::string::npos)
+      ctx_.fail(path(key), "expected a string without NUL characters, got one at byte " + std::to_string(nul));
+    return text;
   }
   /// One of `choices`; returns its index.
   int choice(const std::string& key, int fallback, const std::vector<std::string>& choices) {
@@ -278,7 +282,7 @@ stain::TriangleMesh parseMesh(ObjectReader& r, std::string& description, stain::
     ctx.fail(r.path(), "a patch resolution override needs a \"patch\" mesh");
   if (const json* file = r.find("file")) {
     if (!file->is_string()) ctx.fail(r.path("file"), "expected a path string, got " + describe(*file));
-    const std::string path = ctx.resolve(file->get<std::string>());
+    const std::string path = ctx.resolve(r.string("file", ""));  // r.string refuses a NUL
     try {
       mesh = stain::loadMesh(path);
     } catch (const std::exception& e) {

@@ -28,7 +28,13 @@ no_temporaries() { ! ls "$1" | grep -q '\.tmp$' || { ls "$1"; fail "temporary fi
 expect 1 "--threads 10000: expected 0 (all cores) to 1024" -- "$blot" run "$scene" --quiet --out "$work/t" --threads 10000
 expect 1 "--checkpoint-every -1: expected 0 (never)" -- "$blot" run "$scene" --quiet --out "$work/t" --checkpoint-every -1
 expect 1 "--frames -2: expected 0" -- "$blot" run "$scene" --quiet --out "$work/t" --frames -2
+expect 1 "--video: expected mp4, gif or mp4,gif, got 'mp4,mp4'" -- "$blot" run "$scene" --quiet --out "$work/t" --video mp4,mp4
+expect 105 "--video: expected mp4, gif or mp4,gif, got an empty string" -- "$blot" run "$scene" --quiet --out "$work/t" --video ""
 [ -e "$work/t" ] && fail "a refused run created its output folder"
+# --out: an empty string is no folder (it fell back to the scene's); under a file, the folder is named.
+expect 105 "--out: expected a folder, got an empty string" -- "$blot" run "$scene" --quiet --out ""
+touch "$work/a_file"
+expect 1 "output folder $work/a_file/out: cannot create it: Not a directory (--out)" -- "$blot" run "$scene" --quiet --out "$work/a_file/out"
 
 # A name that is a path is refused before anything is written.
 sed 's/"name": "small"/"name": "..\/escaped"/' "$scene" > "$work/escape.json"

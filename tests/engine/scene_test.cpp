@@ -240,6 +240,8 @@ INSTANTIATE_TEST_SUITE_P(
         BadScene{"pin vertex out of range", withCloth(kBullet + R"("pins": [{"vertex": 0}, {"vertex": 1}, {"vertex": 9000}]})"),
                  "cloth.pins[2].vertex", "expected an integer in [0, 121), got 9000"},
         BadScene{"unknown top-level key", withExtra(R"("tme_step": 0.01)"), "tme_step", "unknown key"},
+        BadScene{"a NUL in a mesh path", R"({"mesh": {"file": "a\u0000b.obj"}, "cloth": {"source": "static"}})",
+                 "mesh.file", "expected a string without NUL characters, got one at byte 1"},
         // Named before the drops are read, which without "liquid" fail on their own.
         BadScene{"misspelt liquid", withExtra(R"("drops": [{"vertex": 5, "mass": 0.001}], "liquid2": {"preset": "wine"})"),
                  "liquid2", "unknown key (expected one of: name, description, mesh, cloth, fabric, liquid,"},
