@@ -291,7 +291,8 @@ stain::TriangleMesh parseMesh(ObjectReader& r, std::string& description, stain::
     description = path;
   } else if (const json* patch = r.find("patch")) {
     ObjectReader p(ctx, *patch, r.path("patch"));
-    const Eigen::Vector2d size = p.vector2("size", {1.0, 1.0}, positive());
+    // At least 1 µm: a 1e-300 m patch's faces were refused as "zero area".
+    const Eigen::Vector2d size = p.vector2("size", {1.0, 1.0}, closed(1e-6, kMaxSceneMagnitude));
     Eigen::Vector2d resolution(32, 32);
     if (const json* res = p.find("resolution")) {
       if (!res->is_array() || res->size() != 2)
@@ -527,7 +528,9 @@ stain::Matrix2 parseTensor(const Context& ctx, const json& v, const std::string&
 
 void parseFabric(ObjectReader& r, const stain::TriangleMesh& mesh, EngineDef& def) {
   const Context& ctx = r.context();
-  def.diffusivity = r.number("diffusivity", def.diffusivity, positive());
+  // Bounded below, as wicking_factor is, so that their product stays a normal
+  // double: 5e-324 underflowed and was refused as "EngineDef.diffusivity".
+  def.diffusivity = r.number("diffusivity", def.diffusivity, closed(1e-12, kMaxSceneMagnitude));
   def.viscosity = r.number("viscosity", def.viscosity, nonNegative());
   def.homogenizationSubdivisions = r.integer("subdivisions", 0, closed(0, 64));
   const bool acceptUnconverged = r.boolean("accept_unconverged", false);
@@ -619,7 +622,7 @@ void parseFabric(ObjectReader& r, const stain::TriangleMesh& mesh, EngineDef& de
     // the engine) is scaled so its mean eigenvalue, trace / 2, is this (m²/s).
     double scale = 0;
     if (p.has("diffusivity")) {
-      scale = p.number("diffusivity", 0.0, positive());
+      scale = p.number("diffusivity", 0.0, closed(1e-12, kMaxSceneMagnitude));
       if (!patch.pattern) patch.tensor *= 2.0 * scale / patch.tensor.trace();
     }
     def.fabricPatchDiffusivities.push_back(patch.pattern ? scale : 0.0);
@@ -685,7 +688,7 @@ void parseLiquid(ObjectReader& r, stain::LiquidParameters& l, LiquidChoice& choi
   choice.soluteFraction = r.number("solute_fraction", choice.soluteFraction < 0 ? 0.0 : choice.soluteFraction,
                                    closed(0, 1));
   if (!r.has("solute_fraction") && choice.preset == nullptr) choice.soluteFraction = -1;
-  choice.wickingFactor = r.number("wicking_factor", choice.wickingFactor, positive());
+  choice.wickingFactor = r.number("wicking_factor", choice.wickingFactor, closed(1e-6, kMaxSceneMagnitude));
   choice.viscosityFactor = r.number("viscosity_factor", choice.viscosityFactor, nonNegative());
   l.absorptionRate = r.number("absorption_rate", l.absorptionRate, nonNegative());
   l.saturationDensity = r.number("saturation_density", l.saturationDensity, positive());

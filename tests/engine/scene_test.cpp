@@ -242,6 +242,14 @@ INSTANTIATE_TEST_SUITE_P(
         BadScene{"unknown top-level key", withExtra(R"("tme_step": 0.01)"), "tme_step", "unknown key"},
         BadScene{"a NUL in a mesh path", R"({"mesh": {"file": "a\u0000b.obj"}, "cloth": {"source": "static"}})",
                  "mesh.file", "expected a string without NUL characters, got one at byte 1"},
+        // Tiny but positive values whose products underflowed or whose faces had no area
+        // were refused later under the engine's names (EngineDef.diffusivity, face 0).
+        BadScene{"a denormal diffusivity", withExtra(R"("fabric": {"diffusivity": 5e-324})"), "fabric.diffusivity",
+                 "expected a number in [1e-12, 1000000]"},
+        BadScene{"a denormal wicking factor", withExtra(R"("liquid": {"wicking_factor": 5e-324})"),
+                 "liquid.wicking_factor", "expected a number in [1e-06, 1000000]"},
+        BadScene{"a patch of 1e-300 m", R"({"mesh": {"patch": {"size": [1e-300, 1]}}, "cloth": {"source": "static"}})",
+                 "mesh.patch.size[0]", "expected a number in [1e-06, 1000000]"},
         // Named before the drops are read, which without "liquid" fail on their own.
         BadScene{"misspelt liquid", withExtra(R"("drops": [{"vertex": 5, "mass": 0.001}], "liquid2": {"preset": "wine"})"),
                  "liquid2", "unknown key (expected one of: name, description, mesh, cloth, fabric, liquid,"},
