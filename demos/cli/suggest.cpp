@@ -80,7 +80,10 @@ std::string suggestion(const CLI::App& app, int argc, const char* const* argv) {
       }
       const std::string near = closest(arg, commands);
       if (!near.empty()) return "did you mean '" + near + "'?";
-      return "";  // the first word is no command and nothing like one: CLI11's message says enough
+      // Nothing like one: CLI11 only says "A subcommand is required".
+      std::string list;
+      for (const std::string& c : commands) list += (list.empty() ? "" : ", ") + c;
+      return "unknown command '" + arg + "' (expected one of: " + list + ")";
     }
   }
   return "";
