@@ -152,15 +152,25 @@ nlohmann::json meshSummary(const std::string& path, const stain::TriangleMesh& m
 constexpr int kPreviewSupersampling = 3;
 
 void renderPreview(const MeshInfoOptions& options, const stain::TriangleMesh& mesh) {
+  // Checked here as blot run's scene keys are: a zero, non-finite or huge
+  // view failed as "Camera: eye and target must be finite and distinct", and
+  // a bad --up was ignored silently.
+  const Eigen::Vector3d view = vectorOption(options.view, "view"), up = vectorOption(options.up, "up");
+  const auto finiteAndNonZero = [](const Eigen::Vector3d& v) {
+    return v.allFinite() && v.cwiseAbs().maxCoeff() <= 1e6 && v.norm() > 0;
+  };
+  if (!finiteAndNonZero(view))
+    throw std::invalid_argument("--view: expected a non-zero direction x,y,z with finite components of at most 1e6");
+  if (!finiteAndNonZero(up) || !(up.cross(view).norm() > 1e-6 * up.norm() * view.norm()))
+    throw std::invalid_argument("--up: expected a non-zero direction x,y,z not parallel to --view");
   engine::RenderSettings settings;
   settings.width = options.width;
   settings.height = options.height;
   settings.supersampling = kPreviewSupersampling;
   settings.background = {0.93, 0.94, 0.96};
   const engine::Camera camera = engine::framePoints(
-      mesh.vertexPositions, vectorOption(options.view, "view"),
-      static_cast<double>(options.width) / options.height, engine::Projection::Perspective,
-      vectorOption(options.up, "up"));
+      mesh.vertexPositions, view, static_cast<double>(options.width) / options.height, engine::Projection::Perspective,
+      up);
   engine::SurfaceStyle style;
   style.wireframe = options.wireframe;
   style.wireframeWidth = 0.8;

@@ -42,4 +42,18 @@ assert s["median_edge_index_span"] > 500, s              # a random order: about
 assert s["median_edge_index_span_locality"] <= 2 * 61, s  # about one breadth-first level
 print("rows", r, "shuffled", s)
 PY
+# Preview directions are checked as blot run's scene keys are (a zero --view
+# failed as a camera error, a zero or parallel --up was ignored).
+for bad in "--view 0 0 0|--view: expected a non-zero direction" "--view 1e308 0 0|--view: expected a non-zero direction" \
+           "--up 0 0 0|--up: expected a non-zero direction" "--view 0 0 -1 --up 0 0 2|not parallel to --view"; do
+  args=${bad%%|*} expected=${bad#*|}
+  set +e
+  # shellcheck disable=SC2086
+  "$blot" mesh-info "$work/rows.obj" --render "$work/bad.png" $args > /dev/null 2> "$work/bad.err"
+  status=$?
+  set -e
+  [ "$status" -eq 1 ] || { cat "$work/bad.err"; echo "FAIL: mesh-info $args exited $status"; exit 1; }
+  grep -qF -- "$expected" "$work/bad.err" || { cat "$work/bad.err"; echo "FAIL: mesh-info $args: no '$expected'"; exit 1; }
+  [ -e "$work/bad.png" ] && { echo "FAIL: mesh-info $args wrote a preview"; exit 1; }
+done
 echo "mesh info OK"
