@@ -343,6 +343,17 @@ a step of it runs on another thread raises RuntimeError.
       return readOnlyView(read(w, idle(w, name)), self);
     };
   };
+  // The same of a derived buffer (computed on request), marked as viewed so
+  // that each step refreshes it (refreshViewed).
+  const auto derivedView = [](bool PyEngine::*viewed, const Eigen::MatrixX3d& (Engine::*read)() const,
+                              const char* name) {
+    return [viewed, read, name](py::object self) {
+      PyEngine& w = self.cast<PyEngine&>();
+      const Engine& e = idle(w, name);
+      w.*viewed = true;
+      return readOnlyView((e.*read)(), self);
+    };
+  };
   engine
       .def_static(
           "from_scene_file",
@@ -456,10 +467,7 @@ a step of it runs on another thread raises RuntimeError.
       .def_property_readonly(
           "positions", view([](PyEngine&, const Engine& e) -> const auto& { return e.positions(); }, "positions"),
           "#V x 3 (m) at time, read-only view")
-      .def_property_readonly("normals", view([](PyEngine& w, const Engine& e) -> const auto& {
-                                               w.normalsViewed = true;
-                                               return e.normals();
-                                             }, "normals"),
+      .def_property_readonly("normals", derivedView(&PyEngine::normalsViewed, &Engine::normals, "normals"),
                              "#V x 3 unit vertex normals at time, read-only view")
       .def_property_readonly(
           "solvent", view([](PyEngine&, const Engine& e) -> const auto& { return e.solvent(); }, "solvent"),
@@ -475,20 +483,14 @@ a step of it runs on another thread raises RuntimeError.
       .def_property_readonly(
           "adsorbed_solute",
           view([](PyEngine&, const Engine& e) -> const auto& { return e.adsorbedSolute(); }, "adsorbed_solute"))
-      .def_property_readonly("velocities", view([](PyEngine& w, const Engine& e) -> const auto& {
-                                                  w.velocitiesViewed = true;
-                                                  return e.liquidVelocities();
-                                                }, "velocities"),
+      .def_property_readonly("velocities",
+                             derivedView(&PyEngine::velocitiesViewed, &Engine::liquidVelocities, "velocities"),
                              "#V x 3 liquid velocity relative to the cloth (m/s), read-only view")
-      .def_property_readonly("world_velocities", view([](PyEngine& w, const Engine& e) -> const auto& {
-                                                        w.worldVelocitiesViewed = true;
-                                                        return e.liquidWorldVelocities();
-                                                      }, "world_velocities"),
-                             "#V x 3 liquid velocity in the world frame (m/s), read-only view")
-      .def_property_readonly("colors", view([](PyEngine& w, const Engine& e) -> const auto& {
-                                              w.colorsViewed = true;
-                                              return e.colors();
-                                            }, "colors"),
+      .def_property_readonly(
+          "world_velocities",
+          derivedView(&PyEngine::worldVelocitiesViewed, &Engine::liquidWorldVelocities, "world_velocities"),
+          "#V x 3 liquid velocity in the world frame (m/s), read-only view")
+      .def_property_readonly("colors", derivedView(&PyEngine::colorsViewed, &Engine::colors, "colors"),
                              "#V x 3 linear RGB in [0, 1], read-only view")
       .def_property_readonly(
           "vertex_areas",

@@ -45,6 +45,17 @@ std::string temporaryPath(const std::string& name) {
   return (std::filesystem::temp_directory_path() / ("blot_engine_test_" + name)).string();
 }
 
+/// Two saved files hold the same bytes (and are not empty).
+void expectSameNonEmptyFiles(const std::string& a, const std::string& b) {
+  const auto bytesOf = [](const std::string& file) {
+    std::ifstream in(file, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  };
+  const std::string first = bytesOf(a);
+  EXPECT_FALSE(first.empty()) << a;
+  EXPECT_TRUE(first == bytesOf(b)) << a << " and " << b << " differ";
+}
+
 TEST(EngineTest, InitialDropShowsInTheFirstViewsAndMassIsConserved) {
   Engine engine(rotatingPatch());
   const int n = engine.vertexCount();
@@ -251,12 +262,7 @@ TEST(EngineTest, SaveThenLoadContinuesBitIdentically) {
   const std::string restoredPath = temporaryPath("rigid_restored.state");
   original.save(originalPath);
   restored.save(restoredPath);
-  const auto bytesOf = [](const std::string& file) {
-    std::ifstream in(file, std::ios::binary);
-    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-  };
-  EXPECT_FALSE(bytesOf(originalPath).empty());
-  EXPECT_TRUE(bytesOf(originalPath) == bytesOf(restoredPath));
+  expectSameNonEmptyFiles(originalPath, restoredPath);
   for (const std::string& file : {path, originalPath, restoredPath}) std::remove(file.c_str());
 }
 
@@ -281,12 +287,7 @@ TEST(EngineTest, AStaticSurfaceResumesItsStillShortcutAndSavesTheSameBytes) {
   ASSERT_EQ(restored.advanceSteps(10).status, stain::StepStatus::Ok);
   restored.save(restoredPath);
   EXPECT_EQ(restored.stateHash(), original.stateHash());
-  const auto bytesOf = [](const std::string& file) {
-    std::ifstream in(file, std::ios::binary);
-    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-  };
-  EXPECT_FALSE(bytesOf(originalPath).empty());
-  EXPECT_TRUE(bytesOf(originalPath) == bytesOf(restoredPath));
+  expectSameNonEmptyFiles(originalPath, restoredPath);
   for (const std::string& file : {path, originalPath, restoredPath}) std::remove(file.c_str());
 }
 
