@@ -186,6 +186,17 @@ void RigidMotion::rollBack() {
   evaluate();
 }
 
+bool RigidMotion::positionsBefore(double h, Eigen::MatrixX3d& out) const {
+  if (def_.angularVelocity.isZero(0.0) && def_.linearAcceleration.isZero(0.0)) return false;
+  const double t = time_ - h;
+  const Eigen::Matrix3d R = rotationAt(t);
+  const Eigen::Vector3d c = pivotAt(t);
+  out.resize(rest_.rows(), 3);
+  for (Eigen::Index i = 0; i < rest_.rows(); ++i)
+    out.row(i) = (c + R * (rest_.row(i).transpose() - def_.pivot)).transpose();
+  return true;
+}
+
 void RigidMotion::evaluate() {
   const Eigen::Matrix3d R = rotationAt(time_);
   const Eigen::Vector3d c = pivotAt(time_);

@@ -97,6 +97,7 @@ CoupledSurface::CoupledSurface(std::unique_ptr<cloth::SurfaceMotion> motion, con
   endRelative_ = Eigen::MatrixX3d::Zero(n, 3);
   impulses_ = Eigen::MatrixX3d::Zero(n, 3);
   previousImpulses_ = Eigen::MatrixX3d::Zero(n, 3);
+  positionsBefore_ = Eigen::MatrixX3d::Zero(n, 3);
   wallPrevious_.assign(static_cast<size_t>(n), -1);
   wallNext_.assign(static_cast<size_t>(n), -1);
   for (const std::vector<int>& loop : topology_->boundaryLoops()) {
@@ -159,6 +160,11 @@ stain::StepReport CoupledSurface::step(double h) {
   }
   const double exchange = millisecondsSince(mark);
 
+  // The first step's p(t − h) from the motion, where it knows it exactly (a
+  // rotating or accelerating rigid motion): p − h v would halve its
+  // acceleration on that step.
+  if (!stain_->started() && motion_->positionsBefore(h, positionsBefore_))
+    stain_->setPositionsBeforeFirstStep(positionsBefore_);
   mark = Clock::now();
   stain::StepReport report = advanceCloth(h);  // Stage::Cloth
   times_.cloth = millisecondsSince(mark);

@@ -330,6 +330,15 @@ void StainSolver::setInitialMotion(const RowVectors3& positions, const RowVector
   initialVelocities_ = velocities;
 }
 
+void StainSolver::setPositionsBeforeFirstStep(const RowVectors3& positions) {
+  if (positions.rows() != state_.vertexCount() || !positions.allFinite())
+    throw std::invalid_argument("StainSolver::setPositionsBeforeFirstStep: expected " +
+                                std::to_string(state_.vertexCount()) + " finite rows");
+  if (started_) return;
+  positionsBeforeFirstStep_ = positions;  // sized once: the same rows each time
+  havePositionsBeforeFirstStep_ = true;
+}
+
 Complex StainSolver::velocityInCurrentFrame(int i) const {
   const Complex u = state_.velocities[i];
   const PhysicsSwitches& on = def_.switches;
@@ -759,11 +768,17 @@ StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositio
   // On the first step u is in the frames at t, not in a last step's midpoint frame.
   firstStep_ = !started_;
   if (!started_) {
-    // p(−h) ≈ p(0) − h v(0): the first centred acceleration sees the motion's
-    // initial velocity instead of a jump from rest.
-    geometry_.setPreviousPositions(geometry_.extrinsic().nextPositions - h * initialVelocities_);
+    // p(−h) from the motion where it knows it; else p(−h) ≈ p(0) − h v(0):
+    // the first centred acceleration then sees the motion's initial velocity
+    // instead of a jump from rest (but only half its acceleration).
+    if (havePositionsBeforeFirstStep_) {
+      geometry_.setPreviousPositions(positionsBeforeFirstStep_);
+    } else {
+      geometry_.setPreviousPositions(geometry_.extrinsic().nextPositions - h * initialVelocities_);
+    }
     started_ = true;
   }
+  havePositionsBeforeFirstStep_ = false;
   const bool aroundLiquid = def_.strainTest == StrainTest::AroundLiquid;
   bool rebuild = rigidRotation != nullptr
                      ? geometry_.refreshExtrinsicRigid(nextPositions, *rigidRotation, h)

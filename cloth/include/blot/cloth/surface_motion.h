@@ -78,6 +78,15 @@ class SurfaceMotion {
     (void)rotation;
     return false;
   }
+  /// The positions h seconds before time(), where the motion knows them
+  /// exactly (a rigid motion: R x̄ + c at that time); false otherwise. The
+  /// stain's first step takes them for p(t − h) (StainSolver::
+  /// setPositionsBeforeFirstStep).
+  virtual bool positionsBefore(double h, Eigen::MatrixX3d& out) const {
+    (void)h;
+    (void)out;
+    return false;
+  }
   /// False for a motion that never changes the surface's shape (static,
   /// rigid): a stain on it never rebuilds its metric, so nothing is sized for
   /// a rebuild (StainSolver::prepareForDeformation).
@@ -191,6 +200,9 @@ class RigidMotion final : public SurfaceMotion {
     return true;
   }
   bool deforms() const override { return false; }
+  /// R x̄ + c at time() − h, exact, when the motion rotates or accelerates;
+  /// false for a constant velocity (or none), where p − h v is exact already.
+  bool positionsBefore(double h, Eigen::MatrixX3d& out) const override;
 
   /// Rotation exp(t [ω]×) at time t.
   Eigen::Matrix3d rotationAt(double t) const;

@@ -175,6 +175,7 @@ class CoupledSurface {
   // (the wall direction), or -1 for interior vertices.
   std::vector<int> wallPrevious_, wallNext_;
   Eigen::MatrixX3d impulses_;          // #V by 3 (N·s), owed to the nodes
+  Eigen::MatrixX3d positionsBefore_;   // #V by 3: p(t − h) for the stain's first step, where the motion knows it
   Eigen::Vector3d evaporatedMomentum_ = Eigen::Vector3d::Zero();
   CoupledStepTimes times_;
 };

@@ -163,8 +163,19 @@ class StainSolver {
   /// motion that deforms (cloth::SurfaceMotion::deforms).
   void prepareForDeformation();
   /// Positions and velocities at t = 0 of the moving surface (p(−h) is
-  /// estimated as p(0) − h v(0) on the first step). Default: the rest shape at rest.
+  /// estimated as p(0) − h v(0) on the first step, unless
+  /// setPositionsBeforeFirstStep gives it). Default: the rest shape at rest.
   void setInitialMotion(const RowVectors3& positions, const RowVectors3& velocities);
+  /// p(t − h) for the next step, where it is the first (!started()): the
+  /// surface's positions h before its initial ones, from a motion that knows
+  /// them (cloth::SurfaceMotion::positionsBefore). That step's centred
+  /// acceleration is then the motion's own; p(0) − h v(0) gives half of it
+  /// (a rotating or accelerating cloth's first step kicked the liquid with
+  /// half the inertia, a first-order error that never decayed). Used by the
+  /// next step only; ignored once the solver has stepped.
+  void setPositionsBeforeFirstStep(const RowVectors3& positions);
+  /// Whether a step has run (the first step sets p(t − h)).
+  bool started() const { return started_; }
 
   /// Advances the stain from t to t + h given the surface at t + h. On a
   /// numerical failure the state is left as it was before the step and the
@@ -397,6 +408,9 @@ class StainSolver {
   Vector evaporatedMass_;  // #V kg, the last step's per-vertex evaporation
   bool evaporationWritten_ = false;  // evaporatedMass_ holds nonzero values
   RowVectors3 initialVelocities_;
+  // setPositionsBeforeFirstStep's positions, for the next first step only.
+  RowVectors3 positionsBeforeFirstStep_;
+  bool havePositionsBeforeFirstStep_ = false;
   StepProfile profile_;
   double time_ = 0;
   int steps_ = 0;
