@@ -296,7 +296,8 @@ BulletCloth::BulletCloth(const ClothDef& def) : def_(def), bullet_(std::make_uni
   positions_.resize(n, 3);
   velocities_.resize(n, 3);
   copyOut();
-  keepRollbackPoint();  // rollBack() before any step returns here
+  captureState(rollbackState_);  // rollBack() before any step returns here
+  if (b.shared) captureState(sharedNext_);  // sized now: a step captures into it without allocating
 }
 
 BulletCloth::~BulletCloth() = default;
@@ -412,6 +413,15 @@ void BulletCloth::setPinTarget(int vertex, const Eigen::Vector3d& position) {
     btSoftBody::Node& node = bullet_->body->m_nodes[vertex];
     node.m_v = toBullet((position - toEigen(node.m_x)) / lastStep_);
   }
+  // A shared world's rollback point was taken before this call (the end of
+  // the last advance): the new target goes into it too, so a failed step
+  // does not take it back.
+  if (bullet_->shared) {
+    BulletClothState& next = sharedNextValid_ ? sharedNext_ : rollbackState_;
+    next.movedPins[p] = 1;
+    next.pinTargets.row(static_cast<Eigen::Index>(p)) = position.transpose();
+    if (lastStep_ > 0) next.velocities.row(vertex) = (position.transpose() - next.positions.row(vertex)) / lastStep_;
+  }
 }
 
 Eigen::Vector3d BulletCloth::pinTarget(std::size_t p, double t) const {
@@ -509,6 +519,8 @@ void BulletCloth::advanceSharedWorld(double h) {
     node.m_v = toBullet((pinTarget(p, time_ + h) - toEigen(node.m_x)) / h);
   }
   if (!b.adopted) body.m_cfg.kDP = static_cast<btScalar>(1 - std::exp(-def_.dampingRate * h / def_.substeps));
+  captureState(sharedNext_);  // the next step's rollback point, if this one succeeds
+  sharedNextValid_ = true;
 }
 
 void BulletCloth::copyOut() {
@@ -546,9 +558,24 @@ BulletClothState BulletCloth::captureState() const {
   return state;
 }
 
-void BulletCloth::keepRollbackPoint() { captureState(rollbackState_); }
+void BulletCloth::keepRollbackPoint() {
+  // A shared world has been stepped by its owner before this call, so the
+  // nodes now are already the step's: the point to come back to is what the
+  // last advance() left (sharedNext_), or, after a rollback, the same point
+  // again. (Capturing the nodes here made a failed step "restore" the
+  // exploded cloth, and every later step fail.)
+  if (bullet_->shared) {
+    if (sharedNextValid_) std::swap(rollbackState_, sharedNext_);
+    sharedNextValid_ = false;
+    return;
+  }
+  captureState(rollbackState_);
+}
 
-void BulletCloth::rollBack() { restoreState(rollbackState_); }
+void BulletCloth::rollBack() {
+  restoreState(rollbackState_);
+  sharedNextValid_ = false;
+}
 
 void BulletCloth::captureState(BulletClothState& state) const {
   const btSoftBody& body = *bullet_->body;

@@ -428,6 +428,10 @@ class BulletCloth final : public SurfaceMotion {
   Eigen::MatrixX3d positions_, velocities_;
   Eigen::AlignedBox3d boundingBox_;
   BulletClothState rollbackState_;  // keepRollbackPoint / rollBack
+  // A shared world: the state the last advance() left, before the owner's
+  // next world step; the rollback point once the step that made it is over.
+  BulletClothState sharedNext_;
+  bool sharedNextValid_ = false;
   double restDiagonal_ = 0;
   double collisionMargin_ = 0;
   double time_ = 0;
