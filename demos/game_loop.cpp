@@ -15,6 +15,7 @@
 #include <blot/stain/io/atomic_file.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <sstream>
@@ -31,31 +32,84 @@ struct Options {
   std::string framesCsv;  // per-frame timings, empty: none
 };
 
-bool parse(int argc, char** argv, Options& o) {
+constexpr const char* kUsage =
+    "usage: %s [--scene SCENE.json] [--seconds S] [--rate HZ] [--drop-interval S] [--seed N]\n"
+    "          [--frames-csv FILE]\n"
+    "  --seconds S        simulated time, in [1e-6, 86400] (default 10)\n"
+    "  --rate HZ          frames per second, in [1, 1000] (default 60)\n"
+    "  --drop-interval S  mean seconds between drops, in [0.001, 1e6] (default 0.7)\n"
+    "  --seed N           the drops' times, points and sizes, an integer in [0, 4294967295] (default 1)\n"
+    "  --frames-csv FILE  one row per frame: times, stain stages, rebuilds, drops; threads, wet and band\n"
+    "                     vertices, band and reach rings, advection sub-steps of its last step\n";
+
+/// The whole of `text` as a number in [lo, hi], or an error naming the option
+/// (atof read "abc" as 0 and 1e12 s overflowed the frame count).
+bool number(const char* option, const char* text, double lo, double hi, double& out) {
+  char* end = nullptr;
+  const double value = std::strtod(text, &end);
+  if (end == text || *end != '\0' || !(value >= lo && value <= hi)) {
+    std::fprintf(stderr, "game_loop: %s %s: expected a number in [%.10g, %.10g]\n", option, text, lo, hi);
+    return false;
+  }
+  out = value;
+  return true;
+}
+
+/// Options; false with a message (exit 2) on a bad one, true and help set for --help.
+bool parse(int argc, char** argv, Options& o, bool& help) {
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     const bool hasValue = i + 1 < argc;
-    if (a == "--scene" && hasValue) o.scene = argv[++i];
-    else if (a == "--seconds" && hasValue) o.loop.seconds = std::atof(argv[++i]);
-    else if (a == "--rate" && hasValue) o.loop.frameRate = std::atof(argv[++i]);
-    else if (a == "--drop-interval" && hasValue) o.loop.dropInterval = std::atof(argv[++i]);
-    else if (a == "--seed" && hasValue) o.loop.seed = static_cast<unsigned>(std::atoi(argv[++i]));
-    else if (a == "--frames-csv" && hasValue) o.framesCsv = argv[++i];
-    else {
-      std::fprintf(stderr,
-                   "usage: %s [--scene SCENE.json] [--seconds S] [--rate HZ] [--drop-interval S] [--seed N]\n"
-                   "          [--frames-csv FILE]  (one row per frame: times, stain stages, rebuilds, drops; threads, wet and band vertices, band and reach rings, advection sub-steps of its last step)\n", argv[0]);
+    if (a == "--help" || a == "-h") {
+      std::printf(kUsage, argv[0]);
+      help = true;
+      return true;
+    }
+    if (a == "--scene" && hasValue) {
+      o.scene = argv[++i];
+    } else if (a == "--seconds" && hasValue) {
+      if (!number("--seconds", argv[++i], 1e-6, 86400, o.loop.seconds)) return false;
+    } else if (a == "--rate" && hasValue) {
+      if (!number("--rate", argv[++i], 1, 1000, o.loop.frameRate)) return false;
+    } else if (a == "--drop-interval" && hasValue) {
+      // Bounded below: drops are drawn until the next falls past the frame,
+      // so 1e-9 s drew them forever inside the first frame.
+      if (!number("--drop-interval", argv[++i], 1e-3, 1e6, o.loop.dropInterval)) return false;
+    } else if (a == "--seed" && hasValue) {
+      double seed = 0;
+      if (!number("--seed", argv[++i], 0, 4294967295.0, seed) || seed != std::floor(seed)) {
+        if (seed != std::floor(seed)) std::fprintf(stderr, "game_loop: --seed %s: expected an integer\n", argv[i]);
+        return false;
+      }
+      o.loop.seed = static_cast<unsigned>(seed);
+    } else if (a == "--frames-csv" && hasValue) {
+      o.framesCsv = argv[++i];
+      if (o.framesCsv.empty()) {
+        std::fprintf(stderr, "game_loop: --frames-csv: expected a file name, got an empty string\n");
+        return false;
+      }
+    } else {
+      std::fprintf(stderr, "game_loop: %s: %s\n", a.c_str(),
+                   hasValue || a.rfind("--", 0) != 0 ? "unknown option" : "needs a value");
+      std::fprintf(stderr, kUsage, argv[0]);
       return false;
     }
   }
-  return o.loop.seconds > 0 && o.loop.frameRate > 0 && o.loop.dropInterval > 0;
+  return true;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
   Options options;
-  if (!parse(argc, argv, options)) return 2;
+  bool help = false;
+  if (!parse(argc, argv, options, help)) return 2;
+  if (help) return 0;
+  if (options.loop.seconds * options.loop.frameRate < 0.5) {
+    std::fprintf(stderr, "game_loop: --seconds %g at --rate %g Hz is less than one frame\n", options.loop.seconds,
+                 options.loop.frameRate);
+    return 2;
+  }
   std::unique_ptr<blot::Engine> engine;
   try {
     engine = blot::Engine::fromSceneFile(options.scene);
