@@ -5,7 +5,9 @@
 
 #include <blot/engine/version.h>
 
+#include <cerrno>
 #include <csignal>
+#include <cstring>
 #include <exception>
 #include <iostream>
 
@@ -34,6 +36,13 @@ int main(int argc, char** argv) {
     return code;
   } catch (const std::exception& e) {
     std::cerr << "blot: error: " << e.what() << "\n";
+    return 1;
+  }
+  // Every command prints its JSON to standard output: a write that failed
+  // there (a full disk, a closed pipe, > /dev/full) lost it with exit 0.
+  std::cout.flush();
+  if (!std::cout && exitCode == 0) {
+    std::cerr << "blot: error: cannot write to standard output: " << std::strerror(errno != 0 ? errno : EIO) << "\n";
     return 1;
   }
   return exitCode;

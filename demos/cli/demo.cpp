@@ -135,6 +135,16 @@ int runDemo(const DemoOptions& options) {
   if (!options.pigment.empty())
     def.colors = engine::stainColorMapping(engine::pigmentPresetFromName(options.pigment), def.colors.clothColor);
   const int stepsPerFrame = options.stepsPerFrame > 0 ? options.stepsPerFrame : scene.outputs.stepsPerFrame;
+  // The contact sheet holds every frame's preview: bounded as one image is
+  // (a scene's 8192 x 8192 preview over 100 frames ran out of memory after
+  // the run had begun).
+  const double sheetPixels = double(options.frames + 1) * scene.outputs.preview.width * scene.outputs.preview.height;
+  if (sheetPixels > engine::kMaxImageSamples)
+    throw std::invalid_argument("--frames " + std::to_string(options.frames) + " with the scene's " +
+                                std::to_string(scene.outputs.preview.width) + " x " +
+                                std::to_string(scene.outputs.preview.height) + " preview makes a contact sheet of " +
+                                std::to_string(static_cast<long long>(sheetPixels)) +
+                                " pixels, more than 2^26: give fewer frames or a smaller outputs.preview");
 
   engine::Engine e(def);
   engine::FrameWriterOptions outputs;
@@ -199,9 +209,12 @@ void registerDemoCommand(CLI::App& app, int& exitCode) {
   command->add_option("name", options->name, "Demo name")->capture_default_str();
   command->add_option("--scene", options->scenePath, "Scene file (default: the demo's, in assets/scenes/)")
       ->transform(assetPath());
-  command->add_option("--out", options->outputDirectory, "Output folder (created)")->capture_default_str();
+  const auto folder = [](const std::string& value) {
+    return value.empty() ? std::string("expected a folder, got an empty string") : std::string();
+  };
+  command->add_option("--out", options->outputDirectory, "Output folder (created)")->capture_default_str()->check(folder);
   // The old name, hidden: --out is the name every command uses.
-  command->add_option("--output", options->outputDirectory, "Same as --out")->group("");
+  command->add_option("--output", options->outputDirectory, "Same as --out")->group("")->check(folder);
   command->add_option("--pigment", options->pigment, "wine, coffee or ink (default: the scene's)");
   command->add_option("--frames", options->frames, "Frames after the initial one (frames 0..N are written)")
       ->capture_default_str()
@@ -214,7 +227,7 @@ void registerDemoCommand(CLI::App& app, int& exitCode) {
       ->check(zeroOr(engine::kMinTimeStep, 1, " s"));
   command->add_option("--diffusivity", options->diffusivity,
                       "Mean diffusivity trace/2 of every fabric patch, m^2/s (default: the scene's)")
-      ->check(zeroOr(0, engine::kMaxSceneMagnitude, " m^2/s"));
+      ->check(zeroOr(1e-12, engine::kMaxSceneMagnitude, " m^2/s"));  // a scene's fabric.diffusivity range
   command->callback([options, &exitCode]() {
     try {
       exitCode = runDemo(*options);

@@ -23,6 +23,7 @@
 #include <blot/engine/engine.h>
 #include <blot/engine/frame_writer.h>
 #include <blot/engine/scene.h>
+#include <blot/stain/io/atomic_file.h>
 #include <blot/stain/thread_limit.h>
 
 #include <nlohmann/json.hpp>
@@ -89,6 +90,14 @@ engine::Image renderPanel(const engine::Engine& e, int width, const engine::Scen
 /// Default base scenes: assets/scenes/ wherever `blot` finds its assets (assets.h).
 std::string defaultScene(const std::string& file) { return findAsset("assets/scenes/" + file); }
 
+/// summary.json through the atomic writer, every write checked (an unchecked
+/// ofstream wrote nothing into a folder named summary.json, exit 0, and hung
+/// on a named pipe there).
+void writeSummary(const std::string& directory, const nlohmann::json& summary) {
+  const std::string text = summary.dump(2) + "\n";
+  stain::writeFileAtomically((std::filesystem::path(directory) / "summary.json").string(), text.data(), text.size());
+}
+
 int runFig5(const FigureOptions& o) {
   const std::string scenePath = o.scenePath.empty() ? defaultScene("rotating_region.json") : o.scenePath;
   const engine::SceneDef base = engine::loadScene(scenePath);
@@ -154,7 +163,7 @@ int runFig5(const FigureOptions& o) {
                                   {"variants", results},
                                   {"legend", "red: liquid centre of mass (world frame); blue: free particle"},
                                   {"png", png}};
-  std::ofstream(std::filesystem::path(directory) / "summary.json") << summary.dump(2) << "\n";
+  writeSummary(directory, summary);
   std::cout << summary.dump(2) << "\n";
   return 0;
 }
@@ -216,7 +225,7 @@ int runParameterGrid(const FigureOptions& o) {
   engine::writePng(engine::contactSheet(panels, labels, sheet), png);
   const nlohmann::json summary = {{"scene", scenePath}, {"kind", o.kind}, {"frames", frames}, {"cells", cells},
                                   {"png", png}};
-  std::ofstream(std::filesystem::path(directory) / "summary.json") << summary.dump(2) << "\n";
+  writeSummary(directory, summary);
   std::cout << summary.dump(2) << "\n";
   return 0;
 }
@@ -229,11 +238,15 @@ void registerFigureCommand(CLI::App& app, int& exitCode) {
       "figure", "Paper figures made of several runs of a scene: fig5 (rotating region), parameter-grid (Figs. 12, 13)");
   command->add_option("name", options->name, "fig5 or parameter-grid")->required()->check(
       CLI::IsMember({"fig5", "parameter-grid"}));
-  command->add_option("--kind", options->kind, "parameter-grid: absorption (Fig. 12) or adsorption (Fig. 13)")
-      ->capture_default_str();
+  CLI::Option* kind = command->add_option("--kind", options->kind, "parameter-grid: absorption (Fig. 12) or adsorption (Fig. 13)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"absorption", "adsorption"}));
   command->add_option("--scene", options->scenePath, "Base scene (default: the figure's file in assets/scenes/)")
       ->transform(assetPath());
-  command->add_option("--out", options->outputDirectory, "Output folder (default: out/<figure>)");
+  command->add_option("--out", options->outputDirectory, "Output folder (default: out/<figure>)")
+      ->check([](const std::string& value) {
+        return value.empty() ? std::string("expected a folder, got an empty string") : std::string();
+      });
   command->add_option("--frames", options->frames, "Frames to run (default: the scene's outputs.frames)")
       ->check(CLI::Range(0, 1000000));
   // 2048: a square panel at the renderer's largest supersampling (4) keeps
@@ -244,7 +257,13 @@ void registerFigureCommand(CLI::App& app, int& exitCode) {
   command->add_option("--threads", options->threads, "OpenMP threads (0: all cores, at most 1024)")
       ->capture_default_str()
       ->check(CLI::Range(0, stain::kMaxThreads));
-  command->callback([options, &exitCode]() {
+  command->callback([options, kind, &exitCode]() {
+    // fig5 has no kinds: an ignored --kind would look as if it chose one.
+    if (options->name != "parameter-grid" && kind->count() > 0) {
+      std::cerr << "blot figure " << options->name << ": error: --kind is for parameter-grid only\n";
+      exitCode = 2;
+      return;
+    }
     if (options->threads > 0) omp_set_num_threads(options->threads);
     try {
       exitCode = options->name == "fig5" ? runFig5(*options) : runParameterGrid(*options);

@@ -152,8 +152,24 @@ void registerHomogenizeCommand(CLI::App& app, int& exitCode) {
   command->add_option("-t,--tolerance", options->tolerance,
                       "Relative gap between the upper and lower bound to reach, per entry as a fraction of the "
                       "largest eigenvalue (default 0.01)")
-      ->check(CLI::Range(1e-6, 0.5));
-  command->add_flag("--list-presets", options->listPresets, "List the presets and their cells as JSON");
+      ->check(CLI::Validator(
+          [](std::string& text) -> std::string {
+            // CLI::Range lets NaN through (no comparison fails), and calls
+            // "abc" out of range: a number in the range, said so.
+            std::size_t used = 0;
+            double value = 0;
+            try {
+              value = std::stod(text, &used);
+            } catch (const std::exception&) {
+              used = 0;
+            }
+            if (used == text.size() && value >= 1e-6 && value <= 0.5) return "";
+            return text + ": expected a number in [1e-06, 0.5]";
+          },
+          "NUMBER in [1e-06, 0.5]"));
+  CLI::Option* list = command->add_flag("--list-presets", options->listPresets, "List the presets and their cells as JSON");
+  list->excludes(file);  // ignored silently before
+  list->excludes(preset);
   command->callback([options, &exitCode]() { exitCode = runHomogenize(*options); });
 }
 

@@ -109,10 +109,14 @@ blotStatus copyRows(const char* function, const blotEngine* engine, View view, f
 bool checkReadable(const char* function, const char* path, blotStatus& status) {
   // A directory opens as a stream on Linux; it is a file that cannot be read.
   std::error_code ignored;
-  if (std::filesystem::is_directory(path, ignored)) {
+  const std::filesystem::file_status kind = std::filesystem::status(path, ignored);
+  if (std::filesystem::is_directory(kind)) {
     status = fail(BLOT_ERROR_IO, std::string(function) + ": " + path + ": cannot open (a directory, not a file)");
     return false;
   }
+  // Opening a named pipe as a stream waits for a writer (a stray FIFO hung
+  // here); the loaders read one without waiting (stain::readFileBounded).
+  if (std::filesystem::is_fifo(kind)) return true;
   std::ifstream in(path, std::ios::binary);
   if (in) return true;
   const int error = errno;

@@ -5,6 +5,7 @@
 #include <blot/stain/geometry/mesh_primitives.h>
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include "../fuzz/capi_enum_shim.h"
 
@@ -42,6 +43,16 @@ TEST(CApiTest, BadSceneIsASceneErrorNamingTheKey) {
             std::string::npos)
       << blotGetLastError();
   EXPECT_EQ(engine, nullptr);
+  // A named pipe nobody writes to: refused at once (opening it as a stream
+  // waited for a writer forever).
+  const std::string fifo = (std::filesystem::temp_directory_path() / "blot_c_api_test_fifo.json").string();
+  std::filesystem::remove(fifo);
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  EXPECT_NE(blotCreateEngineFromSceneFile(fifo.c_str(), &engine), BLOT_OK);
+  EXPECT_NE(std::string(blotGetLastError()).find("named pipe with nothing written to it"), std::string::npos)
+      << blotGetLastError();
+  EXPECT_EQ(engine, nullptr);
+  std::filesystem::remove(fifo);
 }
 
 TEST(CApiTest, CopiesMatchTheEngineAndBadArgumentsAreStatuses) {

@@ -91,8 +91,8 @@ expect 105 "--frames: Value 101 not in range 0 to 100" -- "$blot" demo --frames 
 expect 105 "--steps-per-frame: Value -1 not in range 0 to 1000000" -- "$blot" demo --steps-per-frame -1 --out "$work/demo"
 expect 105 "1e-300: expected 0 (the scene's) or 1e-06 to 1 s" -- "$blot" demo --dt 1e-300 --out "$work/demo"
 expect 105 "nan: expected 0 (the scene's) or 1e-06 to 1 s" -- "$blot" demo --dt nan --out "$work/demo"
-expect 105 "1e300: expected 0 (the scene's) or a positive value up to 1e+06 m^2/s" -- "$blot" demo --diffusivity 1e300 --out "$work/demo"
-expect 105 "-0.1: expected 0 (the scene's) or a positive value up to 1e+06 m^2/s" -- "$blot" demo --diffusivity -0.1 --out "$work/demo"
+expect 105 "1e300: expected 0 (the scene's) or 1e-12 to 1e+06 m^2/s" -- "$blot" demo --diffusivity 1e300 --out "$work/demo"
+expect 105 "-0.1: expected 0 (the scene's) or 1e-12 to 1e+06 m^2/s" -- "$blot" demo --diffusivity -0.1 --out "$work/demo"
 [ -e "$work/demo" ] && fail "a refused demo created its output folder"
 expect 105 "--width: Value 100000 not in range 16 to 2048" -- "$blot" figure fig5 --width 100000 --out "$work/fig"
 expect 105 "--frames: Value -5 not in range 0 to 1000000" -- "$blot" figure fig5 --frames -5 --out "$work/fig"
@@ -130,4 +130,19 @@ echo partial > "$work/ck/small_0003.ply.12345.tmp"
 no_temporaries "$work/ck"
 hash() { grep '"state_hash"' "$1"; }
 [ "$(hash "$work/resumed.json")" = "$(hash "$work/ref.json")" ] || fail "resumed state hash differs from the uninterrupted run"
+
+# The other commands (an outside-in probe, 7 Dec): each refuses before it works.
+cat > "$work/bigpreview.json" <<'JSON'
+{"name": "big", "mesh": {"patch": {"size": [0.4, 0.4], "resolution": [8, 8]}}, "cloth": {"source": "static"},
+ "outputs": {"preview": {"width": 8192, "height": 8192, "supersampling": 1}}}
+JSON
+expect 1 "--frames 100 with the scene's 8192 x 8192 preview makes a contact sheet of 6777995264 pixels, more than 2^26" \
+  -- "$blot" demo drop-diffusion --scene "$work/bigpreview.json" --frames 100 --out "$work/dbig"
+[ -e "$work/dbig" ] && ls "$work/dbig" | grep -q . && fail "the refused demo wrote files"
+expect 105 "--tolerance: nan: expected a number in [1e-06, 0.5]" -- "$blot" homogenize --preset plain -t nan
+expect 2 "--kind is for parameter-grid only" -- "$blot" figure fig5 --kind absorption --frames 1 --out "$work/f5"
+mkdir -p "$work/f5dir/summary.json"
+expect 1 "f5dir/summary.json: cannot write" -- "$blot" figure fig5 --frames 1 --width 16 --out "$work/f5dir"
+# Standard output that cannot be written (closed) is an error, not exit 0 with the JSON lost.
+expect 1 "cannot write to standard output" -- sh -c "\"$blot\" homogenize --preset plain >&-"
 echo "hostile input OK"
