@@ -117,15 +117,27 @@ struct Options {
   double radius = 0.1;
 };
 
+constexpr const char* kUsage =
+    "usage: blot-viewer [SCENE.json] [--no-scene-drops] [--liquid wine|coffee|ink] [--radius R]\n"
+    "                   [--drop U,V[,VX,VY,VZ][@FRAME]]... [--frames N] [--screenshot OUT.png]\n"
+    "                   [--toggle TERM[@FRAME]]... [--exit] [--size WxH]\n"
+    "       TERM: %s\n";
+
+/// Most frames a script names (--frames, @FRAME): an int, and days at 60 Hz.
+constexpr double kMaxScriptFrames = 1e7;
+
 [[noreturn]] void usage(const std::string& error) {
-  std::fprintf(stderr,
-               "blot-viewer: %s\n"
-               "usage: blot-viewer [SCENE.json] [--no-scene-drops] [--liquid wine|coffee|ink] [--radius R]\n"
-               "                   [--drop U,V[,VX,VY,VZ][@FRAME]]... [--frames N] [--screenshot OUT.png]\n"
-               "                   [--toggle TERM[@FRAME]]... [--exit] [--size WxH]\n"
-               "       TERM: %s\n",
-               error.c_str(), Terms::kNames);
+  std::fprintf(stderr, "blot-viewer: %s\n", error.c_str());
+  std::fprintf(stderr, kUsage, Terms::kNames);
   std::exit(2);
+}
+
+/// A frame number of a script: a whole number in [0, kMaxScriptFrames]
+/// (3e9 overflowed int and read as "--exit needs --frames N").
+int scriptFrame(const std::vector<double>& f, const std::string& what) {
+  if (f.size() != 1 || !(f[0] >= 0 && f[0] <= kMaxScriptFrames) || f[0] != std::floor(f[0]))
+    usage(what + " must be a whole number in [0, 10000000]");
+  return static_cast<int>(f[0]);
 }
 
 std::vector<double> parseNumbers(const std::string& text, const std::string& option) {
@@ -160,9 +172,7 @@ Options parseOptions(int argc, char** argv) {
       Options::ScriptDrop d;
       const auto at = text.find('@');
       if (at != std::string::npos) {
-        const std::vector<double> f = parseNumbers(text.substr(at + 1), "--drop @FRAME");
-        if (f.size() != 1 || f[0] < 0 || f[0] != std::floor(f[0])) usage("--drop: @FRAME must be a whole number >= 0");
-        d.frame = static_cast<int>(f[0]);
+        d.frame = scriptFrame(parseNumbers(text.substr(at + 1), "--drop @FRAME"), "--drop: @FRAME");
         text = text.substr(0, at);
       }
       const std::vector<double> v = parseNumbers(text, "--drop");
@@ -179,22 +189,18 @@ Options parseOptions(int argc, char** argv) {
       t.term = text.substr(0, at);
       if (!Terms::knows(t.term)) usage("--toggle: '" + t.term + "' is not one of " + Terms::kNames);
       if (at != std::string::npos) {
-        const std::vector<double> f = parseNumbers(text.substr(at + 1), "--toggle @FRAME");
-        if (f.size() != 1 || f[0] < 0 || f[0] != std::floor(f[0])) usage("--toggle: @FRAME must be a whole number >= 0");
-        t.frame = static_cast<int>(f[0]);
+        t.frame = scriptFrame(parseNumbers(text.substr(at + 1), "--toggle @FRAME"), "--toggle: @FRAME");
       }
       o.toggles.push_back(t);
     } else if (a == "--frames") {
-      const std::vector<double> v = parseNumbers(value(), "--frames");
-      if (v.size() != 1 || v[0] < 0 || v[0] != std::floor(v[0])) usage("--frames: expected a whole number >= 0");
-      o.frames = static_cast<int>(v[0]);
+      o.frames = scriptFrame(parseNumbers(value(), "--frames"), "--frames");
     } else if (a == "--screenshot") {
       o.screenshot = value();
     } else if (a == "--exit") {
       o.exitAfter = true;
     } else if (a == "--radius") {
       const std::vector<double> v = parseNumbers(value(), "--radius");
-      if (v.size() != 1 || !(v[0] > 0)) usage("--radius: expected a length > 0 (m)");
+      if (v.size() != 1 || !(v[0] > 0 && v[0] <= 1e6)) usage("--radius: expected a length in (0, 1e6] m");
       o.radius = v[0];
     } else if (a == "--liquid") {
       const std::string name = value();
@@ -212,7 +218,8 @@ Options parseOptions(int argc, char** argv) {
       o.width = w;
       o.height = h;
     } else if (a == "-h" || a == "--help") {
-      usage("help");
+      std::printf(kUsage, Terms::kNames);
+      std::exit(0);
     } else if (!a.empty() && a[0] == '-') {
       usage("unknown option '" + a + "'");
     } else if (o.scene.empty()) {
@@ -222,6 +229,13 @@ Options parseOptions(int argc, char** argv) {
     }
   }
   if (o.exitAfter && o.frames < 0) usage("--exit needs --frames N");
+  // A scripted drop or toggle after the last frame never happened, silently.
+  if (o.exitAfter) {
+    for (const auto& d : o.drops)
+      if (d.frame > o.frames) usage("--drop @" + std::to_string(d.frame) + " is after the last frame (--frames " + std::to_string(o.frames) + ")");
+    for (const auto& t : o.toggles)
+      if (t.frame > o.frames) usage("--toggle " + t.term + "@" + std::to_string(t.frame) + " is after the last frame (--frames " + std::to_string(o.frames) + ")");
+  }
   return o;
 }
 
@@ -383,11 +397,19 @@ class Viewer {
       viewH_ = std::max(1, h);
 
       // Scripted drops land before the frame's step, as a click would.
-      for (const auto& d : opt_.drops)
-        if (d.frame == frames_ && !throwAtView(d.u * viewW_, d.v * viewH_, d.velocity)) {
-          std::fprintf(stderr, "blot-viewer: --drop %g,%g misses the cloth in the view\n", d.u, d.v);
+      for (const auto& d : opt_.drops) {
+        if (d.frame != frames_) continue;
+        error_.clear();
+        if (!throwAtView(d.u * viewW_, d.v * viewH_, d.velocity)) {
+          // A miss, or a drop the engine refused (its reason, not "misses").
+          if (error_.empty()) {
+            std::fprintf(stderr, "blot-viewer: --drop %g,%g misses the cloth in the view\n", d.u, d.v);
+          } else {
+            std::fprintf(stderr, "blot-viewer: --drop %g,%g: %s\n", d.u, d.v, error_.c_str());
+          }
           rc = 1;
         }
+      }
       for (const auto& t : opt_.toggles)
         if (t.frame == frames_) {
           bool* term = terms_.find(t.term);

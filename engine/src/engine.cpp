@@ -62,10 +62,12 @@ Eigen::Vector3d closestBarycentric(const Eigen::Vector3d& p, const Eigen::Vector
 
 /// Checks a drop's fields before it is queued (stain::addDrop checks again when it lands).
 void requirePlausible(double value, const char* field) {
-  if (!(std::abs(value) <= kMaxSceneMagnitude))
-    throw std::invalid_argument(std::string("drop: ") + field + " must be finite and at most " +
-                                std::to_string(static_cast<long>(kMaxSceneMagnitude)) + " in size, got " +
-                                std::to_string(value));
+  if (!(std::abs(value) <= kMaxSceneMagnitude)) {
+    std::ostringstream message;  // 12 digits: std::to_string printed 1e200 as 201 digits
+    message << std::setprecision(12) << "drop: " << field << " must be finite and at most "
+            << static_cast<long>(kMaxSceneMagnitude) << " in size, got " << value;
+    throw std::invalid_argument(message.str());
+  }
 }
 
 /// A vector of the definition within a scene's magnitudes, or an error
