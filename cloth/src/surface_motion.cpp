@@ -62,6 +62,14 @@ void CallerMotion::checkNext() {
     hasNext_ = false;
     throw std::invalid_argument("CallerMotion::setNextFrame: positions and velocities must be finite");
   }
+  // Held to a scene's magnitudes (1e6): 1e300 m made the step fail as a
+  // collapsed face ("area 0") instead of naming the frame.
+  if (!(nextPositions_.cwiseAbs().maxCoeff() <= kMaxFrameMagnitude) ||
+      (nextHasVelocities_ && !(nextVelocities_.cwiseAbs().maxCoeff() <= kMaxFrameMagnitude))) {
+    hasNext_ = false;
+    throw std::invalid_argument("CallerMotion::setNextFrame: positions (m) and velocities (m/s) must be at most 1e6 "
+                                "in size, as a scene's");
+  }
   hasNext_ = true;
 }
 

@@ -136,7 +136,10 @@ Engine::Engine(const EngineDef& def) : def_(def) {
   }
   if (def_.maxStepsPerCall < 1)
     throw std::invalid_argument("EngineDef.maxStepsPerCall must be >= 1, got " + std::to_string(def_.maxStepsPerCall));
-  if (def_.dropQueueCapacity < 0) throw std::invalid_argument("EngineDef.dropQueueCapacity must be >= 0");
+  // Reserved up front: 2e9 ended in bad_alloc instead of naming the field.
+  if (def_.dropQueueCapacity < 0 || def_.dropQueueCapacity > 1000000)
+    throw std::invalid_argument("EngineDef.dropQueueCapacity must be in [0, 1000000], got " +
+                                std::to_string(def_.dropQueueCapacity));
   if (!(def_.diffusivity > 0) || !std::isfinite(def_.diffusivity))
     throw std::invalid_argument("EngineDef.diffusivity must be finite and > 0");
   if (!(def_.viscosity >= 0) || !std::isfinite(def_.viscosity))
@@ -306,6 +309,12 @@ stain::StepReport Engine::step(double frameDt) {
 
 stain::StepReport Engine::advanceSteps(int count) {
   stain::StepReport report;
+  if (count < 0) {  // as a bad frame time: a status, nothing changed (it returned Ok)
+    report.status = stain::StepStatus::InvalidArgument;
+    report.stage = stain::Stage::Guard;
+    report.message = "Engine::advanceSteps: count " + std::to_string(count) + " is negative; expected >= 0";
+    return report;
+  }
   for (int k = 0; k < count; ++k) {
     report = runInternalStep();
     if (report.status != stain::StepStatus::Ok) {

@@ -638,6 +638,13 @@ TEST(EngineTest, CallerSuppliedFramesReproduceAMeshSequenceRunBitIdentically) {
   EXPECT_THROW(callerRun.setSurfaceFrame(Eigen::MatrixX3d::Zero(3, 3)), std::invalid_argument);
   lifted(4, 1) = std::numeric_limits<double>::quiet_NaN();
   EXPECT_THROW(callerRun.setSurfaceFrame(lifted), std::invalid_argument);
+  lifted(4, 1) = 1e300;  // finite, but no scene's: it failed later as a collapsed face
+  try {
+    callerRun.setSurfaceFrame(lifted);
+    ADD_FAILURE() << "a 1e300 m frame was taken";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("must be at most 1e6 in size"), std::string::npos) << e.what();
+  }
   EXPECT_THROW(sequenceRun->setSurfaceFrame(before), std::invalid_argument);
 }
 
@@ -723,6 +730,11 @@ TEST(EngineTest, DefinitionsBeyondASceneRangeNameTheField) {
   EngineDef far = rotatingPatch(4);
   far.mesh.vertexPositions(3, 1) = 2.5e39;
   EXPECT_NE(errorOf(far).find("EngineDef.mesh.vertexPositions[3]"), std::string::npos) << errorOf(far);
+  EngineDef queue = rotatingPatch(4);
+  queue.dropQueueCapacity = 2000000000;  // reserved up front: it ended in bad_alloc
+  EXPECT_NE(errorOf(queue).find("EngineDef.dropQueueCapacity must be in [0, 1000000], got 2000000000"),
+            std::string::npos)
+      << errorOf(queue);
   EngineDef dark = rotatingPatch(4);
   dark.colors.soluteAbsorbance[1] = std::numeric_limits<double>::infinity();
   EXPECT_NE(errorOf(dark).find("EngineDef.colors.soluteAbsorbance = (0.77, inf, 2.4): each channel must be in [0, 1000000]"),
@@ -744,6 +756,10 @@ TEST(EngineTest, DefinitionsBeyondASceneRangeNameTheField) {
         << e.what();
   }
   EXPECT_EQ(engine.advanceSteps(2).status, stain::StepStatus::Ok);
+  const stain::StepReport negative = engine.advanceSteps(-5);  // returned Ok before
+  EXPECT_EQ(negative.status, stain::StepStatus::InvalidArgument);
+  EXPECT_NE(negative.message.find("count -5 is negative"), std::string::npos) << negative.message;
+  EXPECT_EQ(engine.stepCount(), 2);
 }
 
 // Per-engine threads: the two-way flag gives the same bits with 1 and 2

@@ -7,11 +7,15 @@
 // way, and a genuinely full filesystem (a 64 KiB tmpfs, ENOSPC) where the test
 // may mount one. Root ignores permission bits, so chmod is no portable way to
 // make a folder unwritable in CI.
+#include <blot/engine/engine.h>
+#include <blot/engine/frame_writer.h>
 #include <blot/engine/image.h>
 #include <blot/engine/ply_frame_writer.h>
+#include <blot/stain/geometry/mesh_primitives.h>
 #include <blot/stain/io/atomic_file.h>
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <cmath>
@@ -131,6 +135,31 @@ TEST_F(OutputFailureTest, TargetThatIsADirectoryLeavesNoTemporary) {
       [&] { writePlyFrame(path("frame_0001.ply"), squareFrame(0)); }, path("frame_0001.ply"));
   EXPECT_EQ(entries(), (std::vector<std::string>{"frame.png", "frame_0001.ply"}));
   EXPECT_TRUE(fs::is_directory(path("frame.png/inside")));
+}
+
+// A link is written through: its target gets the new bytes and the link
+// stays (the rename replaced the link with a file). Something there that is
+// no regular file is refused, not replaced (as root a write to /dev/full
+// turned the device into a file); a named pipe stands in for a device here.
+TEST_F(OutputFailureTest, ALinkIsWrittenThroughAndANonRegularTargetIsRefused) {
+  std::ofstream(path("real.ply")) << "old";
+  fs::create_symlink("real.ply", path("link.ply"));
+  writePlyFrame(path("link.ply"), squareFrame(0));
+  EXPECT_TRUE(fs::is_symlink(path("link.ply")));
+  EXPECT_NE(fileBytes(path("real.ply")), "old");
+  EXPECT_EQ(fileBytes(path("link.ply")), fileBytes(path("real.ply")));
+  ASSERT_EQ(::mkfifo(path("pipe.ply").c_str(), 0600), 0);
+  expectFailureNaming<std::runtime_error>([&] { writePlyFrame(path("pipe.ply"), squareFrame(0)); },
+                                          path("pipe.ply"));
+  try {
+    writePlyFrame(path("pipe.ply"), squareFrame(0));
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("it exists and is not a regular file (a named pipe); refusing to replace it"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_TRUE(fs::is_fifo(path("pipe.ply")));
+  EXPECT_EQ(entries(), (std::vector<std::string>{"link.ply", "pipe.ply", "real.ply"}));
 }
 
 TEST_F(OutputFailureTest, ParentThatIsAFileNamesThePath) {
@@ -272,6 +301,27 @@ TEST_F(OutputFailureTest, FullFilesystemFailsClearlyAndKeepsEarlierOutputs) {
   fs::remove(disk / "filler");
   writePng(noiseImage(100), png);
   EXPECT_EQ(readPng(png).width(), 100);
+}
+
+// FrameWriter's name becomes file names in its directory, as a scene's name
+// does: a folder in it ("../../escape" wrote outside the directory) or a
+// leading dot is refused before anything is made.
+TEST_F(OutputFailureTest, AFrameWriterNameWithAFolderIsRefused) {
+  EngineDef def;
+  def.mesh = stain::gridMesh(3, 3, 1.0, 1.0);
+  const Engine engine(def);
+  for (const char* name : {"../../escape", "a/b", ".hidden"}) {
+    FrameWriterOptions options;
+    options.directory = path("frames");
+    options.name = name;
+    try {
+      const FrameWriter writer(engine, options);
+      ADD_FAILURE() << name << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("must be a file name"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_TRUE(entries().empty());
 }
 
 }  // namespace

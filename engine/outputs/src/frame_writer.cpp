@@ -67,6 +67,11 @@ Image renderPreview(const Engine& engine, const ScenePreview& preview, PreviewSh
 FrameWriter::FrameWriter(const Engine& engine, FrameWriterOptions options)
     : engine_(engine), options_(std::move(options)), ply_(options_.directory, options_.name, options_.ply) {
   if (options_.name.empty()) throw std::invalid_argument("FrameWriter: empty output name");
+  // The name becomes file names in the directory, as a scene's "name" rule
+  // (no folder in it: "../../escape" wrote outside the directory).
+  if (options_.name.find_first_of("/\\") != std::string::npos || options_.name.front() == '.')
+    throw std::invalid_argument("FrameWriter: output name \"" + options_.name +
+                                "\" must be a file name (no '/' or '\\', not starting with '.')");
   std::filesystem::create_directories(options_.directory);
 }
 

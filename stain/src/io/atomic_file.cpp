@@ -17,18 +17,48 @@
 #include <cstdio>
 #include <cstring>
 #include <stdexcept>
+#include <sys/stat.h>
 #include <unistd.h>
+
+#include <string>
+#include <vector>
 
 namespace blot::stain {
 namespace {
 
 std::atomic<int> gWritesBeforeKill{0};  // killInWriteForTesting: 0 = off
 
+/// Where the bytes go: a symbolic link is written through (its final target
+/// is replaced, the link kept), and anything there that is not a regular file
+/// is refused. Renaming over the path itself replaced a link with a file, and
+/// as root turned /dev/full into a regular file without an error.
+std::string writeTarget(const std::string& path) {
+  std::string target = path;
+  for (int hops = 0;; ++hops) {
+    struct stat info {};
+    if (::lstat(target.c_str(), &info) != 0) return target;  // nothing there yet: a new file
+    if (S_ISREG(info.st_mode)) return target;
+    if (!S_ISLNK(info.st_mode))
+      throw std::runtime_error(path + ": cannot write: it exists and is not a regular file (" +
+                               (S_ISDIR(info.st_mode) ? "a directory" : S_ISFIFO(info.st_mode) ? "a named pipe"
+                                                                          : "a device or socket") +
+                               "); refusing to replace it");
+    if (hops == 40) throw std::runtime_error(path + ": cannot write: too many levels of symbolic links");
+    std::vector<char> link(static_cast<std::size_t>(info.st_size > 0 ? info.st_size : 4096) + 1);
+    const ssize_t n = ::readlink(target.c_str(), link.data(), link.size() - 1);
+    if (n < 0) throw std::runtime_error(path + ": cannot write: cannot read the link: " + std::strerror(errno));
+    const std::string next(link.data(), static_cast<std::size_t>(n));
+    const std::string::size_type slash = target.rfind('/');
+    target = next.empty() || next[0] == '/' || slash == std::string::npos ? next : target.substr(0, slash + 1) + next;
+  }
+}
+
 }  // namespace
 
 void killInWriteForTesting(int n) { gWritesBeforeKill = n > 0 ? n : 0; }
 
-void writeFileAtomically(const std::string& path, const void* data, std::size_t size) {
+void writeFileAtomically(const std::string& requested, const void* data, std::size_t size) {
+  const std::string path = writeTarget(requested);
   const std::string tempPath = path + "." + std::to_string(static_cast<long>(::getpid())) + ".tmp";
   std::FILE* file = std::fopen(tempPath.c_str(), "wb");
   if (file == nullptr) {

@@ -212,7 +212,8 @@ struct ClothDef {
   /// caller's: `gravity` must equal the world info's m_gravity (checked),
   /// windVelocity, drag and lift still go to a body Blot builds. `colliders`
   /// are added to that world as static objects and removed again by the
-  /// cloth's destructor.
+  /// cloth's destructor, so the world must outlive the cloth (and the Engine
+  /// that owns it): destroy the engine first.
   btSoftRigidDynamicsWorld* world = nullptr;
   /// With `world`: a body the caller built (it need not be in the world yet;
   /// the cloth adds it then and removes it again on destruction). Node i must

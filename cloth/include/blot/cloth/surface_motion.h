@@ -133,6 +133,10 @@ class StaticSurface final : public SurfaceMotion {
 /// Without velocities they are the finite difference (x_next − x) / h.
 /// Without a new frame advance(h) holds the surface still (zero velocity).
 /// Prescribed: it takes no liquid loads.
+/// Largest |coordinate| of a caller's frame (m, m/s): a scene's bound on its
+/// magnitudes (engine/scene.h, kMaxSceneMagnitude).
+inline constexpr double kMaxFrameMagnitude = 1e6;
+
 class CallerMotion final : public SurfaceMotion {
  public:
   /// The surface at time 0: rest positions (#V by 3, m) and velocities

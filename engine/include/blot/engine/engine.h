@@ -191,7 +191,9 @@ class Engine {
   /// InvalidArgument, stage Guard) and changes nothing.
   stain::StepReport step(double frameDt);
   static constexpr double kMaxFrameSeconds = 1.0;
-  /// Runs exactly `count` internal steps (≥ 0), bypassing the accumulator.
+  /// Runs exactly `count` internal steps (≥ 0), bypassing the accumulator. A
+  /// negative count is refused (status InvalidArgument, stage Guard) and
+  /// changes nothing.
   stain::StepReport advanceSteps(int count);
   /// Testing only: arms a NaN for internal step fault.step (1-based) after
   /// fault.stage (CoupledSurface::injectFaultForTesting), to exercise the
@@ -276,13 +278,18 @@ class Engine {
   std::uint64_t stateHash() const;
 
   /// Writes the whole simulation state (stain, cloth, accumulator, drops not
-  /// yet applied) to a binary file: magic, version, mesh sizes and fingerprint,
-  /// then the arrays. Statistics are not saved.
+  /// yet applied) and the run's counters (steps, dropped time, drops applied,
+  /// rebuilds, steps per term) to a binary file: magic, version, mesh sizes and
+  /// fingerprint, then the arrays. Timings are not saved.
   void save(const std::string& path) const;
   /// Restores a state written by save() from an engine built from the same
   /// def; the steps after it are bit-identical to the original's. Throws
   /// StateFileError naming the file and the mismatch (vertex/face counts, mesh
   /// fingerprint, motion source, version, truncation); the engine is unchanged then.
+  /// Only those are checked: the file holds the state, not the definition, so
+  /// an engine built with other parameters (diffusivity, gravity, pins, rigid
+  /// motion, coupling) loads it and steps on with its own (as a game loads a
+  /// save into a patched build). `blot run --resume` refuses a changed scene.
   /// A cloth in the caller's Bullet world (EngineDef::cloth.world) cannot be
   /// loaded into (the world is the caller's): StateFileError.
   void load(const std::string& path);
