@@ -40,8 +40,10 @@ import json
 import math
 import os
 import resource
+import stat
 import subprocess
 import sys
+import tempfile
 import time
 from typing import Any, Callable, Dict, List, Optional, Sequence
 
@@ -64,6 +66,16 @@ ALIASES = {
 MESH_RESOLUTION = "mesh_resolution"
 # Which end of each known axis is "finest" for reference "finest".
 FINEST = {"time_step": min, "strain_tolerance": min, MESH_RESOLUTION: max}
+PATH_SYNTAX = "expected keys between dots and list indices [i], e.g. 'drops[0].radius'"
+
+# The largest sweep or scene file read: the C++ loaders' limit for JSON
+# (kJsonFileByteLimit, 16 MiB). Anything else than a regular file is refused.
+FILE_BYTE_LIMIT = 16 << 20
+# The most runs (grid combinations and listed runs) one sweep may have: each
+# holds its own copy of the scene until it runs.
+MAX_RUNS = 10000
+# The most worker processes of a local cluster.
+MAX_WORKERS = 1024
 
 # Table columns whose values depend on the machine and its load; everything
 # else is the same whichever executor ran the sweep.
@@ -84,51 +96,130 @@ class SweepError(ValueError):
 # --------------------------------------------------------------------------- overrides
 
 def _split_path(path: str) -> List[Any]:
-    """'cloth.pins[0].point' -> ['cloth', 'pins', 0, 'point']."""
+    """'cloth.pins[0].point' -> ['cloth', 'pins', 0, 'point'] (ValueError: what is wrong with it)."""
     parts: List[Any] = []
     for token in path.split("."):
         if not token:
-            raise KeyError(f"override '{path}': empty key in the path")
+            raise ValueError(f"empty key in the path ({PATH_SYNTAX})")
         while "[" in token:
             head, rest = token.split("[", 1)
+            if "]" in head:
+                raise ValueError(f"']' without '[' ({PATH_SYNTAX})")
             if head:
                 parts.append(head)
-            index, token = rest.split("]", 1)
+            index, closed, token = rest.partition("]")
+            if not closed:
+                raise ValueError(f"'[' without ']' ({PATH_SYNTAX})")
+            if not (index.isascii() and index.isdigit()):
+                raise ValueError(f"list index [{index}]: expected an integer >= 0")
+            if token and not token.startswith("["):
+                raise ValueError(f"'{token}' right after ']' ({PATH_SYNTAX})")
             parts.append(int(index))
+        if "]" in token:
+            raise ValueError(f"']' without '[' ({PATH_SYNTAX})")
         if token:
             parts.append(token)
     return parts
 
 
+def _path_text(keys: List[Any]) -> str:
+    text = ""
+    for key in keys:
+        text += f"[{key}]" if isinstance(key, int) else ("." if text else "") + key
+    return text
+
+
 def set_path(scene: Dict[str, Any], path: str, value: Any) -> None:
-    """Sets scene[path] (dots between keys, [i] for list items), creating objects on the way."""
+    """Sets scene[path] (dots between keys, [i] for list items), creating objects on the way.
+
+    ValueError (what is wrong, without the path) for a malformed path or one the
+    scene's lists do not have."""
     keys = _split_path(ALIASES.get(path, path))
     node: Any = scene
-    for i, key in enumerate(keys[:-1]):
+    for i, key in enumerate(keys):
+        here = _path_text(keys[:i + 1])
         if isinstance(key, int):
-            if not isinstance(node, list) or key >= len(node):
-                raise KeyError(f"override '{path}': no list item [{key}] in the scene")
+            if not isinstance(node, list):
+                raise ValueError(f"'{here}': the scene has no list there (an object or a value)")
+            if key >= len(node):
+                raise ValueError(f"'{here}': no list item [{key}] in the scene (the list has {len(node)})")
+        elif isinstance(node, list):
+            raise ValueError(f"'{here}': the scene has a list there: expected an index [i] before '{key}'")
+        if i == len(keys) - 1:
+            node[key] = value
+        elif isinstance(key, int):
             node = node[key]
         else:
             if key not in node or not isinstance(node[key], (dict, list)):
                 node[key] = {} if not isinstance(keys[i + 1], int) else []
             node = node[key]
-    last = keys[-1]
-    if isinstance(last, int):
-        if not isinstance(node, list) or last >= len(node):
-            raise KeyError(f"override '{path}': no list item [{last}] in the scene")
-    node[last] = value
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _json_problem(value: Any, path: str = "") -> Optional[str]:
+    """What in `value` is not plain JSON with finite numbers (the scene loader's input), or None."""
+    where = f" at '{path}'" if path else ""
+    if isinstance(value, float):
+        return None if math.isfinite(value) else f"expected a finite number{where}, got {value!r}"
+    if value is None or isinstance(value, (str, int)):  # bool is an int
+        return None
+    if isinstance(value, (list, tuple)):
+        for i, item in enumerate(value):
+            problem = _json_problem(item, f"{path}[{i}]")
+            if problem:
+                return problem
+        return None
+    if isinstance(value, dict):
+        for key, item in value.items():
+            if not isinstance(key, str):
+                return f"expected string keys{where}, got {key!r}"
+            problem = _json_problem(item, f"{path}.{key}" if path else key)
+            if problem:
+                return problem
+        return None
+    return f"expected JSON data{where}, got a {type(value).__name__} {value!r}"
+
+
+def _resolution_problem(value: Any) -> Optional[str]:
+    if _is_number(value) and math.isfinite(value) and float(value).is_integer() and abs(value) < 2 ** 31:
+        return None
+    return f"expected an integer number of quads across the patch (0: the scene's), got {value!r}"
+
+
+def check_override(key: Any, value: Any) -> None:
+    """ValueError (naming the key, the value and what was expected) for an override
+    that no scene could take: a malformed key path, a non-finite number or a value
+    that is not JSON, a mesh_resolution that is not an integer."""
+    if not isinstance(key, str):
+        raise ValueError(f"override {key!r}: expected a key path string ({PATH_SYNTAX})")
+    if key != MESH_RESOLUTION:
+        try:
+            _split_path(ALIASES.get(key, key))
+        except ValueError as e:
+            raise ValueError(f"override '{key}' = {value!r}: {e}") from None
+    problem = _json_problem(value) or (_resolution_problem(value) if key == MESH_RESOLUTION else None)
+    if problem:
+        raise ValueError(f"override '{key}': {problem}")
 
 
 def apply_overrides(scene: Dict[str, Any], overrides: Dict[str, Any]):
-    """The scene with overrides applied, and the patch resolution (0: the scene's)."""
+    """The scene with overrides applied, and the patch resolution (0: the scene's).
+
+    ValueError naming the override for one that cannot apply (check_override, set_path)."""
     out = copy.deepcopy(scene)
     resolution = 0
     for key, value in overrides.items():
+        check_override(key, value)
         if key == MESH_RESOLUTION:
             resolution = int(value)
         else:
-            set_path(out, key, value)
+            try:
+                set_path(out, key, value)
+            except ValueError as e:
+                raise ValueError(f"override '{key}' = {value!r}: {e}") from None
     return out, resolution
 
 
@@ -333,19 +424,95 @@ def _expect(cond: bool, where: str, message: str) -> None:
         raise SweepError(f"{where}: {message}")
 
 
+def _known_keys(obj: Dict[str, Any], known: Sequence[str], where: str) -> None:
+    for key in obj:
+        _expect(key in known, where, f"unknown key {key!r} (expected {' or '.join(repr(k) for k in known)})")
+
+
+def _json_kind(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true/false"
+    if _is_number(value):
+        return "a number"
+    if value is None:
+        return "null"
+    kinds = {str: "a string", list: "a list", tuple: "a list", dict: "an object"}
+    return kinds.get(type(value), f"a {type(value).__name__}")
+
+
+def _file_kind(mode: int) -> str:
+    for test, kind in ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a named pipe"),
+                       (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+                       (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return kind
+    return "not a regular file"
+
+
+def read_json_file(path: str, what: str, where: str = "") -> Any:
+    """The JSON value in the file `path`; `what` ("sweep file", "scene") and the
+    prefix `where` (the sweep file and key that named it) go into errors.
+
+    SweepError naming the file for anything but a regular file of at most
+    FILE_BYTE_LIMIT bytes of UTF-8 JSON: a directory, a named pipe or a device
+    (/dev/zero) is refused before one byte is read, never waited on or read without end."""
+    try:
+        # Without waiting: open() of a named pipe blocks until a writer comes.
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+    except OSError as e:
+        raise SweepError(f"{where}{path}: cannot open the {what}: {e.strerror}") from None
+    chunks: List[bytes] = []
+    try:
+        info = os.fstat(fd)
+        _expect(stat.S_ISREG(info.st_mode), f"{where}{path}",
+                f"the {what} is {_file_kind(info.st_mode)}, expected a regular file")
+        _expect(info.st_size <= FILE_BYTE_LIMIT, f"{where}{path}",
+                f"the {what} is {info.st_size} bytes, more than the limit of {FILE_BYTE_LIMIT} bytes")
+        size = 0
+        while size <= FILE_BYTE_LIMIT:  # no more, should it grow while read
+            chunk = os.read(fd, 1 << 20)
+            if not chunk:
+                break
+            chunks.append(chunk)
+            size += len(chunk)
+    except OSError as e:
+        raise SweepError(f"{where}{path}: cannot read the {what}: {e.strerror}") from None
+    finally:
+        os.close(fd)
+    data = b"".join(chunks)
+    _expect(len(data) <= FILE_BYTE_LIMIT, f"{where}{path}",
+            f"the {what} has more than the limit of {FILE_BYTE_LIMIT} bytes (it grew while read)")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = data.count(b"\n", 0, e.start) + 1
+        raise SweepError(f"{where}{path}: line {line}: the {what} is not UTF-8 text "
+                         f"(byte 0x{data[e.start]:02x} at offset {e.start})") from None
+    if text.startswith("\ufeff"):  # a byte order mark: not part of the JSON
+        text = text[1:]
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as e:
+        raise SweepError(f"{where}{path}: line {e.lineno}: the {what} is not valid JSON: {e.msg}") from None
+
+
 def load_sweep(path: str) -> Dict[str, Any]:
-    with open(path, encoding="utf-8") as fh:
-        try:
-            spec = json.load(fh)
-        except json.JSONDecodeError as e:
-            raise SweepError(f"{path}: line {e.lineno}: {e.msg}") from None
+    """The sweep file at `path` (read_json_file), with where it came from; plan() checks its keys."""
+    spec = read_json_file(path, "sweep file")
+    _expect(isinstance(spec, dict), path,
+            f"expected a JSON object of sweep keys (docs/sweeps.md), got {_json_kind(spec)}")
     spec.setdefault("_source", path)
     spec.setdefault("_directory", os.path.dirname(os.path.abspath(path)))
     return spec
 
 
 def plan(spec: Dict[str, Any]) -> Dict[str, Any]:
-    """Checks a sweep spec and expands it into tasks: the runs, then the reference."""
+    """Checks a sweep spec and expands it into tasks: the runs, then the reference.
+
+    Every error in the spec (and in the scene it names, and every override that
+    cannot apply to that scene) is a SweepError here, before any run starts."""
+    _expect(isinstance(spec, dict), "sweep",
+            f"expected a sweep file path or a dict of sweep keys (docs/sweeps.md), got {_json_kind(spec)}")
     src = spec.get("_source", "<sweep>")
     directory = spec.get("_directory", os.getcwd())
     known = {"name", "description", "scene", "duration", "grid", "runs", "reference", "field",
@@ -353,33 +520,62 @@ def plan(spec: Dict[str, Any]) -> Dict[str, Any]:
     for key in spec:
         _expect(key in known, src, f"unknown key '{key}' (expected one of {sorted(k for k in known if k[0] != '_')})")
     _expect("scene" in spec, src, "missing 'scene' (a scene file path or a scene object)")
+    for key in ("name", "description"):
+        _expect(isinstance(spec.get(key, ""), str), f"{src}: {key}", f"expected a string, got {spec.get(key)!r}")
     scene = spec["scene"]
     if isinstance(scene, str):
+        _expect(bool(scene), f"{src}: scene", "expected a file path or an object, got ''")
         scene_path = scene if os.path.isabs(scene) else os.path.join(directory, scene)
         _expect(os.path.exists(scene_path), f"{src}: scene", f"no file '{scene_path}'")
-        with open(scene_path, encoding="utf-8") as fh:
-            scene = json.load(fh)
+        scene = read_json_file(scene_path, "scene", where=f"{src}: scene: ")
+        _expect(isinstance(scene, dict), f"{src}: scene: {scene_path}",
+                f"expected a scene object (docs/scene-format.md), got {_json_kind(scene)}")
         base_directory = os.path.dirname(os.path.abspath(scene_path))
         scene.setdefault("name", os.path.splitext(os.path.basename(scene_path))[0])
     else:
         _expect(isinstance(scene, dict), f"{src}: scene", "expected a file path or an object")
         base_directory = directory
+    problem = _json_problem(scene)
+    _expect(not problem, f"{src}: scene", problem or "")
     duration = spec.get("duration")
-    _expect(isinstance(duration, (int, float)) and not isinstance(duration, bool) and 0 < duration <= 1e4,
+    _expect(_is_number(duration) and 0 < duration <= 1e4,
             f"{src}: duration", f"expected simulated seconds in (0, 1e4], got {duration!r}")
     field = spec.get("field", "total_solute")
     _expect(field in FIELDS, f"{src}: field", f"expected one of {list(FIELDS)}, got {field!r}")
     cost = spec.get("cost", "cpu_s")
     _expect(cost in ("cpu_s", "wall_s"), f"{src}: cost", f"expected \"cpu_s\" or \"wall_s\", got {cost!r}")
     threads = spec.get("threads", 1)
-    _expect(isinstance(threads, int) and 0 <= threads <= 1024, f"{src}: threads",
+    _expect(isinstance(threads, int) and not isinstance(threads, bool) and 0 <= threads <= 1024, f"{src}: threads",
             f"expected an integer in [0, 1024], got {threads!r}")
+    threshold = spec.get("stain_threshold")
+    _expect(threshold is None or (_is_number(threshold) and math.isfinite(threshold) and threshold > 0),
+            f"{src}: stain_threshold", f"expected a finite number of kg/m2 > 0, got {threshold!r}")
+    output = spec.get("output")
+    _expect(output is None or (isinstance(output, str) and output), f"{src}: output",
+            f"expected a folder path (relative to the sweep file), got {output!r}")
 
     runs: List[Dict[str, Any]] = []
     grid = spec.get("grid", {})
     _expect(isinstance(grid, dict), f"{src}: grid", "expected an object of key: [values]")
     for key, values in grid.items():
         _expect(isinstance(values, list) and values, f"{src}: grid.{key}", "expected a non-empty list of values")
+        for value in values:
+            try:
+                check_override(key, value)
+            except ValueError as e:
+                raise SweepError(f"{src}: grid: {e}") from None
+        kinds = sorted({_json_kind(v) for v in values})
+        if key in FINEST:
+            _expect(kinds == ["a number"], f"{src}: grid.{key}", f"expected numbers, got {values!r}")
+        else:
+            _expect(len(kinds) == 1, f"{src}: grid.{key}",
+                    f"expected values of one type, got {' and '.join(kinds)}: {values!r}")
+    listed = spec.get("runs", [])
+    _expect(isinstance(listed, list), f"{src}: runs",
+            f"expected a list of {{\"name\": ..., \"overrides\": {{key path: value}}}}, got {_json_kind(listed)}")
+    combinations = math.prod(len(v) for v in grid.values()) if grid else 0
+    _expect(combinations + len(listed) <= MAX_RUNS, src,
+            f"{combinations} grid combinations and {len(listed)} listed runs: more than the limit of {MAX_RUNS} runs")
     if grid:
         keys = list(grid)
         combos = [dict(zip(keys, combo)) for combo in itertools.product(*(grid[k] for k in keys))]
@@ -390,12 +586,15 @@ def plan(spec: Dict[str, Any]) -> Dict[str, Any]:
         names = [" ".join(f"{k}={short(v)}" for k, v in c.items()) for c in combos]
         if len(set(names)) != len(names):  # values that differ past 4 digits: full precision
             names = [" ".join(f"{k}={json.dumps(v)}" for k, v in c.items()) for c in combos]
-        runs += [{"name": n, "overrides": c} for n, c in zip(names, combos)]
-    for i, run in enumerate(spec.get("runs", [])):
-        where = f"{src}: runs[{i}]"
-        _expect(isinstance(run, dict) and isinstance(run.get("overrides", {}), dict), where,
+        runs += [{"name": n, "overrides": c, "where": "grid"} for n, c in zip(names, combos)]
+    for i, run in enumerate(listed):
+        where = f"runs[{i}]"
+        _expect(isinstance(run, dict) and isinstance(run.get("overrides", {}), dict), f"{src}: {where}",
                 "expected {\"name\": ..., \"overrides\": {key path: value}}")
-        runs.append({"name": run.get("name", f"run {i}"), "overrides": dict(run.get("overrides", {}))})
+        _known_keys(run, ("name", "overrides"), f"{src}: {where}")
+        name = run.get("name", f"run {i}")
+        _expect(isinstance(name, str) and name, f"{src}: {where}.name", f"expected a non-empty string, got {name!r}")
+        runs.append({"name": name, "overrides": dict(run.get("overrides", {})), "where": where})
     _expect(runs, src, "no runs: give 'grid', 'runs' or both")
     names = [r["name"] for r in runs]
     _expect(len(set(names)) == len(names), src, f"run names must be unique, got {names}")
@@ -406,28 +605,31 @@ def plan(spec: Dict[str, Any]) -> Dict[str, Any]:
         for key, values in grid.items():
             if key in FINEST:
                 ref_overrides[key] = FINEST[key](values)
-        ref = {"name": "reference (finest)", "overrides": ref_overrides}
+        ref = {"name": "reference (finest)", "overrides": ref_overrides, "where": "reference"}
     elif isinstance(reference, str):
         _expect(reference in names, f"{src}: reference", f"expected \"finest\" or a run name of {names}, got {reference!r}")
         ref = dict(next(r for r in runs if r["name"] == reference))
     else:
         _expect(isinstance(reference, dict) and isinstance(reference.get("overrides", {}), dict),
                 f"{src}: reference", "expected \"finest\", a run name or {\"name\", \"overrides\"}")
-        ref = {"name": reference.get("name", "reference"), "overrides": dict(reference.get("overrides", {}))}
+        _known_keys(reference, ("name", "overrides"), f"{src}: reference")
+        name = reference.get("name", "reference")
+        _expect(isinstance(name, str) and name, f"{src}: reference.name", f"expected a non-empty string, got {name!r}")
+        ref = {"name": name, "overrides": dict(reference.get("overrides", {})), "where": "reference"}
 
     def task(run):
         t = {"name": run["name"], "overrides": run["overrides"], "base_directory": base_directory,
              "duration": float(duration), "threads": threads, "field": field}
         try:
             t["scene"], t["resolution"] = apply_overrides(scene, run["overrides"])
-        except (KeyError, ValueError, TypeError) as e:  # a run the driver cannot even build: failed row
-            t["scene"], t["resolution"], t["override_error"] = None, 0, str(e)
+        except ValueError as e:  # an override no run could take: the sweep file's error, before any run
+            raise SweepError(f"{src}: {run['where']}: {e}") from None
         return t
 
-    return {"name": spec.get("name", scene.get("name", "sweep")), "tasks": [task(r) for r in runs],
+    name = spec.get("name", scene.get("name"))
+    return {"name": name if isinstance(name, str) and name else "sweep", "tasks": [task(r) for r in runs],
             "reference": task(ref), "reference_is_run": isinstance(reference, str) and reference != "finest",
-            "threshold": spec.get("stain_threshold"), "field": field, "axes": list(grid), "cost": cost,
-            "output": spec.get("output")}
+            "threshold": threshold, "field": field, "axes": list(grid), "cost": cost, "output": output}
 
 
 # --------------------------------------------------------------------------- executors
@@ -437,14 +639,10 @@ def _task_fn(isolate: bool) -> Callable[[Dict[str, Any]], Dict[str, Any]]:
 
 
 def _run_task(task):
-    if task.get("override_error"):
-        return {"name": task["name"], "status": "failed", "error": task["override_error"]}
     return run_one(task)
 
 
 def _run_isolated_task(task):
-    if task.get("override_error"):
-        return {"name": task["name"], "status": "failed", "error": task["override_error"]}
     return run_isolated(task)
 
 
@@ -461,7 +659,10 @@ def run_dask(tasks, scheduler: Optional[str] = None, workers: int = 2, isolate=T
     fn = _task_fn(isolate)
     cluster = None
     if scheduler:
-        client = Client(scheduler)
+        try:
+            client = Client(scheduler)
+        except OSError as e:  # no scheduler there (a timeout is an OSError too)
+            raise SweepError(f"cannot connect to the Dask scheduler at {scheduler!r}: {e}") from None
     else:
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                dashboard_address=None, silence_logs=40)
@@ -554,7 +755,8 @@ def write_chart(path, rows, title, cost="cpu_s", axes=()):
     legend = f"\nlabels: {', '.join(axes)}" if axes else ""
     ax.set_title(f"{title}: {len(ok)} runs{note}{legend}", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=8)
+    if ax.get_legend_handles_labels()[0]:  # none when no run has an error to plot
+        ax.legend(fontsize=8)
     fig.tight_layout()
     tmp = path + ".tmp.png"
     fig.savefig(tmp)
@@ -564,32 +766,118 @@ def write_chart(path, rows, title, cost="cpu_s", axes=()):
 
 # --------------------------------------------------------------------------- the whole sweep
 
-def sweep(spec, executor: str = "local", scheduler: Optional[str] = None, workers: int = 2,
+# What the checks of sweep()'s arguments call them: the Python names, or the
+# command line's options (main).
+_PARAMETERS = {"executor": "executor", "scheduler": "scheduler", "workers": "workers", "output": "output"}
+_OPTIONS = {"executor": "--executor", "scheduler": "--scheduler", "workers": "--workers", "output": "--out"}
+
+
+def _scheduler_problem(address: Any) -> Optional[str]:
+    """Why `address` is not host:port or tcp://host:port, or None."""
+    expected = "expected a Dask scheduler address host:port or tcp://host:port (port 1 to 65535)"
+    if not isinstance(address, str):
+        return f"{expected}, got {address!r}"
+    rest = address[len("tcp://"):] if address.startswith("tcp://") else address
+    host, colon, port = rest.rpartition(":")
+    if (not colon or not host or "/" in rest or any(c.isspace() for c in rest)
+            or host.startswith("[") != host.endswith("]")
+            or not (port.isascii() and port.isdigit() and 1 <= int(port) <= 65535)):
+        return f"{expected}, got {address!r}"
+    return None
+
+
+def _check_arguments(executor, scheduler, workers, names) -> str:
+    """The executor to use ("dask" when only a scheduler is given); SweepError,
+    naming the argument or option (names), for anything sweep() cannot run with."""
+    if executor is None:
+        executor = "dask" if scheduler is not None else "local"
+    _expect(executor in ("serial", "local", "dask"), names["executor"],
+            f"expected 'serial', 'local' or 'dask', got {executor!r}")
+    if scheduler is not None:
+        problem = _scheduler_problem(scheduler)
+        _expect(not problem, names["scheduler"], problem or "")
+        _expect(executor == "dask", names["scheduler"],
+                f"a scheduler address runs the sweep on that Dask cluster, but {names['executor']} is {executor!r} "
+                f"(give {names['executor']} 'dask', or leave it out)")
+    elif executor == "dask":
+        raise SweepError(f"{names['executor']} 'dask' needs {names['scheduler']}, a scheduler address "
+                         "(e.g. tcp://host:8786)")
+    _expect(isinstance(workers, int) and not isinstance(workers, bool) and 1 <= workers <= MAX_WORKERS,
+            names["workers"], f"expected a number of local worker processes in [1, {MAX_WORKERS}], got {workers!r}")
+    return executor
+
+
+def _output_folder(out: str, where: str) -> None:
+    """Creates the folder `out` (and its parents) and checks that sweep.csv and
+    sweep.png can be written there, before any run: SweepError naming `where`."""
+    _expect(not os.path.exists(out) or os.path.isdir(out), where, f"'{out}' exists and is not a folder")
+    try:
+        os.makedirs(out, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out):
+            pass
+    except OSError as e:
+        raise SweepError(f"{where}: cannot write to the output folder '{out}': {e.strerror or e}") from None
+    for name in ("sweep.csv", "sweep.png"):
+        path = os.path.join(out, name)
+        _expect(not os.path.exists(path) or os.path.isfile(path), where,
+                f"'{path}' exists and is not a regular file (the sweep writes its table and chart there)")
+
+
+# Why a metric has no value (errors_against gave NaN), for the row's error column.
+_UNDEFINED = {
+    "l2_error": "the reference's field is zero",
+    "area_error": "no vertex of the reference passes the stain threshold ({threshold!r} kg/m2)",
+    "centroid_distance_m": "the run's field is zero everywhere (no centroid)",
+}
+
+
+def sweep(spec, executor: Optional[str] = None, scheduler: Optional[str] = None, workers: int = 2,
           output: Optional[str] = None, isolate: bool = True) -> List[Dict[str, Any]]:
     """Runs a sweep and writes <output>/sweep.csv and <output>/sweep.png.
 
     spec: a sweep file path or the same as a dict. executor: "serial", "local"
-    (a Dask LocalCluster of `workers` processes) or "dask" with `scheduler` an
-    address. isolate: each run in its own interpreter (per-run peak memory).
-    Returns the table rows (dicts); a failed run is a row with status "failed"
-    and its error.
+    (a Dask LocalCluster of `workers` processes, the default) or "dask" with
+    `scheduler` an address host:port or tcp://host:port (the default when a
+    scheduler is given). isolate: each run in its own interpreter (per-run peak
+    memory). Returns the table rows (dicts); a failed run is a row with status
+    "failed" and its error. A bad argument, sweep file, scene or override, or an
+    output folder that cannot be written, is a SweepError before any run starts.
     """
-    if isinstance(spec, str):
-        spec = load_sweep(spec)
+    return _sweep(spec, executor, scheduler, workers, output, isolate, _PARAMETERS)
+
+
+def _sweep(spec, executor, scheduler, workers, output, isolate, names) -> List[Dict[str, Any]]:
+    executor = _check_arguments(executor, scheduler, workers, names)
+    if isinstance(spec, (str, os.PathLike)):
+        spec = load_sweep(os.fspath(spec))
     p = plan(spec)
+    if output is not None:
+        _expect(isinstance(output, (str, os.PathLike)) and os.fspath(output), names["output"],
+                f"expected a folder path, got {output!r}")
+        out, where = os.fspath(output), names["output"]
+    elif p["output"]:  # relative to the sweep file
+        out, where = os.path.join(spec.get("_directory", "."), p["output"]), f"{spec.get('_source', '<sweep>')}: output"
+    else:
+        out = os.path.join("out", "sweep_" + p["name"].replace(" ", "_").replace(os.sep, "_"))
+        where = "the default output folder"
+    _output_folder(out, where)
+
     tasks = p["tasks"] + ([] if p["reference_is_run"] else [p["reference"]])
     if executor == "serial":
         results = run_serial(tasks, isolate=isolate)
-    elif executor in ("local", "dask"):
-        if executor == "dask" and not scheduler:
-            raise SweepError("executor 'dask' needs a scheduler address (e.g. tcp://host:8786)")
-        results = run_dask(tasks, scheduler=scheduler, workers=workers, isolate=isolate)
     else:
-        raise SweepError(f"executor: expected 'serial', 'local' or 'dask', got {executor!r}")
+        try:
+            results = run_dask(tasks, scheduler=scheduler, workers=workers, isolate=isolate)
+        except SweepError as e:  # the scheduler could not be reached
+            raise SweepError(f"{names['scheduler']}: {e}") from None
 
     runs = results[:len(p["tasks"])]
     ref = (next(r for r in runs if r["name"] == p["reference"]["name"]) if p["reference_is_run"]
            else results[-1])
+    if ref["status"] == "ok" and not np.any(ref["field"]):
+        # Nothing to measure against: every error would be 0/0.
+        ref.update(status="failed", error=f"the reference's stain is empty: its {p['field']} is 0 at every vertex, "
+                                          "nothing to measure errors against")
     rows = []
     for task, result in zip(tasks, results):
         row = {k: v for k, v in result.items() if not isinstance(v, np.ndarray)}
@@ -602,24 +890,22 @@ def sweep(spec, executor: str = "local", scheduler: Optional[str] = None, worker
         threshold = p["threshold"] if p["threshold"] is not None else 1e-3 * float(ref["field"].max())
         for row, result in zip(rows, results):
             if result["status"] == "ok":
-                row.update(errors_against(result, ref, threshold))
+                metrics = errors_against(result, ref, threshold)
+                undefined = [k for k, v in metrics.items() if not math.isfinite(v)]
+                for key in undefined:  # an empty cell and the reason, not nan
+                    metrics[key] = None
+                row.update(metrics)
+                if undefined:
+                    row["error"] = "; ".join(f"no {k}: {_UNDEFINED[k]}" for k in undefined).format(threshold=threshold)
     else:
         for row in rows:
             if row["status"] == "ok":
                 row["error"] = f"no error metrics: the reference failed ({ref['error']})"
-    candidates = [r for r in rows if r["status"] == "ok" and not r["is_reference"] and "l2_error" in r
-                  and math.isfinite(r["l2_error"])]
+    candidates = [r for r in rows if r["status"] == "ok" and not r["is_reference"] and r.get("l2_error") is not None]
     for r, mark in zip(candidates, pareto_front([r[p["cost"]] for r in candidates],
                                                 [r["l2_error"] for r in candidates])):
         r["pareto"] = mark
 
-    if output:
-        out = output
-    elif p["output"]:  # relative to the sweep file
-        out = os.path.join(spec.get("_directory", "."), p["output"])
-    else:
-        out = os.path.join("out", "sweep_" + p["name"].replace(" ", "_"))
-    os.makedirs(out, exist_ok=True)
     write_csv(os.path.join(out, "sweep.csv"), rows, _columns(rows, p["axes"]))
     write_chart(os.path.join(out, "sweep.png"), rows, p["name"], cost=p["cost"], axes=p["axes"])
     return rows
@@ -631,19 +917,21 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         return _run_one_main()
     parser = argparse.ArgumentParser(prog="blot sweep", description=__doc__.split("\n\n")[0])
     parser.add_argument("sweep", help="sweep file (JSON, docs/sweeps.md)")
-    parser.add_argument("--executor", choices=["serial", "local", "dask"], default="local",
-                        help="serial: this process; local: a Dask LocalCluster (default); dask: --scheduler")
-    parser.add_argument("--scheduler", help="Dask scheduler address, e.g. tcp://host:8786 (implies --executor dask)")
-    parser.add_argument("--workers", type=int, default=2, help="local cluster worker processes (default 2)")
+    parser.add_argument("--executor", choices=["serial", "local", "dask"],
+                        help="serial: this process; local: a Dask LocalCluster (the default); "
+                             "dask: the cluster at --scheduler (the default when it is given)")
+    parser.add_argument("--scheduler", help="Dask scheduler address host:port or tcp://host:port, "
+                                            "e.g. tcp://host:8786 (implies --executor dask)")
+    parser.add_argument("--workers", type=int, default=2,
+                        help=f"local cluster worker processes, 1 to {MAX_WORKERS} (default 2)")
     parser.add_argument("--out", help="output folder (default: the sweep's 'output', else out/sweep_<name>)")
     parser.add_argument("--in-process", action="store_true",
                         help="run each run inside the worker instead of its own interpreter "
                              "(peak memory is then the worker's high-water mark)")
     args = parser.parse_args(argv)
-    executor = "dask" if args.scheduler else args.executor
     try:
-        rows = sweep(args.sweep, executor=executor, scheduler=args.scheduler, workers=args.workers,
-                     output=args.out, isolate=not args.in_process)
+        rows = _sweep(args.sweep, args.executor, args.scheduler, args.workers, args.out,
+                      not args.in_process, _OPTIONS)
     except (SweepError, OSError) as e:
         print(f"blot sweep: error: {e}", file=sys.stderr)
         return 1
