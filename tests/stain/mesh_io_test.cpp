@@ -474,6 +474,13 @@ TEST(MeshIoMalformed, InconsistentOrientation) {
                   {"faces 0 and 1 disagree on orientation across edge (0, 1)"});
 }
 
+// The same triangle twice was reported as an orientation to fix.
+TEST(MeshIoMalformed, ADuplicatedFaceIsNamedAsSuch) {
+  const std::string path = tempPath("duplicated_face.obj");
+  writeFile(path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\nf 2 3 1\n");
+  expectLoadError(path, {"faces 0 and 2 are the same triangle (vertices 0, 1, 2): a duplicated face"});
+}
+
 TEST(MeshIoMalformed, EmptyFile) {
   expectLoadError(testDataPath("bad/empty.obj"), {"file is empty"});
   const std::string path = tempPath("blank.ply");

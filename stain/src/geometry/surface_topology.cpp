@@ -80,9 +80,22 @@ SurfaceTopology::SurfaceTopology(const Triangles& faces, int vertexCount,
     if (count == 2) {
       const int h1 = keyed[first + 1].second;
       if (halfedgeTail(h0) == halfedgeTail(h1)) {
+        // The same triangle twice meets itself in the same direction too:
+        // named as what it is, not as an orientation to fix.
+        const auto corners = [&](int f) {
+          std::array<int, 3> v{halfedgeTail(3 * f), halfedgeTail(3 * f + 1), halfedgeTail(3 * f + 2)};
+          std::sort(v.begin(), v.end());
+          return v;
+        };
         std::ostringstream s;
-        s << "faces " << h0 / 3 << " and " << h1 / 3 << " disagree on orientation across edge ("
-          << a << ", " << b << ") (inconsistent orientation)";
+        if (corners(h0 / 3) == corners(h1 / 3)) {
+          const std::array<int, 3> v = corners(h0 / 3);
+          s << "faces " << h0 / 3 << " and " << h1 / 3 << " are the same triangle (vertices " << v[0] << ", " << v[1]
+            << ", " << v[2] << "): a duplicated face";
+        } else {
+          s << "faces " << h0 / 3 << " and " << h1 / 3 << " disagree on orientation across edge (" << a << ", " << b
+            << ") (inconsistent orientation)";
+        }
         fail(sourceName, s.str());
       }
       halfedgeTwins_[static_cast<size_t>(h0)] = h1;
