@@ -190,6 +190,18 @@ Engine::Engine(const EngineDef& def) : def_(def) {
       const stain::Matrix2 s = known ? def_.fabricPatchEffectiveTensors[i]
                                      : homogenizer.homogenize(*patches[i].pattern, def_.homogenizationSubdivisions).effective;
       const double d = i < def_.fabricPatchDiffusivities.size() ? def_.fabricPatchDiffusivities[i] : 0.0;
+      // The patch's mean diffusivity, given or (without one) the pattern's
+      // tensor in its own units, m²/s: held to a scene's diffusivity range
+      // (pair coefficients of 1e20 failed at the first step's factorization,
+      // NotPositiveDefinite).
+      const double mean = d > 0 ? d : 0.5 * s.trace();
+      if (!(mean >= 1e-12 && mean <= kMaxSceneMagnitude)) {
+        std::ostringstream message;
+        message << std::setprecision(12) << "EngineDef.fabricPatches[" << i << "]: a mean diffusivity of " << mean
+                << " m^2/s (" << (d > 0 ? "the patch's, with the liquid's wicking factor" : "the pattern's own units")
+                << "), outside [1e-12, 1e6]";
+        throw std::invalid_argument(message.str());
+      }
       patches[i].tensor = d > 0 ? stain::Matrix2(s * (2.0 * d / s.trace())) : s;
       patches[i].pattern.reset();
     }

@@ -535,6 +535,26 @@ TEST(EngineTest, TamperedStateFilesAreRefusedBeforeAnythingIsBuilt) {
   std::remove(path.c_str());
 }
 
+// A pattern used in its own units (no patch diffusivity) is a diffusivity in
+// m²/s: pair coefficients of 1e20 loaded, then failed at the first step's
+// factorization (NotPositiveDefinite). Held to a scene's range at construction.
+TEST(EngineTest, APatternOutsideTheDiffusivityRangeIsRefusedAtConstruction) {
+  const std::string pattern = temporaryPath("huge_pattern.json");
+  std::ofstream(pattern) << R"({"cells": ["WF", "FW"], "pair_coefficients": {"WW": 1e20, "FF": 1e20, "FW": 1e20}})";
+  const std::string json = R"({"mesh": {"patch": {"size": [0.1, 0.1], "resolution": [6, 6]}},
+    "cloth": {"source": "static"}, "fabric": {"patches": [{"pattern": ")" + pattern + R"("}]}})";
+  try {
+    Engine::fromSceneJson(json);
+    ADD_FAILURE() << "a 1e20 m^2/s pattern was taken";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("EngineDef.fabricPatches[0]: a mean diffusivity of 1e+20 m^2/s (the "
+                                         "pattern's own units), outside [1e-12, 1e6]"),
+              std::string::npos)
+        << e.what();
+  }
+  std::remove(pattern.c_str());
+}
+
 TEST(EngineTest, BuildsFromSceneJsonWithFabricPatches) {
   const std::string json = R"({
     "mesh": {"patch": {"size": [0.4, 0.4], "resolution": [12, 12]}},
