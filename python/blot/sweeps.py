@@ -453,9 +453,12 @@ def read_json_file(path: str, what: str, where: str = "") -> Any:
     """The JSON value in the file `path`; `what` ("sweep file", "scene") and the
     prefix `where` (the sweep file and key that named it) go into errors.
 
-    SweepError naming the file for anything but a regular file of at most
-    FILE_BYTE_LIMIT bytes of UTF-8 JSON: a directory, a named pipe or a device
-    (/dev/zero) is refused before one byte is read, never waited on or read without end."""
+    SweepError naming the file for anything but a regular file or a named pipe
+    of at most FILE_BYTE_LIMIT bytes of UTF-8 JSON: a directory or a device
+    (/dev/zero) is refused before one byte is read. A pipe is opened without
+    waiting for a writer, then read as the C++ loaders read one
+    (stain::readFileBounded): a shell's <(...) gives its bytes, a stray pipe
+    nobody writes to reads as empty at once and is refused."""
     try:
         # Without waiting: open() of a named pipe blocks until a writer comes.
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
@@ -464,8 +467,11 @@ def read_json_file(path: str, what: str, where: str = "") -> Any:
     chunks: List[bytes] = []
     try:
         info = os.fstat(fd)
-        _expect(stat.S_ISREG(info.st_mode), f"{where}{path}",
+        pipe = stat.S_ISFIFO(info.st_mode)
+        _expect(stat.S_ISREG(info.st_mode) or pipe, f"{where}{path}",
                 f"the {what} is {_file_kind(info.st_mode)}, expected a regular file")
+        if pipe:
+            os.set_blocking(fd, True)  # a writer's bytes are awaited; with none, EOF at once
         _expect(info.st_size <= FILE_BYTE_LIMIT, f"{where}{path}",
                 f"the {what} is {info.st_size} bytes, more than the limit of {FILE_BYTE_LIMIT} bytes")
         size = 0
@@ -480,6 +486,8 @@ def read_json_file(path: str, what: str, where: str = "") -> Any:
     finally:
         os.close(fd)
     data = b"".join(chunks)
+    _expect(data or not pipe, f"{where}{path}",
+            f"the {what} is a named pipe with nothing written to it (no writer)")
     _expect(len(data) <= FILE_BYTE_LIMIT, f"{where}{path}",
             f"the {what} has more than the limit of {FILE_BYTE_LIMIT} bytes (it grew while read)")
     try:

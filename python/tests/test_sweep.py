@@ -263,7 +263,16 @@ class BadInput(unittest.TestCase):
         self.refused(small_spec(scene=bad_scene), "scene", "bad_scene.json", "not UTF-8")
         status, err = self.cli(fifo, "--executor", "serial")
         self.assertEqual(status, 1)
-        self.assertIn("named pipe", err)
+        self.assertIn("named pipe with nothing written to it", err)
+        # A pipe with a writer, as a shell's <(...) gives (/dev/fd/N), is read as a file is.
+        text = json.dumps({"name": "piped", "runs": []}).encode()
+        read_end, write_end = os.pipe()
+        try:
+            os.write(write_end, text)
+            os.close(write_end)
+            self.assertEqual(sweeps.read_json_file(f"/dev/fd/{read_end}", "sweep file"), json.loads(text))
+        finally:
+            os.close(read_end)
 
     def test_malformed_sweep_files(self):
         self.refused(self.write("list.json", [1, 2]), "list.json", "expected a JSON object", "got a list")
