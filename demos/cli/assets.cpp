@@ -49,6 +49,14 @@ std::string findAsset(const std::string& relative) {
                            "build/external/meshes come from scripts/setup)");
 }
 
+CLI::Validator outputFolder() {
+  return CLI::Validator(
+      [](std::string& value) {
+        return value.empty() ? std::string("expected a folder, got an empty string") : std::string();
+      },
+      "FOLDER");
+}
+
 CLI::Validator assetPath() {
   return CLI::Validator(
       [](std::string& value) {

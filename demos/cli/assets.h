@@ -25,5 +25,8 @@ std::string findAsset(const std::string& relative);
 /// the first data root holding it, and leaves everything else alone (the
 /// loader then reports a missing file by the name the user typed).
 CLI::Validator assetPath();
+/// For every command's --out: refuses an empty string, which would otherwise
+/// mean the command's default folder without a word.
+CLI::Validator outputFolder();
 
 }  // namespace blot::cli

@@ -209,12 +209,11 @@ void registerDemoCommand(CLI::App& app, int& exitCode) {
   command->add_option("name", options->name, "Demo name")->capture_default_str();
   command->add_option("--scene", options->scenePath, "Scene file (default: the demo's, in assets/scenes/)")
       ->transform(assetPath());
-  const auto folder = [](const std::string& value) {
-    return value.empty() ? std::string("expected a folder, got an empty string") : std::string();
-  };
-  command->add_option("--out", options->outputDirectory, "Output folder (created)")->capture_default_str()->check(folder);
+  command->add_option("--out", options->outputDirectory, "Output folder (created)")
+      ->capture_default_str()
+      ->check(outputFolder());
   // The old name, hidden: --out is the name every command uses.
-  command->add_option("--output", options->outputDirectory, "Same as --out")->group("")->check(folder);
+  command->add_option("--output", options->outputDirectory, "Same as --out")->group("")->check(outputFolder());
   command->add_option("--pigment", options->pigment, "wine, coffee or ink (default: the scene's)");
   command->add_option("--frames", options->frames, "Frames after the initial one (frames 0..N are written)")
       ->capture_default_str()

@@ -244,9 +244,7 @@ void registerFigureCommand(CLI::App& app, int& exitCode) {
   command->add_option("--scene", options->scenePath, "Base scene (default: the figure's file in assets/scenes/)")
       ->transform(assetPath());
   command->add_option("--out", options->outputDirectory, "Output folder (default: out/<figure>)")
-      ->check([](const std::string& value) {
-        return value.empty() ? std::string("expected a folder, got an empty string") : std::string();
-      });
+      ->check(outputFolder());
   command->add_option("--frames", options->frames, "Frames to run (default: the scene's outputs.frames)")
       ->check(CLI::Range(0, 1000000));
   // 2048: a square panel at the renderer's largest supersampling (4) keeps

@@ -640,9 +640,7 @@ void registerRunCommand(CLI::App& app, int& exitCode) {
   command->add_option("--frames", options->frames, "Frames to run (default: the scene's outputs.frames)");
   command
       ->add_option("--out", options->outputDirectory, "Output folder (default: the scene's outputs.directory)")
-      ->check([](const std::string& value) {
-        return value.empty() ? std::string("expected a folder, got an empty string") : std::string();
-      });
+      ->check(outputFolder());
   command->add_option("--threads", options->threads, "threads of the engine's steps (default: the scene's \"threads\", else OpenMP's default)");
   command->add_flag("--fixed-threads", options->fixedThreads,
                     "every step on all the threads (default: all or one per step, whichever measured faster; scene: adaptive_threads)");

@@ -203,6 +203,13 @@ std::unique_ptr<PyEngine> runUnlocked(const std::function<std::unique_ptr<Engine
 /// The Python type's name of `o`, for messages.
 std::string typeName(py::handle o) { return py::str(py::type::handle_of(o).attr("__name__")); }
 
+/// An array's shape as numpy prints it: (2,) or (200, 2).
+std::string shapeText(const py::array& a) {
+  std::string shape;
+  for (py::ssize_t d = 0; d < a.ndim(); ++d) shape += (d ? ", " : "") + std::to_string(a.shape(d));
+  return "(" + shape + (a.ndim() == 1 ? ",)" : ")");
+}
+
 /// Three numbers (a list, tuple or numpy array) as a vector, or a TypeError /
 /// ValueError naming the argument `what`.
 Eigen::Vector3d vector3(py::handle o, const std::string& what) {
@@ -214,10 +221,7 @@ Eigen::Vector3d vector3(py::handle o, const std::string& what) {
     throw py::type_error(what + ": expected 3 numbers (x, y, z), got " + typeName(o));
   }
   if (a.ndim() != 1 || a.shape(0) != 3) {
-    std::string shape;
-    for (py::ssize_t d = 0; d < a.ndim(); ++d) shape += (d ? ", " : "") + std::to_string(a.shape(d));
-    throw py::value_error(what + ": expected 3 numbers (x, y, z), got an array of shape (" + shape +
-                          (a.ndim() == 1 ? ",)" : ")"));
+    throw py::value_error(what + ": expected 3 numbers (x, y, z), got an array of shape " + shapeText(a));
   }
   return {a.at(0), a.at(1), a.at(2)};
 }
@@ -252,10 +256,7 @@ Eigen::MatrixX3i faceIndices(py::handle o, int vertexCount) {
   const auto a = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(given);
   if (!a) throw py::error_already_set();
   if (a.ndim() != 2 || a.shape(1) != 3) {
-    std::string shape;
-    for (py::ssize_t d = 0; d < a.ndim(); ++d) shape += (d ? ", " : "") + std::to_string(a.shape(d));
-    throw py::value_error("from_mesh: faces: expected #F x 3 vertex indices, got an array of shape (" + shape +
-                          (a.ndim() == 1 ? ",)" : ")"));
+    throw py::value_error("from_mesh: faces: expected #F x 3 vertex indices, got an array of shape " + shapeText(a));
   }
   Eigen::MatrixX3i faces(a.shape(0), 3);
   const auto r = a.unchecked<2>();
