@@ -276,6 +276,7 @@ nlohmann::json termsJson(const engine::EngineDef& d) {
           {"film_pressure", s.filmPressure},
           {"velocity_on_free_liquid", s.velocityOnFreeLiquid},
           {"boundary_wall", s.boundaryWall},
+          {"diffusive_momentum", s.diffusiveMomentum},
           {"positivity_limiter", s.positivityLimiter},
           {"two_way_coupling", d.coupling == coupling::CouplingMode::TwoWay}};
 }

@@ -718,6 +718,7 @@ void parsePhysics(ObjectReader& r, stain::PhysicsSwitches& s) {
   s.filmPressure = r.boolean("film_pressure", s.filmPressure);
   s.velocityOnFreeLiquid = r.boolean("velocity_on_free_liquid", s.velocityOnFreeLiquid);
   s.boundaryWall = r.boolean("boundary_wall", s.boundaryWall);
+  s.diffusiveMomentum = r.boolean("diffusive_momentum", s.diffusiveMomentum);
   s.positivityLimiter = r.boolean("positivity_limiter", s.positivityLimiter);
   s.coriolisScheme =
       static_cast<stain::CoriolisScheme>(r.choice("coriolis_scheme", int(s.coriolisScheme), {"exact-rotation", "explicit"}));

@@ -278,6 +278,7 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   band_.resize(n, static_cast<int>(topology.ringNeighbors().size()));
   interactionScratch_.reserve(static_cast<size_t>(n));
   diffusedPastReach_.reserve(static_cast<size_t>(n));
+  momentumScratch_.resize(n, static_cast<int>(topology.ringNeighbors().size()));
   strainTestVertices_.reserve(static_cast<size_t>(n));
   strainTestMarks_.assign(static_cast<size_t>(n), 0);
   surfaceVelocityScratch_ = RowVectors3::Zero(n, 3);
@@ -951,7 +952,10 @@ StepReport StainSolver::runStages() {
   // whole-mesh velocity solve.
   applyBoundaryWall(ctx, topology, intrinsic, band_.wetMask, state_, among);
   if (!runStage(Stage::AdvectDensity, on.densityAdvection, report, [&] { recordAdvection(advectDensities(ctx, topology, intrinsic, extrinsic, band_.wetMask, densityScratch_, state_, &geometry_.restEdgeFrameNormals(), &reach, among)); }) ||
-      !runStage(Stage::Diffuse, on.densityDiffusion || on.velocityDiffusion, report, [&] { return recordDiffusion(diffuse(ctx, intrinsic, systems_, diffusionScratch_, state_, &band_.diffusionMask, velocityByFactor_)); }) ||
+      !runStage(Stage::Diffuse, on.densityDiffusion || on.velocityDiffusion, report, [&] { const SolverStatus status = recordDiffusion(diffuse(ctx, intrinsic, systems_, diffusionScratch_, state_, &band_.diffusionMask, velocityByFactor_));
+                                                                                       // The liquid the density diffusion moved carries its u (band vertices: noted above).
+                                                                                       if (status == SolverStatus::Ok && on.densityDiffusion) carryMomentumWithDiffusion(ctx, topology, intrinsic, band_, momentumScratch_, state_, &diffusedPastReach_);
+                                                                                       return status; }) ||
       !runStage(Stage::Interact, on.absorption || on.adsorption || on.evaporation, report, [&] { noteChanged(band_.absorbingVertices.data(), static_cast<int>(band_.absorbingVertices.size()));
                                                                                                    withDiffusedLiquidInReach([&] { interact(ctx, topology, intrinsic, reach, state_, &evaporatedMass_, interactionVertices(), &band_.soakedMask); });
                                                                                                    evaporationWritten_ = on.evaporation;

@@ -72,7 +72,8 @@ TEST(SceneTest, EveryCommonKeyReachesItsField) {
               "colliders": [{"shape": "plane", "center": [0, 0, 0]}, {"shape": "sphere", "center": [0, 0.5, 0.5], "radius": 0.2}]},
     "fabric": {"diffusivity": 0.02, "viscosity": 0.001},
     "liquid": {"absorption_rate": 0.3, "evaporation_boundary": "wet-front"},
-    "physics": {"coriolis": false, "film_pressure": true, "coriolis_scheme": "explicit", "boundary_wall": false},
+    "physics": {"coriolis": false, "film_pressure": true, "coriolis_scheme": "explicit", "boundary_wall": false,
+                "diffusive_momentum": false},
     "gravity": [0, 0, -9.81],
     "coupling": "two-way", "time_step": 0.005, "max_steps_per_call": 4, "threads": 3, "adaptive_threads": false,
     "strain_test": "around-liquid", "intrinsic_refresh": "region",
@@ -109,6 +110,7 @@ TEST(SceneTest, EveryCommonKeyReachesItsField) {
   EXPECT_FALSE(d.stain.switches.coriolis);
   EXPECT_TRUE(d.stain.switches.filmPressure);
   EXPECT_FALSE(d.stain.switches.boundaryWall);
+  EXPECT_FALSE(d.stain.switches.diffusiveMomentum);
   EXPECT_EQ(d.stain.switches.coriolisScheme, stain::CoriolisScheme::Explicit);
   EXPECT_EQ(d.coupling, coupling::CouplingMode::TwoWay);
   EXPECT_DOUBLE_EQ(d.timeStep, 0.005);

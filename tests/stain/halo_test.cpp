@@ -7,7 +7,7 @@
 // filmPressure, eq. (3), which the paper ignores) carries dissolved solute to
 // the edge, where the film is thinnest and dries first; evaporation faster at
 // the liquid's own edge (EvaporationBoundary::WetFront) strengthens it
-// (rim/centre 3.0 without it, 4.0 with it; 3.03 and 3.82 at the 20 rings here). Two conditions on the paper's
+// (rim/centre 3.0 without it, 4.0 with it; 2.40 and 3.01 at the 20 rings here). Two conditions on the paper's
 // laws: the Langmuir capacity A_d must be small next to the solute present
 // (with the default A_d = 0.5 kg/m² adsorption fixes the solute where it
 // lands within seconds and the deposit is flat, rim/centre 1.0), and

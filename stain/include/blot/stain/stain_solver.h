@@ -8,6 +8,7 @@
 #include <blot/stain/numerics/thread_choice.h>
 #include <blot/stain/stages/density_advection.h>
 #include <blot/stain/stages/diffusion.h>
+#include <blot/stain/stages/diffusive_momentum.h>
 #include <blot/stain/stages/liquid_band.h>
 #include <blot/stain/stages/sources.h>
 #include <blot/stain/stain_state.h>
@@ -395,6 +396,7 @@ class StainSolver {
   /// liquid past the rings the advection can reach, and the interaction
   /// processes them with the reach set (marked in it while it runs).
   std::vector<int> diffusedPastReach_;
+  DiffusiveMomentumScratch momentumScratch_;  // carryMomentumWithDiffusion's
   RowVectors3 surfaceVelocityScratch_;  // addDrop: surfaceVelocity of every vertex
   bool surfaceMoved_ = false;           // this step's surface moved (refreshGeometry)
   Vector areaScratch_;

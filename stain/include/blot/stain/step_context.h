@@ -66,6 +66,12 @@ struct PhysicsSwitches {
   /// is open to u (the liquid still cannot cross it; analytic tests of an
   /// unbounded film).
   bool boundaryWall = true;
+  /// The liquid the density diffusion moves carries its velocity: after the
+  /// diffusion, each band vertex's u is the mass-weighted mean of its own and
+  /// of what each edge's diffusive flux brought in (carryMomentumWithDiffusion;
+  /// docs/transport.md). Off: the paper's u, a field of its own, which the
+  /// refilled liquid next to the boundary wall keeps accelerating (g t).
+  bool diffusiveMomentum = true;
   bool positivityLimiter = true;  ///< mass-conserving fix of negative densities after diffusion
   CoriolisScheme coriolisScheme = CoriolisScheme::ExactRotation;
 };
