@@ -140,6 +140,15 @@ void addDrop(const DropDef& drop, const SurfaceTopology& topology, const Intrins
       if ((positions.row(j).transpose() - origin).norm() < radius) footprint.push_back(j);
     }
   }
+  // A bump below the floor is no liquid (the walk went on through it).
+  size_t kept = 1;
+  for (size_t k = 1; k < footprint.size(); ++k) {
+    if (!(weights[k] >= kDropProfileFloor)) continue;
+    footprint[kept] = footprint[k];
+    weights[kept++] = weights[k];
+  }
+  footprint.resize(kept);
+  weights.resize(kept);
   double weightedArea = 0.0;
   for (size_t k = 0; k < footprint.size(); ++k) weightedArea += areas[footprint[k]] * weights[k];
   if (!(weightedArea > 0.0)) {  // radius below the centre vertex's distance: all on the centre

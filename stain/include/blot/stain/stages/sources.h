@@ -32,8 +32,17 @@ struct DropDef {
   std::uint64_t splashSeed = 0;
 };
 
+/// A drop's bump (1 − d²)² below this (d = distance / radius) is no liquid:
+/// a vertex within rounding of the radius took ~1e-30 of the peak, far below
+/// any wet threshold, and a change of the radius in its last bit then moved
+/// the stain seconds later (1e-16 relative radius, 2.6e-4 of the stain at 2
+/// s, through the sets of vertices holding liquid). Vertices within about
+/// 5e-7 R of the rim are left dry instead.
+inline constexpr double kDropProfileFloor = 1e-12;
+
 /// Adds a drop: a smooth bump (A_i-weighted, so Σ A_i Δσ_i equals the masses
-/// exactly) over vertices within `radius` of the centre; the added mass goes to
+/// exactly) over vertices within `radius` of the centre whose bump passes
+/// kDropProfileFloor (the centre always); the added mass goes to
 /// state.addedSolvent / addedSolute. Velocity: mass-weighted blend of the old
 /// velocity and the drop's. Throws std::invalid_argument naming the field for
 /// bad values (negative mass, radius ≤ 0, vertex out of range, non-finite).
