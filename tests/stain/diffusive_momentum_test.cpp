@@ -24,6 +24,19 @@ Vector3 worldVelocity(const StainSolver& solver, int i) {
   return F.col(0) * u.real() + F.col(1) * u.imag();
 }
 
+/// A drop of `solvent` and `solute` kg over `radius` m at `centre`, moving at
+/// `velocity` (world, m/s).
+DropDef dropAt(const Vector3& centre, double radius, double solvent, double solute,
+               const Vector3& velocity = Vector3::Zero()) {
+  DropDef drop;
+  drop.centerPoint = centre;
+  drop.radius = radius;
+  drop.solventMass = solvent;
+  drop.soluteMass = solute;
+  drop.velocity = velocity;
+  return drop;
+}
+
 /// The free liquid's mass at vertex i (kg).
 double liquidMass(const StainSolver& solver, int i) {
   return solver.geometry().intrinsic().vertexDualAreas[i] * (solver.state().solvent[i] + solver.state().solute[i]);
@@ -53,12 +66,7 @@ WallRun pressedAgainstTheWall(bool diffusiveMomentum) {
   def.switches.diffusiveMomentum = diffusiveMomentum;
   StainSolver solver(topology, mesh.vertexPositions,
                      isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 1e-4), def);
-  DropDef drop;
-  drop.centerPoint = tilt * Vector3(0.5, 0.5, 0.0);
-  drop.radius = 0.15;
-  drop.solventMass = 0.05;
-  drop.soluteMass = 0.0;
-  solver.addDrop(drop);
+  solver.addDrop(dropAt(tilt * Vector3(0.5, 0.5, 0.0), 0.15, 0.05, 0.0));
   const Vector3 down = tilt * Vector3::UnitY();
   const double gAlong = 9.8 * std::sin(alpha);
   const int n = topology.vertexCount();
@@ -142,12 +150,7 @@ DiffusionStep diffusionStep(bool diffusiveMomentum) {
   def.diffusionSolver = DiffusionSolverChoice::Direct;
   StainSolver solver(topology, mesh.vertexPositions,
                      isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-2, 1e-4), def);
-  DropDef drop;
-  drop.centerPoint = Vector3(0.45, 0.5, 0.0);
-  drop.radius = 0.2;
-  drop.solventMass = 0.01;
-  drop.soluteMass = 0.001;
-  solver.addDrop(drop);
+  solver.addDrop(dropAt(Vector3(0.45, 0.5, 0.0), 0.2, 0.01, 0.001));
   const int n = topology.vertexCount();
   StainState& state = solver.mutableState();
   for (int i = 0; i < n; ++i) {
@@ -210,13 +213,7 @@ double uniformFlowSpread(bool diffusiveMomentum) {
   StainSolver solver(topology, mesh.vertexPositions,
                      isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-3, 1e-4), def);
   const Vector3 v(0.5, 0.0, 0.0);
-  DropDef drop;
-  drop.centerPoint = Vector3(0.4, 0.3, 0.0);
-  drop.radius = 0.1;
-  drop.solventMass = 0.01;
-  drop.soluteMass = 0.001;
-  drop.velocity = v;
-  solver.addDrop(drop);
+  solver.addDrop(dropAt(Vector3(0.4, 0.3, 0.0), 0.1, 0.01, 0.001, v));
   double spread = 0.0;
   for (int k = 1; k <= 40; ++k) {
     const StepReport r = solver.step(0.01, mesh.vertexPositions);

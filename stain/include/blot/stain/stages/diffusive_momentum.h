@@ -20,13 +20,25 @@
 
 namespace blot::stain {
 
+/// carryMomentumWithDiffusion's scratch, sized once (resize); a call
+/// refills it without allocating.
+struct DiffusiveMomentumScratch {
+  ComplexVector values;               ///< #V: the band's new u
+  std::vector<int> front;             ///< the front (capacity #V)
+  std::vector<char> frontMarks;       ///< #V: 1 on the front during a call
+  std::vector<int> stiffnessEntries;  ///< per ring entry: its position in L's column (−1: not filled / none)
+  void resize(int vertexCount, int ringEntries);
+};
+
 /// After (M + h L_Sf) ρ⁺ = M ρ (ρ = σ_f + σ_s, the free liquid), the mass
 /// that crossed from vertex j to vertex i is F_ji = h (−L_ij)(ρ⁺_j − ρ⁺_i)
 /// (exact for backward Euler: Σ_j F_ji = A_i (ρ⁺_i − ρ_i); the explicit and
 /// the restricted solves and the positivity limiter make it an estimate).
-/// At vertex i, the mass that came in, in_i = Σ_j max(F_ji, 0), brings j's
-/// velocity (carried into i's frame, LiquidBand::ringTransports); the liquid
-/// i kept, k_i = A_i ρ⁺_i − in_i (= A_i ρ_i − out_i), keeps i's:
+/// At each vertex i whose free liquid passes ctx.liquid.wetThreshold (below
+/// it liquid counts as none: a trace keeps the band's extended u), the mass
+/// that came in, in_i = Σ_j max(F_ji, 0), brings j's velocity (carried into
+/// i's frame, LiquidBand::ringTransports); the liquid i kept,
+/// k_i = A_i ρ⁺_i − in_i (= A_i ρ_i − out_i), keeps i's:
 ///
 ///     u_i ← (k_i u_i + Σ_j max(F_ji, 0) e^{iθ_ij} u_j) / (k_i + in_i),
 ///
@@ -42,23 +54,14 @@ namespace blot::stain {
 /// liquid had (the largest |u| and the kinetic energy do not grow), a
 /// uniform flow on a flat sheet is unchanged, the result does not depend on
 /// the numbering, and with exact fluxes (a direct backward Euler solve) the
-/// liquid's momentum on a flat sheet is conserved to rounding within the
-/// band (the u of liquid the diffusion carries past it was not defined).
+/// liquid's momentum on a flat sheet is conserved but for the traces.
 /// `beyondBand` (optional): vertices the diffusion wrote outside the reach
-/// set (StainSolver's list); those of them outside the band that hold free
-/// liquid had no u any stage defined, so each takes what came in, from the
-/// wettest down (the list is reordered: those first, sorted). Other vertices
-/// outside the band, and vertices without free liquid, keep their u.
-/// `scratch` holds the band's new values until the pass ends and the front.
+/// set (StainSolver's list); those of them outside the band whose free
+/// liquid passes the threshold had no u any stage defined, so each takes
+/// what came in, from the wettest down (the list is reordered: those first,
+/// sorted). Other vertices outside the band, and traces, keep their u.
 /// Deterministic, one thread, allocates nothing. Returns how many vertices
 /// changed.
-struct DiffusiveMomentumScratch {
-  ComplexVector values;               ///< #V: the band's new u
-  std::vector<int> front;             ///< the front (capacity #V)
-  std::vector<char> frontMarks;       ///< #V: 1 on the front during a call
-  std::vector<int> stiffnessEntries;  ///< per ring entry: its position in L's column (−1: not filled / none)
-  void resize(int vertexCount, int ringEntries);
-};
 int carryMomentumWithDiffusion(const StepContext& ctx, const SurfaceTopology& topology,
                                const IntrinsicGeometry& intrinsic, LiquidBand& band, DiffusiveMomentumScratch& scratch,
                                StainState& state, std::vector<int>* beyondBand = nullptr);
