@@ -114,5 +114,40 @@ TEST(GltfWriter, BadInputNamesTheArrayAndWritesNothing) {
   EXPECT_FALSE(std::filesystem::exists(path));
 }
 
+TEST(GltfWriter, ColoursOutsideTheUnitRangeAndATextureThatIsNoPngAreRefused) {
+  const std::string path = (std::filesystem::temp_directory_path() / "blot_gltf_range.glb").string();
+  std::filesystem::remove(path);
+  const auto refused = [&](const GltfFrame& f, const std::string& expected) {
+    try {
+      writeGlb(path, f);
+      ADD_FAILURE() << "expected std::invalid_argument containing " << expected;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(expected), std::string::npos) << e.what();
+    }
+    EXPECT_FALSE(std::filesystem::exists(path));
+  };
+  GltfFrame bright = gridFrame(true);
+  bright.colors(2, 0) = 1.5;
+  refused(bright, "colors row 2 channel 0 is 1.5");
+  GltfFrame negative = gridFrame(true);
+  negative.colors(4, 2) = -0.25;
+  refused(negative, "colors row 4 channel 2 is -0.25");
+  GltfFrame jpeg = gridFrame(true);
+  jpeg.texturePng = {0xff, 0xd8, 0xff, 0xe0, 0, 16, 'J', 'F', 'I', 'F', 0};
+  refused(jpeg, "texturePng (11 bytes) is not a PNG");
+  GltfFrame stub = gridFrame(true);
+  stub.texturePng = {0x89, 'P', 'N'};
+  refused(stub, "texturePng (3 bytes) is not a PNG");
+  // The edges of the range are colours, and so is rounding past them.
+  GltfFrame edges = gridFrame(true);
+  edges.colors.col(0).setZero();
+  edges.colors.col(1).setOnes();
+  edges.colors(0, 2) = 1.0 + 1e-12;
+  edges.colors(1, 2) = -1e-12;
+  writeGlb(path, edges);
+  EXPECT_TRUE(std::filesystem::exists(path));
+  std::filesystem::remove(path);
+}
+
 }  // namespace
 }  // namespace blot::engine

@@ -22,6 +22,9 @@
 namespace blot::engine {
 namespace {
 
+// How far past [0, 1] a colour may be and still count as rounding.
+constexpr double kColorRounding = 1e-9;
+
 void check(const std::string& path, const GltfFrame& f) {
   const Eigen::Index n = f.positions.rows();
   const auto fail = [&](const std::string& what) { throw std::invalid_argument(path + ": glTF export: " + what); };
@@ -37,6 +40,22 @@ void check(const std::string& path, const GltfFrame& f) {
   finite(f.normals, "normals");
   finite(f.colors, "colors");
   finite(f.uvs, "uvs");
+  // glTF's COLOR_0 is linear RGB in [0, 1]. Rounding past an end is clamped
+  // when the accessor is written; anything further is another convention
+  // (0-255, sRGB-encoded HDR) that would be written as white or black.
+  for (Eigen::Index i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c)
+      if (!(f.colors(i, c) >= -kColorRounding && f.colors(i, c) <= 1.0 + kColorRounding)) {
+        std::ostringstream s;
+        s << "colors row " << i << " channel " << c << " is " << f.colors(i, c) << ", expected linear RGB in [0, 1]";
+        fail(s.str());
+      }
+  // The texture is stored with mimeType image/png: it must be one.
+  static constexpr unsigned char kPngSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  if (!f.texturePng.empty() &&
+      (f.texturePng.size() < sizeof kPngSignature ||
+       !std::equal(kPngSignature, kPngSignature + sizeof kPngSignature, f.texturePng.begin())))
+    fail("texturePng (" + std::to_string(f.texturePng.size()) + " bytes) is not a PNG (no PNG signature)");
   for (Eigen::Index t = 0; t < f.faces.rows(); ++t)
     for (int k = 0; k < 3; ++k)
       if (f.faces(t, k) < 0 || f.faces(t, k) >= n)

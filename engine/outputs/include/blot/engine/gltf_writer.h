@@ -36,8 +36,10 @@ struct GltfFrame {
 
 /// Writes `frame` as a .glb file atomically (temporary file + rename). Throws
 /// std::invalid_argument naming the array on a size mismatch, a face index out
-/// of range or a non-finite value, std::runtime_error on a write failure;
-/// nothing is written on error.
+/// of range, a non-finite value, a colour outside [0, 1] by more than
+/// rounding (1e-9; within it the colour is clamped) or texture bytes that are
+/// not a PNG, std::runtime_error on a write failure; nothing is written on
+/// error.
 void writeGlb(const std::string& path, const GltfFrame& frame);
 
 }  // namespace blot::engine
