@@ -6,6 +6,7 @@
 #include <blot/cloth/surface_motion.h>
 #include <blot/stain/io/atomic_file.h>
 #include <blot/stain/io/bounded_read.h>
+#include <blot/stain/content_hash.h>
 
 #include <cmath>
 #include <cstring>
@@ -19,11 +20,23 @@ namespace blot::engine {
 namespace {
 
 constexpr char kMagic[8] = {'B', 'L', 'O', 'T', 'S', 'T', 'A', 'T'};
-constexpr std::uint32_t kVersion = 6;  // 2: field lists; 3: drops carry relativeVelocity and velocityIsWorld;
+constexpr std::uint32_t kVersion = 7;  // 2: field lists; 3: drops carry relativeVelocity and velocityIsWorld;
                                        // 4: the run counters (drops applied, refreshes, term steps);
                                        // 5: geometry without previousRotations, with nextSlotKind,
                                        //    Bullet pins moved at runtime (movedPins, pinTargets);
-                                       // 6: the stain's writtenOutside (a write through mutableState)
+                                       // 6: the stain's writtenOutside (a write through mutableState);
+                                       // 7: a trailing checksum (kChecksumBytes)
+
+/// The file ends with the 64-bit FNV-1a (stain/content_hash.h) of every byte
+/// before it: a file changed or damaged after it was written is refused as
+/// such, not read as a different, finite state.
+constexpr std::size_t kChecksumBytes = sizeof(std::uint64_t);
+
+std::uint64_t checksumOf(const char* data, std::size_t bytes) {
+  std::uint64_t hash = stain::kContentHashBasis;
+  stain::hashBytes(hash, data, bytes);
+  return hash;
+}
 
 /// True for a type with a field list (a visit member).
 template <typename T, typename = void>
@@ -192,6 +205,22 @@ class Reader {
     else return std::isfinite(x.real()) && std::isfinite(x.imag());
   }
   bool atEnd() const { return offset_ == bytes_.size(); }
+  /// Checks the trailing checksum against every byte before it and drops it,
+  /// so that the fields end where it began.
+  void verifyChecksum() {
+    if (bytes_.size() < offset_ + kChecksumBytes) fail("truncated: no checksum at the end");
+    const std::size_t body = bytes_.size() - kChecksumBytes;
+    std::uint64_t stored;
+    std::memcpy(&stored, bytes_.data() + body, kChecksumBytes);
+    const std::uint64_t computed = checksumOf(bytes_.data(), body);
+    if (stored != computed) {
+      std::ostringstream s;
+      s << "checksum mismatch (stored " << std::hex << stored << ", computed " << computed
+        << "): the file was cut short, changed or damaged after it was written";
+      fail(s.str());
+    }
+    bytes_.resize(body);
+  }
   std::size_t remaining() const { return bytes_.size() - offset_; }
   /// A double that must be finite (the engine's own fields).
   double finiteValue(const char* what) {
@@ -413,6 +442,8 @@ void Engine::save(const std::string& path) const {
   w.pod<std::uint32_t>(static_cast<std::uint32_t>(totals_.termSteps.size()));
   for (const std::int64_t n : totals_.termSteps) w.pod(n);
 
+  w.pod<std::uint64_t>(checksumOf(w.bytes().data(), w.bytes().size()));
+
   // Atomic: a reader never sees a half-written state.
   try {
     stain::writeFileAtomically(path, w.bytes().data(), w.bytes().size());
@@ -440,6 +471,7 @@ void Engine::load(const std::string& path) {
   const auto version = r.pod<std::uint32_t>("version");
   if (version != kVersion)
     r.fail("state file version " + std::to_string(version) + ", this build reads version " + std::to_string(kVersion));
+  r.verifyChecksum();
   const auto source = r.pod<std::uint32_t>("motion source");
   if (source != static_cast<std::uint32_t>(def_.source))
     r.fail(std::string("saved from a \"") + (source <= 4 ? motionSourceName(static_cast<MotionSource>(source)) : "?") +

@@ -2,6 +2,7 @@
 // views, statistics, determinism across frame-time splits, and save/load.
 #include <blot/engine/engine.h>
 #include <blot/engine/scene.h>
+#include <blot/stain/content_hash.h>
 #include <blot/stain/geometry/mesh_primitives.h>
 #include <blot/stain/io/mesh_io.h>
 
@@ -429,7 +430,7 @@ TEST(EngineTest, LoadingAnotherMeshsStateNamesTheMismatch) {
     small.load(path);
     FAIL() << "no error";
   } catch (const StateFileError& e) {
-    EXPECT_NE(std::string(e.what()).find("truncated"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("cut short"), std::string::npos) << e.what();
   }
   std::remove(path.c_str());
 }
@@ -470,13 +471,30 @@ TEST(EngineTest, TamperedStateFilesAreRefusedBeforeAnythingIsBuilt) {
     EXPECT_EQ(message.rfind(path + ": ", 0), 0u) << message;
     return message;
   };
+  // A poked file with its checksum recomputed (what a writer with a bug
+  // would produce): the fields' own checks must refuse it.
+  const auto seal = [](std::string& file) {
+    std::uint64_t checksum = stain::kContentHashBasis;
+    stain::hashBytes(checksum, file.data(), file.size() - sizeof checksum);
+    std::memcpy(&file[file.size() - sizeof checksum], &checksum, sizeof checksum);
+  };
   const auto poke = [&](std::size_t at, const auto& value) {
     std::string tampered = bytes;
     std::memcpy(&tampered[at], &value, sizeof value);
+    seal(tampered);
     return tampered;
   };
   // The header: magic, version, source, #V, #F, fingerprint, h, then the step count.
   constexpr std::size_t kSteps = 8 + 4 + 4 + 8 + 8 + 8 + 8;
+  // Unsealed, any changed byte is refused by the checksum first: a flipped
+  // bit in the middle of a density is a finite state of another run.
+  {
+    std::string flipped = bytes;
+    flipped[bytes.size() / 2] ^= 0x04;
+    EXPECT_NE(errorOfLoading(flipped).find("checksum mismatch"), std::string::npos);
+    std::string cut = bytes.substr(0, bytes.size() - 3);
+    EXPECT_NE(errorOfLoading(cut).find("checksum mismatch"), std::string::npos);
+  }
   EXPECT_NE(errorOfLoading(poke(kSteps, std::int64_t(-5))).find("step count -5 is outside [0, 2^52]"), std::string::npos);
   EXPECT_NE(errorOfLoading(poke(kSteps, std::int64_t(30))).find("stain step count 3 differs from the engine's 30"),
             std::string::npos);

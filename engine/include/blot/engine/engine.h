@@ -280,12 +280,13 @@ class Engine {
   /// Writes the whole simulation state (stain, cloth, accumulator, drops not
   /// yet applied) and the run's counters (steps, dropped time, drops applied,
   /// rebuilds, steps per term) to a binary file: magic, version, mesh sizes and
-  /// fingerprint, then the arrays. Timings are not saved.
+  /// fingerprint, then the arrays, then the 64-bit FNV-1a (stain/content_hash.h)
+  /// of every byte before it. Timings are not saved.
   void save(const std::string& path) const;
   /// Restores a state written by save() from an engine built from the same
   /// def; the steps after it are bit-identical to the original's. Throws
   /// StateFileError naming the file and the mismatch (vertex/face counts, mesh
-  /// fingerprint, motion source, version, truncation); the engine is unchanged then.
+  /// fingerprint, motion source, version, checksum, truncation); the engine is unchanged then.
   /// Only those are checked: the file holds the state, not the definition, so
   /// an engine built with other parameters (diffusivity, gravity, pins, rigid
   /// motion, coupling) loads it and steps on with its own (as a game loads a
