@@ -645,6 +645,7 @@ void parseFabric(ObjectReader& r, const stain::TriangleMesh& mesh, EngineDef& de
       const Eigen::Vector3d direction = p.vector3("weft", Eigen::Vector3d::UnitX());
       if (!(direction.norm() > 0)) ctx.fail(p.path("weft"), "expected a non-zero direction");
       for (int f : patch.faces) patch.weftConstraints.push_back({f, direction});
+      patch.oneWeftDirection = true;
     }
     p.finish();
     def.fabricPatches.push_back(std::move(patch));

@@ -573,6 +573,31 @@ TEST(EngineTest, APatternOutsideTheDiffusivityRangeIsRefusedAtConstruction) {
   std::remove(pattern.c_str());
 }
 
+// A weft normal to the cloth is named as the scene wrote it: the patch's
+// "weft" (which the engine holds on every face), or the constraint's index
+// in "weft_constraints" as JSON counts it.
+TEST(EngineTest, AWeftNormalToTheClothIsNamedAsTheSceneWroteIt) {
+  const auto errorOf = [](const std::string& patch) {
+    const std::string json = R"({"mesh": {"patch": {"size": [1, 1], "resolution": [4, 4]}}, "cloth": {"source": "static"},
+      "fabric": {"patches": [{"tensor": [[2e-4, 0], [0, 1e-4]], )" + patch + "}]}}";
+    try {
+      Engine::fromSceneJson(json);
+    } catch (const std::exception& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  const std::string weft = errorOf(R"("weft": [0, 0, 1])");
+  EXPECT_NE(weft.find("patch \"fabric.patches[0]\": weft: direction (0, 0, 1) has no component in the plane of face 0"),
+            std::string::npos)
+      << weft;
+  const std::string constraint =
+      errorOf(R"("weft_constraints": [{"face": 3, "direction": [1, 0, 0]}, {"face": 5, "direction": [0, 0, -2]}])");
+  EXPECT_NE(constraint.find("weft_constraints[1]: direction (0, 0, -2) has no component in the plane of face 5"),
+            std::string::npos)
+      << constraint;
+}
+
 TEST(EngineTest, BuildsFromSceneJsonWithFabricPatches) {
   const std::string json = R"({
     "mesh": {"patch": {"size": [0.4, 0.4], "resolution": [12, 12]}},

@@ -240,7 +240,7 @@ TEST(FabricLayout, RejectsBadLayoutsNamingPatchAndFace) {
 
   FabricPatch normal = whole;
   normal.weftConstraints = {{3, Vector3(0.0, 0.0, 2.0)}};
-  expectLayoutError(layoutOf({normal}), {"patch \"whole\"", "on face 3", "no component in the face plane"});
+  expectLayoutError(layoutOf({normal}), {"patch \"whole\"", "weft_constraints[0]", "no component in the plane of face 3"});
 
   FabricPatch badTensor = whole;
   badTensor.tensor << 1.0, 2.0, 2.0, 1.0;

@@ -71,7 +71,7 @@ std::vector<int> facesWhere(const SurfaceTopology& topology, const RowVectors3& 
 
 RowVectors3 patchWeftField(const SurfaceTopology& topology, const RowVectors3& vertexPositions,
                            const std::vector<int>& faces, const std::vector<WeftConstraint>& constraints,
-                           const std::string& patchName) {
+                           const std::string& patchName, bool oneWeftDirection) {
   const std::string where = "patch \"" + patchName + "\"";
   if (faces.empty()) throw FabricLayoutError(where + ": has no faces");
   if (constraints.empty()) throw FabricLayoutError(where + ": needs at least one weft constraint");
@@ -118,17 +118,18 @@ RowVectors3 patchWeftField(const SurfaceTopology& topology, const RowVectors3& v
   std::vector<int> fixedCount(static_cast<size_t>(vertexCount), 0);
   for (size_t c = 0; c < constraints.size(); ++c) {
     const WeftConstraint& constraint = constraints[c];
-    const std::string which = where + ": weft constraint " + std::to_string(c + 1) + " on face " +
-                              std::to_string(constraint.face);
+    const std::string which = where + (oneWeftDirection ? ": weft" : ": weft_constraints[" + std::to_string(c) + "]");
+    const std::string face = "face " + std::to_string(constraint.face);
     if (constraint.face < 0 || constraint.face >= topology.faceCount() ||
         localFace[static_cast<size_t>(constraint.face)] < 0)
-      throw FabricLayoutError(which + ": the face is not part of the patch");
+      throw FabricLayoutError(which + ": " + face + " is not part of the patch");
     const int lf = localFace[static_cast<size_t>(constraint.face)];
     const FaceFrame frame = faceFrame(positions, patchFaces, lf);
     const Vector3 inPlane = constraint.direction - constraint.direction.dot(frame.n) * frame.n;
     if (!constraint.direction.allFinite() || !(inPlane.norm() > 1e-9 * constraint.direction.norm()))
       throw FabricLayoutError(which + ": direction " + vectorText(constraint.direction) +
-                              " has no component in the face plane (normal " + vectorText(frame.n) + ")");
+                              " has no component in the plane of " + face + " (normal " + vectorText(frame.n) +
+                              "): expected a direction along the cloth");
     const Complex faceValue = std::polar(1.0, std::atan2(inPlane.dot(frame.y), inPlane.dot(frame.x)));
     for (int k = 0; k < 3; ++k) {
       const int v = patchFaces(lf, k);
@@ -248,7 +249,8 @@ FabricLayout fabricLayout(const SurfaceTopology& topology, const RowVectors3& ve
         throw FabricLayoutError(where + ": tensor must be symmetric positive definite");
     }
     layout.patchTensors.push_back(tensor);
-    const RowVectors3 weft = patchWeftField(topology, vertexPositions, patch.faces, patch.weftConstraints, patch.name);
+    const RowVectors3 weft = patchWeftField(topology, vertexPositions, patch.faces, patch.weftConstraints, patch.name,
+                                            patch.oneWeftDirection);
     for (size_t i = 0; i < patch.faces.size(); ++i) {
       const int f = patch.faces[i];
       layout.faceWeftDirections.row(f) = weft.row(static_cast<Eigen::Index>(i));

@@ -41,6 +41,10 @@ struct FabricPatch {
   Matrix2 tensor = Matrix2::Identity();
   /// At least one per connected piece of the patch; all on faces of the patch.
   std::vector<WeftConstraint> weftConstraints;
+  /// The constraints are one weft direction held on every face (a scene's
+  /// "weft"): errors then name that direction, not a constraint the caller
+  /// never wrote.
+  bool oneWeftDirection = false;
 };
 
 /// Per-face fabric of the whole mesh, ready for anisotropicStiffness.
@@ -67,10 +71,11 @@ std::vector<int> facesWhere(const SurfaceTopology& topology, const RowVectors3& 
 /// the order of `faces`. On a flat patch with one constraint the field is
 /// exactly constant. Throws FabricLayoutError (no constraint in a connected
 /// piece, constraint on a foreign face, direction normal to its face, faces
-/// not forming a manifold).
+/// not forming a manifold). oneWeftDirection: the constraints are one
+/// direction on every face (FabricPatch::oneWeftDirection), as errors say.
 RowVectors3 patchWeftField(const SurfaceTopology& topology, const RowVectors3& vertexPositions,
                            const std::vector<int>& faces, const std::vector<WeftConstraint>& constraints,
-                           const std::string& patchName = "patch");
+                           const std::string& patchName = "patch", bool oneWeftDirection = false);
 
 /// Lays out all patches: every face must belong to exactly one patch. Patterns
 /// are homogenized through `homogenizer` (cached by content) with
