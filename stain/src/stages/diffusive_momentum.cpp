@@ -9,10 +9,9 @@
 namespace blot::stain {
 
 void DiffusiveMomentumScratch::resize(int vertexCount, int ringEntries) {
-  values.setZero(vertexCount);
-  front.clear();
-  front.reserve(static_cast<size_t>(vertexCount));
-  frontMarks.assign(static_cast<size_t>(vertexCount), 0);
+  order.clear();
+  order.reserve(static_cast<size_t>(vertexCount));
+  done.assign(static_cast<size_t>(vertexCount), 0);
   stiffnessEntries.assign(static_cast<size_t>(ringEntries), -1);
 }
 
@@ -37,143 +36,109 @@ void fillStiffnessEntries(const SurfaceTopology& topology, const SparseMatrix& L
 }  // namespace
 
 int carryMomentumWithDiffusion(const StepContext& ctx, const SurfaceTopology& topology,
-                               const IntrinsicGeometry& intrinsic, LiquidBand& band, DiffusiveMomentumScratch& scratch,
-                               StainState& state, std::vector<int>* beyondBand) {
+                               const IntrinsicGeometry& intrinsic, const ExtrinsicGeometry* moving, LiquidBand& band,
+                               DiffusiveMomentumScratch& scratch, StainState& state, const std::vector<int>* beyondBand) {
   const int n = topology.vertexCount();
   const SparseMatrix& L = intrinsic.densityStiffness;
   const std::vector<int>& offsets = topology.ringOffsets();
   const std::vector<int>& neighbors = topology.ringNeighbors();
   if (!ctx.switches.diffusiveMomentum || band.vertices.empty() || L.rows() != n || L.cols() != n ||
-      scratch.values.size() != n || scratch.frontMarks.size() != static_cast<size_t>(n) ||
-      scratch.stiffnessEntries.size() != neighbors.size() || intrinsic.vertexDualAreas.size() != n ||
-      state.velocities.size() != n || band.levels.size() != static_cast<size_t>(n) ||
-      band.ringRebuildCounts.size() != static_cast<size_t>(n))
+      scratch.done.size() != static_cast<size_t>(n) || scratch.stiffnessEntries.size() != neighbors.size() ||
+      intrinsic.vertexDualAreas.size() != n || state.velocities.size() != n ||
+      band.levels.size() != static_cast<size_t>(n) || band.ringRebuildCounts.size() != static_cast<size_t>(n))
     return 0;
+  if (moving != nullptr && (moving->positions.rows() != n || moving->nextPositions.rows() != n ||
+                            moving->nextFrames.size() != static_cast<size_t>(n)))
+    moving = nullptr;
   const int* inner = L.innerIndexPtr();
   const double* values = L.valuePtr();
   const double* solvent = state.solvent.data();
   const double* solute = state.solute.data();
   const double* areas = intrinsic.vertexDualAreas.data();
   Complex* u = state.velocities.data();
-  Complex* next = scratch.values.data();
   std::vector<int>& entries = scratch.stiffnessEntries;
-  std::vector<char>& isFront = scratch.frontMarks;
+  std::vector<char>& done = scratch.done;
   const auto liquid = [&](int k) { return std::max(solvent[k], 0.0) + std::max(solute[k], 0.0); };
-  // Liquid below the wet threshold counts as none: its vertex's u is the
-  // band's extension, and the liquid it sends is a trace.
   const double wet = ctx.liquid.wetThreshold;
+  const auto inBand = [&](int j) { return band.levels[static_cast<size_t>(j)] >= 0; };
 
-  // Vertex i's exchange with its neighbours that `from` accepts: the mass that
-  // came in, the momentum it brought (in i's frame, from u as it is) and the
-  // mass that went out.
-  struct Exchange {
-    double in = 0, out = 0;
-    Complex carried{0.0, 0.0};
-  };
-  const auto exchange = [&](int i, double here, auto from) {
+  // Every vertex the diffusion left liquid at whose u means something: the
+  // band's, and those past it (their u is what came in), wettest first.
+  // Liquid flows down the density, so whatever the numbering each vertex's
+  // senders come before it (equal densities exchange nothing).
+  std::vector<int>& order = scratch.order;
+  order.clear();
+  for (const int i : band.vertices)
+    if (liquid(i) > 0.0) order.push_back(i);
+  if (beyondBand != nullptr)
+    for (const int i : *beyondBand)
+      if (!inBand(i) && liquid(i) > 0.0) order.push_back(i);
+  std::sort(order.begin(), order.end(), [&](int a, int b) {
+    const double la = liquid(a), lb = liquid(b);
+    return la > lb || (la == lb && a < b);
+  });
+
+  // Each vertex mixes what it held before the diffusion (A ρ = A ρ⁺ − in +
+  // out, at its u; none past the band, where u meant nothing) with what came
+  // in, each sender's liquid at the u it sent: the mix it then holds and
+  // passes on. Senders are band vertices or vertices already done.
+  const double h = ctx.h;
+  int changed = 0;
+  for (const int i : order) {
     const size_t ii = static_cast<size_t>(i);
     // The band fills its vertices' transports once per rebuild; a vertex
     // beyond it is filled here (so is a band vertex, should one be stale).
     if (band.ringRebuildCounts[ii] != intrinsic.rebuildCount)
       fillRingTransports(topology, intrinsic.edgeTransportAngles, i, band.ringTransports.data());
     const int begin = offsets[ii], end = offsets[ii + 1];
-    Exchange e;
-    if (begin == end) return e;  // an isolated vertex
+    done[ii] = 1;
+    if (begin == end) continue;  // an isolated vertex
     const int first = entries[static_cast<size_t>(begin)];
     if (first < 0 || inner[first] != neighbors[static_cast<size_t>(begin)]) fillStiffnessEntries(topology, L, i, entries);
+    // On a moving cloth u is relative to it: a sender's liquid arrives with
+    // the difference of the two vertices' surface velocities added (the
+    // chord over the step, in i's frame at t + h), as the band's extension
+    // and the advection's frame change carry it. (Past the band the frames
+    // are not this step's: no difference added to those traces.)
+    const Matrix3* frame = moving != nullptr && inBand(i) ? &moving->nextFrames[ii] : nullptr;
+    Vector3 vi = Vector3::Zero();
+    if (frame != nullptr) vi = (moving->nextPositions.row(i) - moving->positions.row(i)).transpose() / h;
+    const double here = liquid(i);
+    double in = 0.0, out = 0.0;
+    Complex carried(0.0, 0.0);
     for (int m = begin; m < end; ++m) {
       const int j = neighbors[static_cast<size_t>(m)];
       const double difference = liquid(j) - here;
       const int k = entries[static_cast<size_t>(m)];
-      if (difference == 0.0 || k < 0 || !from(j)) continue;
-      const double flux = ctx.h * -values[k] * difference;
-      if (flux > 0.0) {
-        e.in += flux;
-        const Complex t = band.ringTransports(m), v = u[j];
-        e.carried += Complex(flux * (t.real() * v.real() - t.imag() * v.imag()),
-                             flux * (t.real() * v.imag() + t.imag() * v.real()));
-      } else if (flux < 0.0) {
-        e.out -= flux;
+      if (difference == 0.0 || k < 0) continue;  // no flux, or no entry
+      const double flux = h * -values[k] * difference;
+      if (flux < 0.0) {
+        out -= flux;
+        continue;
       }
+      if (!(flux > 0.0) || !(inBand(j) || done[static_cast<size_t>(j)])) continue;  // no u to carry
+      // e^{iθ} u_j written out: no libgcc call (__muldc3's NaN path) in the loop.
+      const Complex t = band.ringTransports(m), v = u[j];
+      Complex sent(t.real() * v.real() - t.imag() * v.imag(), t.real() * v.imag() + t.imag() * v.real());
+      if (frame != nullptr) {
+        const Vector3 change = (moving->nextPositions.row(j) - moving->positions.row(j)).transpose() / h - vi;
+        sent += Complex(frame->col(0).dot(change), frame->col(1).dot(change));
+      }
+      in += flux;
+      carried += flux * sent;
     }
-    return e;
-  };
-  const auto inBand = [&](int j) { return band.levels[static_cast<size_t>(j)] >= 0; };
-
-  // Which vertex sends which velocity. A band vertex that kept some of its
-  // own liquid (k = A ρ⁺ − in > 0, i.e. A ρ − out with exact fluxes) sent
-  // its u from before and mixes what it kept with what came in. One that
-  // passed on all it held and more (the liquid reached it this step: the
-  // front) sent the mix of what it held and what came in, and that mix is
-  // its new u. Pass 1 takes every sender's u from before (right for all
-  // but the front's receivers) and files the front.
-  std::vector<int>& front = scratch.front;
-  front.clear();
-  for (const int i : band.vertices) {
-    next[i] = u[i];
-    const double here = liquid(i);
-    if (!(here > wet)) continue;
-    const Exchange e = exchange(i, here, inBand);
-    if (!(e.in > 0.0)) continue;
-    const double held = areas[i] * here, kept = held - e.in;
-    if (kept > 0.0) {
-      next[i] = (kept * u[i] + e.carried) / held;
-    } else {
-      front.push_back(i);
-      isFront[static_cast<size_t>(i)] = 1;
-    }
-  }
-  // Pass 2, the front, wettest first: liquid flows down the density, so
-  // whatever the numbering a front vertex's front senders are done before
-  // it. Each is written at once (what it sent, for those after it).
-  const auto wettestFirst = [&](int a, int b) {
-    const double la = liquid(a), lb = liquid(b);
-    return la > lb || (la == lb && a < b);
-  };
-  std::sort(front.begin(), front.end(), wettestFirst);
-  int changed = 0;
-  for (const int i : front) {
-    const double here = liquid(i);
-    const Exchange e = exchange(i, here, inBand);
-    const double before = std::max(areas[i] * here - e.in + e.out, 0.0);  // A ρ, held before the diffusion
-    next[i] = (before * u[i] + e.carried) / (before + e.in);
-    changed += next[i] != u[i];
-    u[i] = next[i];
-  }
-  // Pass 3, the front's receivers that kept liquid: again, now that the
-  // front holds what it sent (their own u is still the one from before).
-  for (const int f : front) {
-    const double fl = liquid(f);
-    for (int m = offsets[static_cast<size_t>(f)]; m < offsets[static_cast<size_t>(f) + 1]; ++m) {
-      const int i = neighbors[static_cast<size_t>(m)];
-      const double here = liquid(i);
-      if (isFront[static_cast<size_t>(i)] || !inBand(i) || !(here > wet) || !(here < fl)) continue;
-      const Exchange e = exchange(i, here, inBand);
-      const double held = areas[i] * here, kept = held - e.in;
-      if (e.in > 0.0 && kept > 0.0) next[i] = (kept * u[i] + e.carried) / held;
-    }
-  }
-  for (const int i : front) isFront[static_cast<size_t>(i)] = 0;
-  for (const int i : band.vertices) {
-    if (next[i] == u[i]) continue;
-    u[i] = next[i];
-    ++changed;
-  }
-  // Beyond the band no stage defined u: each vertex is what came in, from
-  // the wettest down, so a trace two vertices past the band reads the one
-  // between as it now is.
-  if (beyondBand == nullptr) return changed;
-  const auto last = std::partition(beyondBand->begin(), beyondBand->end(),
-                                   [&](int i) { return !inBand(i) && liquid(i) > wet; });
-  std::sort(beyondBand->begin(), last, wettestFirst);
-  for (auto it = beyondBand->begin(); it != last; ++it) {
-    const int i = *it;
-    const Exchange e = exchange(i, liquid(i), [](int) { return true; });
-    if (!(e.in > 0.0)) continue;
-    const Complex mixed = e.carried / e.in;
+    if (!(in > 0.0)) continue;
+    // A ρ, held before the diffusion; on the band at least the wet
+    // threshold's worth, so that u moves continuously from the band's
+    // extended value as liquid first arrives (a trace's u decides what the
+    // next advection brings it: a jump there turned rounding into a visible
+    // asymmetry).
+    const double before = inBand(i) ? std::max(areas[i] * here - in + out, areas[i] * wet) : 0.0;
+    const Complex mixed = (before * u[i] + carried) / (before + in);
     changed += mixed != u[i];
     u[i] = mixed;
   }
+  for (const int i : order) done[static_cast<size_t>(i)] = 0;
   return changed;
 }
 

@@ -23,9 +23,8 @@ namespace blot::stain {
 /// carryMomentumWithDiffusion's scratch, sized once (resize); a call
 /// refills it without allocating.
 struct DiffusiveMomentumScratch {
-  ComplexVector values;               ///< #V: the band's new u
-  std::vector<int> front;             ///< the front (capacity #V)
-  std::vector<char> frontMarks;       ///< #V: 1 on the front during a call
+  std::vector<int> order;             ///< the vertices mixed, wettest first (capacity #V)
+  std::vector<char> done;             ///< #V: 1 on the vertices mixed so far during a call
   std::vector<int> stiffnessEntries;  ///< per ring entry: its position in L's column (−1: not filled / none)
   void resize(int vertexCount, int ringEntries);
 };
@@ -34,36 +33,35 @@ struct DiffusiveMomentumScratch {
 /// that crossed from vertex j to vertex i is F_ji = h (−L_ij)(ρ⁺_j − ρ⁺_i)
 /// (exact for backward Euler: Σ_j F_ji = A_i (ρ⁺_i − ρ_i); the explicit and
 /// the restricted solves and the positivity limiter make it an estimate).
-/// At each vertex i whose free liquid passes ctx.liquid.wetThreshold (below
-/// it liquid counts as none: a trace keeps the band's extended u), the mass
-/// that came in, in_i = Σ_j max(F_ji, 0), brings j's velocity (carried into
-/// i's frame, LiquidBand::ringTransports); the liquid i kept,
-/// k_i = A_i ρ⁺_i − in_i (= A_i ρ_i − out_i), keeps i's:
+/// Each vertex holding free liquid after the diffusion mixes what it held
+/// before it, A_i ρ_i = A_i ρ⁺_i − in_i + out_i at its own u, with what came
+/// in, in_i = Σ_j max(F_ji, 0), each sender's at the velocity it sent:
 ///
-///     u_i ← (k_i u_i + Σ_j max(F_ji, 0) e^{iθ_ij} u_j) / (k_i + in_i),
+///     u_i ← (A_i ρ_i u_i + Σ_j max(F_ji, 0) (e^{iθ_ij} u_j + Δv_ji)) / (A_i ρ_i + in_i),
 ///
-/// each u_j the velocity j sent: where j kept liquid (k_j > 0), the u it had.
-/// A vertex the liquid reached this step (k_i ≤ 0: it passed on all it held
-/// and more) is the front: it sent the mix of what it held and what came in,
-/// which is its new u,
-///
-///     u_i ← (A_i ρ_i u_i + Σ_j max(F_ji, 0) e^{iθ_ij} u_j) / (A_i ρ_i + in_i),
-///
-/// from the u its senders sent (the front is done first, wettest first; the
-/// rest reads it). So each new u_i is a convex combination of velocities the
-/// liquid had (the largest |u| and the kinetic energy do not grow), a
-/// uniform flow on a flat sheet is unchanged, the result does not depend on
-/// the numbering, and with exact fluxes (a direct backward Euler solve) the
-/// liquid's momentum on a flat sheet is conserved but for the traces.
+/// and sends that mix on. The vertices are done wettest first (liquid flows
+/// down the density, so a vertex's senders are done before it whatever the
+/// numbering; equal densities exchange nothing), each written at once.
+/// e^{iθ_ij} carries j's frame into i's (LiquidBand::ringTransports); on a
+/// moving cloth (`moving`: the extrinsic tier of a surface that moved this
+/// step, else null) u is relative to the cloth, and Δv_ji is the difference
+/// of the two vertices' surface velocities (chord over the step) in i's
+/// frame at t + h, as the band's extension and the advection's frame change
+/// add it. So every new u_i is a convex combination of velocities the liquid
+/// had (neither the largest world speed nor the kinetic energy grows), a
+/// uniform flow, on a still or a moving cloth, is unchanged, the result is
+/// continuous in the densities and does not depend on the numbering, and
+/// with exact fluxes (a direct backward Euler solve) the liquid's momentum on
+/// a flat sheet is conserved to rounding.
 /// `beyondBand` (optional): vertices the diffusion wrote outside the reach
-/// set (StainSolver's list); those of them outside the band whose free
-/// liquid passes the threshold had no u any stage defined, so each takes
-/// what came in, from the wettest down (the list is reordered: those first,
-/// sorted). Other vertices outside the band, and traces, keep their u.
-/// Deterministic, one thread, allocates nothing. Returns how many vertices
-/// changed.
+/// set (StainSolver's list); those of them outside the band that hold free
+/// liquid had no u any stage defined: their own liquid counts for nothing,
+/// each takes what came in (no Δv: their frames are not this step's). Other
+/// vertices outside the band keep their u. Deterministic, one thread,
+/// allocates nothing. Returns how many vertices changed.
 int carryMomentumWithDiffusion(const StepContext& ctx, const SurfaceTopology& topology,
-                               const IntrinsicGeometry& intrinsic, LiquidBand& band, DiffusiveMomentumScratch& scratch,
-                               StainState& state, std::vector<int>* beyondBand = nullptr);
+                               const IntrinsicGeometry& intrinsic, const ExtrinsicGeometry* moving, LiquidBand& band,
+                               DiffusiveMomentumScratch& scratch, StainState& state,
+                               const std::vector<int>* beyondBand = nullptr);
 
 }  // namespace blot::stain
