@@ -7,6 +7,7 @@
 #include <blot/stain/io/mesh_io.h>
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstdio>
@@ -353,10 +354,16 @@ TEST(EngineTest, EnginesBuiltAlikeInOneProcessAgree) {
   EXPECT_EQ(again.stateHash(), first);
 }
 
+/// writeBendingSequence's folder: this process's (ctest runs two tests that
+/// write it at once).
+std::filesystem::path bendingSequenceFolder() {
+  return std::filesystem::temp_directory_path() / ("blot_engine_sequence_" + std::to_string(::getpid()));
+}
+
 /// Three frames of a 6 x 6 patch bending upward, written as OBJ files, and a
 /// scene playing them at 10 frames/s with a drop; returns the scene's path.
 std::filesystem::path writeBendingSequence() {
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "blot_engine_sequence";
+  const std::filesystem::path dir = bendingSequenceFolder();
   std::filesystem::create_directories(dir);
   const stain::TriangleMesh grid = stain::gridMesh(6, 6, 0.5, 0.5);
   for (int k = 0; k < 3; ++k) {
@@ -388,6 +395,7 @@ TEST(EngineTest, MeshSequenceSceneMovesAndSavesBitIdentically) {
   restored->advanceSteps(9);
   EXPECT_EQ(restored->stateHash(), original->stateHash());
   std::remove(path.c_str());
+  std::filesystem::remove_all(bendingSequenceFolder());
 }
 
 TEST(EngineTest, LoadingAnotherMeshsStateNamesTheMismatch) {
@@ -709,6 +717,7 @@ TEST(EngineTest, CallerSuppliedFramesReproduceAMeshSequenceRunBitIdentically) {
     EXPECT_NE(std::string(e.what()).find("must be at most 1e6 in size"), std::string::npos) << e.what();
   }
   EXPECT_THROW(sequenceRun->setSurfaceFrame(before), std::invalid_argument);
+  std::filesystem::remove_all(bendingSequenceFolder());
 }
 
 // A pin moved at runtime drags its node there within one internal step and
