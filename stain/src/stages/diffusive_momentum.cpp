@@ -9,6 +9,7 @@
 namespace blot::stain {
 
 void DiffusiveMomentumScratch::resize(int vertexCount, int ringEntries) {
+  values.setZero(vertexCount);
   order.clear();
   order.reserve(static_cast<size_t>(vertexCount));
   done.assign(static_cast<size_t>(vertexCount), 0);
@@ -43,7 +44,8 @@ int carryMomentumWithDiffusion(const StepContext& ctx, const SurfaceTopology& to
   const std::vector<int>& offsets = topology.ringOffsets();
   const std::vector<int>& neighbors = topology.ringNeighbors();
   if (!ctx.switches.diffusiveMomentum || band.vertices.empty() || L.rows() != n || L.cols() != n ||
-      scratch.done.size() != static_cast<size_t>(n) || scratch.stiffnessEntries.size() != neighbors.size() ||
+      scratch.values.size() != n || scratch.done.size() != static_cast<size_t>(n) ||
+      scratch.stiffnessEntries.size() != neighbors.size() ||
       intrinsic.vertexDualAreas.size() != n || state.velocities.size() != n ||
       band.levels.size() != static_cast<size_t>(n) || band.ringRebuildCounts.size() != static_cast<size_t>(n))
     return 0;
@@ -62,37 +64,22 @@ int carryMomentumWithDiffusion(const StepContext& ctx, const SurfaceTopology& to
   const double wet = ctx.liquid.wetThreshold;
   const auto inBand = [&](int j) { return band.levels[static_cast<size_t>(j)] >= 0; };
 
-  // Every vertex the diffusion left liquid at whose u means something: the
-  // band's, and those past it (their u is what came in), wettest first.
-  // Liquid flows down the density, so whatever the numbering each vertex's
-  // senders come before it (equal densities exchange nothing).
-  std::vector<int>& order = scratch.order;
-  order.clear();
-  for (const int i : band.vertices)
-    if (liquid(i) > 0.0) order.push_back(i);
-  if (beyondBand != nullptr)
-    for (const int i : *beyondBand)
-      if (!inBand(i) && liquid(i) > 0.0) order.push_back(i);
-  std::sort(order.begin(), order.end(), [&](int a, int b) {
-    const double la = liquid(a), lb = liquid(b);
-    return la > lb || (la == lb && a < b);
-  });
-
-  // Each vertex mixes what it held before the diffusion (A ρ = A ρ⁺ − in +
-  // out, at its u; none past the band, where u meant nothing) with what came
-  // in, each sender's liquid at the u it sent: the mix it then holds and
-  // passes on. Senders are band vertices or vertices already done.
+  // Vertex i's mix: what it held before the diffusion (A ρ = A ρ⁺ − in +
+  // out, at its own u; on the band at least the wet threshold's worth, so
+  // that u moves continuously from the band's extended value as liquid first
+  // arrives: a trace's u decides what the next advection brings it; none
+  // past the band, where u meant nothing) with what came in, each sender's
+  // liquid at the u it held. Senders are band vertices or vertices past it
+  // already done. Returns false where nothing came in.
   const double h = ctx.h;
-  int changed = 0;
-  for (const int i : order) {
+  const auto mix = [&](int i, bool ownLiquid, Complex& mixed) {
     const size_t ii = static_cast<size_t>(i);
     // The band fills its vertices' transports once per rebuild; a vertex
     // beyond it is filled here (so is a band vertex, should one be stale).
     if (band.ringRebuildCounts[ii] != intrinsic.rebuildCount)
       fillRingTransports(topology, intrinsic.edgeTransportAngles, i, band.ringTransports.data());
     const int begin = offsets[ii], end = offsets[ii + 1];
-    done[ii] = 1;
-    if (begin == end) continue;  // an isolated vertex
+    if (begin == end) return false;  // an isolated vertex
     const int first = entries[static_cast<size_t>(begin)];
     if (first < 0 || inner[first] != neighbors[static_cast<size_t>(begin)]) fillStiffnessEntries(topology, L, i, entries);
     // On a moving cloth u is relative to it: a sender's liquid arrives with
@@ -100,7 +87,7 @@ int carryMomentumWithDiffusion(const StepContext& ctx, const SurfaceTopology& to
     // chord over the step, in i's frame at t + h), as the band's extension
     // and the advection's frame change carry it. (Past the band the frames
     // are not this step's: no difference added to those traces.)
-    const Matrix3* frame = moving != nullptr && inBand(i) ? &moving->nextFrames[ii] : nullptr;
+    const Matrix3* frame = moving != nullptr && ownLiquid ? &moving->nextFrames[ii] : nullptr;
     Vector3 vi = Vector3::Zero();
     if (frame != nullptr) vi = (moving->nextPositions.row(i) - moving->positions.row(i)).transpose() / h;
     const double here = liquid(i);
@@ -127,16 +114,44 @@ int carryMomentumWithDiffusion(const StepContext& ctx, const SurfaceTopology& to
       in += flux;
       carried += flux * sent;
     }
-    if (!(in > 0.0)) continue;
-    // A ρ, held before the diffusion; on the band at least the wet
-    // threshold's worth, so that u moves continuously from the band's
-    // extended value as liquid first arrives (a trace's u decides what the
-    // next advection brings it: a jump there turned rounding into a visible
-    // asymmetry).
-    const double before = inBand(i) ? std::max(areas[i] * here - in + out, areas[i] * wet) : 0.0;
-    const Complex mixed = (before * u[i] + carried) / (before + in);
+    if (!(in > 0.0)) return false;
+    const double before = ownLiquid ? std::max(areas[i] * here - in + out, areas[i] * wet) : 0.0;
+    mixed = (before * u[i] + carried) / (before + in);
+    return true;
+  };
+
+  // The band: every vertex from the velocities before the pass (into
+  // scratch, written back after it), so the result depends neither on the
+  // numbering nor on the order, and the pass runs in memory order.
+  int changed = 0;
+  Complex* next = scratch.values.data();
+  for (const int i : band.vertices) {
+    next[i] = u[i];
+    if (liquid(i) > 0.0) mix(i, true, next[i]);
+  }
+  for (const int i : band.vertices) {
+    changed += next[i] != u[i];
+    u[i] = next[i];
+  }
+  // Past the band, the wettest first (liquid flows down the density, so a
+  // vertex's senders there are done before it whatever the numbering), each
+  // written at once: a trace two vertices past the band reads the one
+  // between as it now is. These lists are short.
+  if (beyondBand == nullptr) return changed;
+  std::vector<int>& order = scratch.order;
+  order.clear();
+  for (const int i : *beyondBand)
+    if (!inBand(i) && liquid(i) > 0.0) order.push_back(i);
+  std::sort(order.begin(), order.end(), [&](int a, int b) {
+    const double la = liquid(a), lb = liquid(b);
+    return la > lb || (la == lb && a < b);
+  });
+  for (const int i : order) {
+    Complex mixed;
+    if (!mix(i, false, mixed)) continue;  // nothing came in: its u stays undefined
     changed += mixed != u[i];
     u[i] = mixed;
+    done[static_cast<size_t>(i)] = 1;
   }
   for (const int i : order) done[static_cast<size_t>(i)] = 0;
   return changed;
