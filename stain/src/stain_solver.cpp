@@ -955,6 +955,8 @@ StepReport StainSolver::runStages() {
       !runStage(Stage::Diffuse, on.densityDiffusion || on.velocityDiffusion, report, [&] { const SolverStatus status = recordDiffusion(diffuse(ctx, intrinsic, systems_, diffusionScratch_, state_, &band_.diffusionMask, velocityByFactor_));
                                                                                        // The liquid the density diffusion moved carries its u (band vertices: noted above).
                                                                                        if (status == SolverStatus::Ok && on.densityDiffusion) carryMomentumWithDiffusion(ctx, topology, intrinsic, surfaceMoved_ ? &extrinsic : nullptr, band_, momentumScratch_, state_, &diffusedPastReach_);
+                                                                                       // The viscosity and the carried momentum are velocity terms too: the wall again, on every band vertex (liquid that reached the wall this step included), so no u the step hands on points off the mesh.
+                                                                                       if (status == SolverStatus::Ok) applyBoundaryWall(ctx, topology, intrinsic, band, state_, among);
                                                                                        return status; }) ||
       !runStage(Stage::Interact, on.absorption || on.adsorption || on.evaporation, report, [&] { noteChanged(band_.absorbingVertices.data(), static_cast<int>(band_.absorbingVertices.size()));
                                                                                                    withDiffusedLiquidInReach([&] { interact(ctx, topology, intrinsic, reach, state_, &evaporatedMass_, interactionVertices(), &band_.soakedMask); });
