@@ -39,6 +39,14 @@ DropDef dropAt(const Vector3& centre, double radius, double solvent, double solu
   return drop;
 }
 
+/// No interaction (the liquid stays free), the term as asked.
+StainSolverDef freeLiquid(bool diffusiveMomentum) {
+  StainSolverDef def;
+  def.switches.absorption = def.switches.adsorption = def.switches.evaporation = false;
+  def.switches.diffusiveMomentum = diffusiveMomentum;
+  return def;
+}
+
 /// The free liquid's mass at vertex i (kg).
 double liquidMass(const StainSolver& solver, int i) {
   return solver.geometry().intrinsic().vertexDualAreas[i] * (solver.state().solvent[i] + solver.state().solute[i]);
@@ -64,11 +72,8 @@ WallRun pressedAgainstTheWall(bool diffusiveMomentum) {
   const Eigen::Matrix3d tilt = Eigen::AngleAxisd(-alpha, Vector3::UnitX()).toRotationMatrix();
   mesh.vertexPositions = mesh.vertexPositions * tilt.transpose();
   const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
-  StainSolverDef def;
-  def.switches.absorption = def.switches.adsorption = def.switches.evaporation = false;
-  def.switches.diffusiveMomentum = diffusiveMomentum;
-  StainSolver solver(topology, mesh.vertexPositions,
-                     isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 1e-4), def);
+  StainSolver solver(topology, mesh.vertexPositions, isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 1e-4),
+                     freeLiquid(diffusiveMomentum));
   solver.addDrop(dropAt(tilt * Vector3(0.5, 0.5, 0.0), 0.15, 0.05, 0.0));
   const Vector3 down = tilt * Vector3::UnitY();
   const double gAlong = 9.8 * std::sin(alpha);
@@ -220,11 +225,8 @@ TEST(DiffusiveMomentum, ADiffusionStepConservesTheLiquidsMomentum) {
 double uniformFlowSpread(bool diffusiveMomentum) {
   const TriangleMesh mesh = gridMesh(40, 20, 1.4, 0.6);
   const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
-  StainSolverDef def;
-  def.switches.absorption = def.switches.adsorption = def.switches.evaporation = false;
-  def.switches.diffusiveMomentum = diffusiveMomentum;
-  StainSolver solver(topology, mesh.vertexPositions,
-                     isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-3, 1e-4), def);
+  StainSolver solver(topology, mesh.vertexPositions, isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-3, 1e-4),
+                     freeLiquid(diffusiveMomentum));
   const Vector3 v(0.5, 0.0, 0.0);
   solver.addDrop(dropAt(Vector3(0.4, 0.3, 0.0), 0.1, 0.01, 0.001, v));
   double spread = 0.0;
