@@ -262,7 +262,8 @@ class Progress {
 nlohmann::json termsJson(const engine::EngineDef& d) {
   const stain::PhysicsSwitches& s = d.stain.switches;
   const bool moves = d.source != engine::MotionSource::Static;
-  return {{"gravity", s.gravity},
+  return {{"model", s.model == stain::PhysicsModel::Film ? "film" : "paper"},
+          {"gravity", s.gravity},
           {"linear_inertia", s.linearInertia && moves},
           {"coriolis", s.coriolis && moves},
           {"velocity_advection", s.velocityAdvection},
@@ -274,6 +275,7 @@ nlohmann::json termsJson(const engine::EngineDef& d) {
           {"evaporation", s.evaporation},
           {"sources", s.sources && !d.heldRegions.empty()},
           {"film_pressure", s.filmPressure},
+          {"film_friction", s.filmFriction},
           {"velocity_on_free_liquid", s.velocityOnFreeLiquid},
           {"boundary_wall", s.boundaryWall},
           {"diffusive_momentum", s.diffusiveMomentum},

@@ -532,6 +532,7 @@ void parseFabric(ObjectReader& r, const stain::TriangleMesh& mesh, EngineDef& de
   // double: 5e-324 underflowed and was refused as "EngineDef.diffusivity".
   def.diffusivity = r.number("diffusivity", def.diffusivity, closed(1e-12, kMaxSceneMagnitude));
   def.viscosity = r.number("viscosity", def.viscosity, nonNegative());
+  def.stain.liquid.slipLength = r.number("slip_length", def.stain.liquid.slipLength, closed(0, 1));
   def.homogenizationSubdivisions = r.integer("subdivisions", 0, closed(0, 64));
   const bool acceptUnconverged = r.boolean("accept_unconverged", false);
   const int faceCount = static_cast<int>(mesh.faces.rows());
@@ -680,6 +681,7 @@ void applyPreset(const LiquidPreset& preset, stain::LiquidParameters& l, LiquidC
   choice.wickingFactor = liquidWickingFactor(preset);
   choice.viscosityFactor = liquidViscosityFactor(preset);
   l.liquidDensity = preset.density;
+  l.kinematicViscosity = preset.viscosity / preset.density;
   l.evaporationRate = preset.evaporationRate;
 }
 
@@ -701,10 +703,14 @@ void parseLiquid(ObjectReader& r, stain::LiquidParameters& l, LiquidChoice& choi
       r.choice("evaporation_boundary", int(l.evaporationBoundary), {"mesh-boundary", "wet-front"}));
   l.wetThreshold = r.number("wet_threshold", l.wetThreshold, positive());
   l.liquidDensity = r.number("liquid_density", l.liquidDensity, positive());
+  l.kinematicViscosity = r.number("kinematic_viscosity", l.kinematicViscosity, closed(1e-9, 1.0));
   r.finish();
 }
 
+const std::vector<std::string> kPhysicsModels = {"film", "paper"};
+
 void parsePhysics(ObjectReader& r, stain::PhysicsSwitches& s) {
+  r.choice("model", 0, kPhysicsModels);  // applied before the liquid (parseScene)
   s.gravity = r.boolean("gravity", s.gravity);
   s.linearInertia = r.boolean("linear_inertia", s.linearInertia);
   s.coriolis = r.boolean("coriolis", s.coriolis);
@@ -717,6 +723,7 @@ void parsePhysics(ObjectReader& r, stain::PhysicsSwitches& s) {
   s.evaporation = r.boolean("evaporation", s.evaporation);
   s.sources = r.boolean("sources", s.sources);
   s.filmPressure = r.boolean("film_pressure", s.filmPressure);
+  s.filmFriction = r.boolean("film_friction", s.filmFriction);
   s.velocityOnFreeLiquid = r.boolean("velocity_on_free_liquid", s.velocityOnFreeLiquid);
   s.boundaryWall = r.boolean("boundary_wall", s.boundaryWall);
   s.diffusiveMomentum = r.boolean("diffusive_momentum", s.diffusiveMomentum);
@@ -933,6 +940,13 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
   if (const json* fabric = r.find("fabric")) {
     ObjectReader f(ctx, *fabric, "fabric");
     parseFabric(f, def.mesh, def);
+  }
+  // The model first: it sets switches and the evaporation boundary, which
+  // the liquid's and physics' own keys then override.
+  if (const json* physics = r.find("physics"); physics != nullptr && physics->is_object() && physics->contains("model")) {
+    ObjectReader p(ctx, *physics, "physics");
+    const auto model = static_cast<stain::PhysicsModel>(p.choice("model", 0, kPhysicsModels));
+    stain::applyPhysicsModel(model, def.stain.switches, def.stain.liquid);
   }
   LiquidChoice liquidChoice;
   if (const json* liquid = r.find("liquid")) {

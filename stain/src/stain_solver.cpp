@@ -4,7 +4,7 @@
 // found it (StateBackup: a preallocated mirror, from which the vertices the
 // step listed as changed are copied back).
 #include <blot/stain/stages/external_forces.h>
-#include <blot/stain/stages/film_pressure.h>
+#include <blot/stain/stages/film_flow.h>
 #include <blot/stain/stages/interaction.h>
 #include <blot/stain/stain_solver.h>
 #include <blot/stain/thread_limit.h>
@@ -33,6 +33,10 @@ namespace {
 // A density below −1e-12 of the largest magnitude is negative mass, not
 // rounding (the limiter and the solves keep densities ≥ 0 to rounding).
 constexpr double kNegativeDensityTolerance = 1e-12;
+
+// At most this many film sub-steps a step (filmSubsteps): a 3 mm puddle of
+// water on 2.5 cm edges takes about 4 at h = 0.01 s.
+constexpr int kMaxFilmSubsteps = 64;
 
 using Clock = std::chrono::steady_clock;
 
@@ -276,6 +280,7 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   velocityScratch_.prepare(topology);
   densityScratch_.resize(n, topology.edgeCount(), topology.faceCount());
   band_.resize(n, static_cast<int>(topology.ringNeighbors().size()));
+  filmAccelerations_ = ComplexVector::Zero(n);
   interactionScratch_.reserve(static_cast<size_t>(n));
   diffusedPastReach_.reserve(static_cast<size_t>(n));
   momentumScratch_.resize(n, static_cast<int>(topology.ringNeighbors().size()));
@@ -629,11 +634,19 @@ void StainSolver::prepareBand() {
   inputs.h = ctx_.h;
   inputs.gravity = on.gravity ? ctx_.gravity : Vector3::Zero();
   inputs.useAccelerations = on.linearInertia;
-  inputs.surfaceMoved = surfaceMoved_;
+  // The extension carries the surface's velocity only where the liquid feels
+  // the frame's motion: with linear inertia and Coriolis off, u is carried as
+  // a velocity relative to the cloth and no stage reads the cloth's velocity.
+  inputs.surfaceMoved = surfaceMoved_ && (on.linearInertia || on.coriolis);
   // A direct velocity solve reads u everywhere: the band then covers the
   // mesh. Under Auto the factor is also taken when the band's own solve is
   // predicted dearer than it plus that wider band.
   inputs.coverComponent = velocityByFactor_;
+  // The film's potential gradient acts on the wet set only; its largest kick
+  // joins the speed bound (on top of the tangential g − p̈ already there).
+  if (on.filmPressure)
+    inputs.filmAcceleration = filmAccelerations(ctx_, geometry_.topology(), geometry_.extrinsic(), state_,
+                                                band_.wetMask, band_.vertices, filmAccelerations_);
   growLiquidBand(inputs, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), band_, state_, &geometry_);
   if (on.velocityDiffusion && !velocityByFactor_ && systems_.solverChoice() == DiffusionSolverChoice::Auto &&
       velocityCostOnBand(systems_, band_.interiorCount) >
@@ -678,6 +691,7 @@ PhysicsSwitches StainSolver::activeTerms(bool surfaceMoved, bool anyLiquid) cons
   active.linearInertia = any && on.linearInertia && surfaceMoved;
   active.coriolis = any && on.coriolis && surfaceMoved;
   active.filmPressure = any && on.filmPressure && active.gravity;
+  active.filmFriction = any && on.filmFriction && liquid.kinematicViscosity > 0;
   active.velocityAdvection = any && on.velocityAdvection;
   active.densityAdvection = any && on.densityAdvection;
   active.densityDiffusion = any && on.densityDiffusion;
@@ -939,7 +953,6 @@ StepReport StainSolver::runStages() {
   const std::vector<char>& reach = band_.reachMask;  // where the advection can move liquid this step
   const std::vector<int>* among = smallBand() ? &band_.vertices : nullptr;  // the masked loops visit the band, not #V
   if (!runStage(Stage::BodyForces, on.gravity || on.linearInertia, report, [&] { clearVelocityWithoutFreeLiquid(ctx, band, state_, among); applyBodyForces(ctx, extrinsic, band, state_, among); markTerms({{StepTerm::Gravity, on.gravity}, {StepTerm::LinearInertia, on.linearInertia}}); }) ||
-      !runStage(Stage::FilmPressure, on.filmPressure, report, [&] { applyFilmPressure(ctx, topology, extrinsic, band, state_); profile_.markRan(StepTerm::FilmPressure); }) ||
       !runStage(Stage::AdvectVelocity, on.velocityAdvection, report, [&] { advectVelocity(ctx, topology, intrinsic, reach, velocityScratch_, state_, among); profile_.markRan(StepTerm::VelocityAdvection); }) ||
       !runStage(Stage::Coriolis, on.coriolis, report, [&] { profile_.markRan(StepTerm::Coriolis);
                                                             frameChange ? applyFrameVelocityChange(ctx, extrinsic, velocityScratch_.footVertices, velocityScratch_.footWeights, reach, state_, among)
@@ -951,10 +964,30 @@ StepReport StainSolver::runStages() {
   // are left alone: a wall far from the liquid must not reach it through a
   // whole-mesh velocity solve.
   applyBoundaryWall(ctx, topology, intrinsic, band_.wetMask, state_, among);
-  if (!runStage(Stage::AdvectDensity, on.densityAdvection, report, [&] { recordAdvection(advectDensities(ctx, topology, intrinsic, extrinsic, band_.wetMask, densityScratch_, state_, &geometry_.restEdgeFrameNormals(), &reach, among)); }) ||
-      !runStage(Stage::Diffuse, on.densityDiffusion || on.velocityDiffusion, report, [&] { const SolverStatus status = recordDiffusion(diffuse(ctx, intrinsic, systems_, diffusionScratch_, state_, &band_.diffusionMask, velocityByFactor_));
+  // The film (film_flow.h): its potential gradient and friction, then the
+  // densities it moves, in as many sub-steps as the friction-dominated film
+  // needs to stay stable (one without the film terms: the paper's order).
+  const bool film = on.filmPressure || on.filmFriction;
+  const int filmSteps = film ? filmSubsteps(ctx, topology, extrinsic, state_, band_.wetMask, band_.vertices, kMaxFilmSubsteps) : 1;
+  profile_.filmSubsteps = filmSteps;
+  StepContext filmContext = ctx;
+  filmContext.h = ctx.h / filmSteps;
+  filmContext.invH = 1.0 / filmContext.h;
+  const StepContext& sub = filmSteps > 1 ? filmContext : ctx;
+  for (int s = 0; s < filmSteps; ++s) {
+    if (!runStage(Stage::FilmPressure, on.filmPressure, report, [&] { if (s > 0) filmAccelerations(sub, topology, extrinsic, state_, band_.wetMask, band_.vertices, filmAccelerations_);
+                                                                       applyFilmPotential(sub, filmAccelerations_, band_.wetMask, band_.vertices, state_);
+                                                                       profile_.markRan(StepTerm::FilmPressure); }) ||
+        !runStage(Stage::FilmFriction, on.filmFriction, report, [&] { profile_.frictionDissipation += applyFilmFriction(sub, intrinsic.vertexDualAreas, band_.wetMask, band_.vertices, state_);
+                                                                       profile_.markRan(StepTerm::FilmFriction); }))
+      return report;
+    if (film) applyBoundaryWall(sub, topology, intrinsic, band_.wetMask, state_, among);  // the film's kick points off the mesh too
+    if (!runStage(Stage::AdvectDensity, on.densityAdvection, report, [&] { recordAdvection(advectDensities(sub, topology, intrinsic, extrinsic, band_.wetMask, densityScratch_, state_, &geometry_.restEdgeFrameNormals(), &reach, among)); }))
+      return report;
+  }
+  if (!runStage(Stage::Diffuse, on.densityDiffusion || on.velocityDiffusion, report, [&] { const SolverStatus status = recordDiffusion(diffuse(ctx, intrinsic, systems_, diffusionScratch_, state_, &band_.diffusionMask, velocityByFactor_));
                                                                                        // The liquid the density diffusion moved carries its u (band vertices: noted above).
-                                                                                       if (status == SolverStatus::Ok && on.densityDiffusion) carryMomentumWithDiffusion(ctx, topology, intrinsic, surfaceMoved_ ? &extrinsic : nullptr, band_, momentumScratch_, state_, &diffusedPastReach_);
+                                                                                       if (status == SolverStatus::Ok && on.densityDiffusion) carryMomentumWithDiffusion(ctx, topology, intrinsic, surfaceMoved_ && (on.linearInertia || on.coriolis) ? &extrinsic : nullptr, band_, momentumScratch_, state_, &diffusedPastReach_);
                                                                                        // The viscosity and the carried momentum are velocity terms too: the wall again, on every band vertex (liquid that reached the wall this step included), so no u the step hands on points off the mesh.
                                                                                        if (status == SolverStatus::Ok) applyBoundaryWall(ctx, topology, intrinsic, band, state_, among);
                                                                                        return status; }) ||
@@ -1009,7 +1042,7 @@ void StainSolver::markTerms(std::initializer_list<std::pair<StepTerm, bool>> ter
 }
 
 void StainSolver::recordAdvection(const DensityAdvectionReport& r) {
-  profile_.advectionSubsteps = r.substeps;
+  profile_.advectionSubsteps += r.substeps;
   profile_.advectionVertices = r.activeVertices;
   profile_.markRan(StepTerm::DensityAdvection);
 }

@@ -10,7 +10,7 @@ namespace {
 
 constexpr const char* kStageNames[kStageCount] = {
     "guard",    "drops",           "cloth",    "geometry",       "sources", "liquid-band", "forces",  "film-pressure",
-    "advect-velocity", "coriolis", "advect-density", "diffuse", "interact", "validate",    "coupling"};
+    "film-friction", "advect-velocity", "coriolis", "advect-density", "diffuse", "interact", "validate",    "coupling"};
 
 }  // namespace
 
@@ -38,6 +38,7 @@ Stage stageOf(StepTerm term) {
     case StepTerm::LinearInertia: return Stage::BodyForces;
     case StepTerm::Coriolis: return Stage::Coriolis;
     case StepTerm::FilmPressure: return Stage::FilmPressure;
+    case StepTerm::FilmFriction: return Stage::FilmFriction;
     case StepTerm::VelocityAdvection: return Stage::AdvectVelocity;
     case StepTerm::DensityAdvection: return Stage::AdvectDensity;
     case StepTerm::DensityDiffusionKrylov:
@@ -70,6 +71,7 @@ const char* stepTermName(StepTerm term) {
     case StepTerm::LinearInertia: return "linear-inertia";
     case StepTerm::Coriolis: return "coriolis";
     case StepTerm::FilmPressure: return "film-pressure";
+    case StepTerm::FilmFriction: return "film-friction";
     case StepTerm::VelocityAdvection: return "velocity-advection";
     case StepTerm::DensityAdvection: return "density-advection";
     case StepTerm::DensityDiffusionKrylov: return "density-diffusion-krylov";

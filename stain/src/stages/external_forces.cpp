@@ -5,6 +5,7 @@
 
 #include <cmath>
 
+#include <blot/stain/stages/film_flow.h>
 #include <blot/stain/stages/liquid_band.h>
 
 #include "numerics/threads.h"
@@ -46,13 +47,18 @@ void applyBodyForces(const StepContext& ctx, const ExtrinsicGeometry& geometry, 
   const bool allWet = wet.empty();
   const double h = ctx.h;
   const Vector3 gravity = on.gravity ? ctx.gravity : Vector3::Zero();
+  const bool filmGravity = on.filmPressure && on.gravity && !allWet;
   const int visits = visitCount(n, among);
   threads::runLoop(visits >= kMinParallelVertices, [&] {
 #pragma omp for schedule(static)
     for (int k = 0; k < visits; ++k) {
       const int i = visited(k, among);
       if (!allWet && !wet[static_cast<size_t>(i)]) continue;
-      Vector3 a = gravity;
+      // With the film's pressure, gravity acts on the film through its
+      // potential gradient (film_flow.h), not per vertex.
+      const bool byPotential = filmGravity && isFilmVertex(state, wet, i);
+      if (byPotential && !useInertia) continue;
+      Vector3 a = byPotential ? Vector3::Zero() : gravity;
       if (useInertia) a -= geometry.vertexAccelerations.row(i).transpose();
       const Matrix3& frame = geometry.frames[static_cast<size_t>(i)];
       state.velocities(i) += h * Complex(frame.col(0).dot(a), frame.col(1).dot(a));

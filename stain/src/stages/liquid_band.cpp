@@ -207,9 +207,9 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
   const auto kick = [&](int k) {
     Vector3 a = inputs.gravity;
     if (inertia) a -= extrinsic.vertexAccelerations.row(k).transpose();
-    if (!haveFrames) return a.norm();
+    if (!haveFrames) return a.norm() + inputs.filmAcceleration;
     const Vector3 z = extrinsic.frames[static_cast<size_t>(k)].col(2);
-    return (a - a.dot(z) * z).norm();
+    return (a - a.dot(z) * z).norm() + inputs.filmAcceleration;
   };
 
   // U = max |u| as √(max |u|²): one root per decision instead of a hypot

@@ -47,6 +47,14 @@ struct TimedDrop {
 /// Everything an Engine is built from (Box2D-style definition struct). Every
 /// field has a working default except `mesh`, which must be set (e.g.
 /// stain::gridMesh for a patch).
+/// A stain solver definition with the film model's terms on (the engine's
+/// default; docs/scene-format.md, "physics.model").
+inline stain::StainSolverDef filmModelDef() {
+  stain::StainSolverDef def;
+  stain::applyPhysicsModel(stain::PhysicsModel::Film, def.switches, def.liquid);
+  return def;
+}
+
 struct EngineDef {
   /// Rest shape (#V by 3, m) and faces; validated (stain::validateMesh). Cloth
   /// vertex i is mesh vertex i for every source.
@@ -87,7 +95,9 @@ struct EngineDef {
   /// Switches, liquid parameters, gravity (m/s², also given to a Bullet cloth,
   /// and then each component at most kMaxSceneMagnitude) and the
   /// intrinsic-rebuild strain tolerance.
-  stain::StainSolverDef stain;
+  /// Starts from the film model (stain::applyPhysicsModel; the paper's form:
+  /// apply PhysicsModel::Paper).
+  stain::StainSolverDef stain = filmModelDef();
   coupling::CouplingMode coupling = coupling::CouplingMode::OneWay;
 
   double timeStep = 1.0 / 120.0;  ///< internal step h (s, in [kMinTimeStep, 1], as a scene's time_step)

@@ -24,7 +24,14 @@ struct LiquidParameters {
   double boundaryEvaporationFactor = 1.2;  ///< a_evap on boundary vertices (1 inside).
   EvaporationBoundary evaporationBoundary = EvaporationBoundary::MeshBoundary;  ///< where a_evap applies
   double wetThreshold = 1e-9;         ///< σ below which a vertex counts as dry (kg/m²).
-  double liquidDensity = 1000.0;      ///< ρ (kg/m³), for the film pressure (PhysicsSwitches::filmPressure).
+  double liquidDensity = 1000.0;      ///< ρ (kg/m³): the film's thickness H = (σ_f + σ_s)/ρ.
+  /// ν = μ/ρ of the liquid (m²/s, > 0): the film's friction with the fabric
+  /// (PhysicsSwitches::filmFriction). Water at 20 °C: 1.0e-6.
+  double kinematicViscosity = 1.0e-6;
+  /// The fabric's Navier slip length λ (m, ≥ 0): the liquid slips over the
+  /// fibres, so the drag is 3νu/(H(H + 3λ)) and a film's front can advance
+  /// (a no-slip film's cannot). 0: no slip.
+  double slipLength = 1.0e-5;
 };
 
 /// How the Coriolis term is integrated. ExactRotation (default): after the
@@ -36,6 +43,13 @@ struct LiquidParameters {
 /// energy grows at ωh ≳ 1). Explicit adds −2h ω × u (gains energy; kept only
 /// for comparison).
 enum class CoriolisScheme { ExactRotation, Explicit, SplitRotation };
+
+/// Which liquid model a scene starts from; individual switches override it.
+/// Film: the liquid as a thin viscous film on the fabric (friction with the
+/// fibres, hydrostatic pressure balanced with gravity, evaporation strongest
+/// at the wet front). Paper: the paper's equations as written (no friction,
+/// no pressure, a_evap on the mesh boundary), for comparison.
+enum class PhysicsModel { Film, Paper };
 
 /// Every physics term can be switched off. Terms a scene does not need are
 /// also skipped automatically (static mesh: no inertia; no solute: no solute
@@ -52,10 +66,16 @@ struct PhysicsSwitches {
   bool adsorption = true;
   bool evaporation = true;
   bool sources = true;
-  /// −∇p_ext/ρ of eq. (3) with the film's hydrostatic pressure (the paper
-  /// ignores it; off by default). Drives liquid from thick to thin film: the
-  /// outward flow that forms the ring of Fig. 11 (see film_pressure.h).
+  /// Gravity and the film's hydrostatic pressure as one discrete gradient of
+  /// the potential φ = −g·x + g_n H on the free liquid, with a hydrostatic
+  /// reconstruction at the shoreline, so a lake at rest stays at rest on a
+  /// curved mesh (film_flow.h). The paper has no pressure (off: tangential
+  /// gravity per vertex, the paper's form).
   bool filmPressure = false;
+  /// Friction between the film and the fabric, −3ν u/(H(H + 3λ)) on u
+  /// relative to the cloth, integrated implicitly (film_flow.h). The paper
+  /// has none (off).
+  bool filmFriction = false;
   /// u = 0 at wet vertices without free liquid (fibre-held only) before the
   /// body forces (clearVelocityWithoutFreeLiquid). Off: their u keeps
   /// accumulating the forces.
@@ -74,7 +94,22 @@ struct PhysicsSwitches {
   bool diffusiveMomentum = true;
   bool positivityLimiter = true;  ///< mass-conserving fix of negative densities after diffusion
   CoriolisScheme coriolisScheme = CoriolisScheme::ExactRotation;
+  /// The model these switches started from (applyPhysicsModel), for the
+  /// record (summary.json); the switches above are what runs. The defaults
+  /// here are the paper's terms; the engine starts from the film model.
+  PhysicsModel model = PhysicsModel::Paper;
 };
+
+/// Sets what `model` decides (docs/scene-format.md, "physics.model"): the
+/// film terms and the evaporation boundary. Every other switch and parameter
+/// is left as it is.
+inline void applyPhysicsModel(PhysicsModel model, PhysicsSwitches& switches, LiquidParameters& liquid) {
+  const bool film = model == PhysicsModel::Film;
+  switches.model = model;
+  switches.filmPressure = film;
+  switches.filmFriction = film;
+  liquid.evaporationBoundary = film ? EvaporationBoundary::WetFront : EvaporationBoundary::MeshBoundary;
+}
 
 struct StepContext {
   double h = 0.01;        ///< time step (s)

@@ -21,7 +21,8 @@ enum class Stage : int {
   Sources,         ///< held regions, topped up first so new liquid gets this step's forces
   LiquidBand,      ///< the wet set, the band around it and u extended onto it
   BodyForces,      ///< tangential gravity and linear inertia −Fᵀp̈
-  FilmPressure,    ///< −∇p_ext/ρ of the film's hydrostatic pressure
+  FilmPressure,    ///< gravity and the film's hydrostatic pressure, one potential gradient
+  FilmFriction,    ///< the film's drag on the fabric, −3νu/(H(H + 3λ)), implicit
   AdvectVelocity,  ///< semi-Lagrangian u
   Coriolis,        ///< −2ω × u (discrete frame change, or a rotation after advection)
   AdvectDensity,   ///< upwind σ fluxes
@@ -30,7 +31,7 @@ enum class Stage : int {
   Validate,        ///< every value finite and no negative density after the stain step
   Coupling,        ///< liquid mass and momentum exchanged with the cloth
 };
-inline constexpr int kStageCount = 15;
+inline constexpr int kStageCount = 16;
 /// The stain step's stages (StainSolver), Geometry through Interact.
 inline constexpr Stage kFirstStainStage = Stage::Geometry;
 inline constexpr Stage kLastStainStage = Stage::Interact;
@@ -55,7 +56,7 @@ enum class StepTerm : unsigned {
   Gravity = 1u << 4,             ///< BodyForces: tangential gravity (band)
   LinearInertia = 1u << 5,       ///< BodyForces: −Fᵀ p̈ (band)
   Coriolis = 1u << 6,            ///< Coriolis: −2 ω × u (band; the frame change on the reach set)
-  FilmPressure = 1u << 7,        ///< FilmPressure: −∇p_ext/ρ (band)
+  FilmPressure = 1u << 7,        ///< FilmPressure: −∇(−g·x + g_n H) on the free liquid
   VelocityAdvection = 1u << 8,   ///< AdvectVelocity: semi-Lagrangian u (the band's reach set)
   DensityAdvection = 1u << 9,    ///< AdvectDensity: upwind σ fluxes (wet + sub-step rings, inside the reach set)
   DensityDiffusionKrylov = 1u << 10,   ///< Diffuse: σ_f, σ_s by CG on the liquid's Krylov support
@@ -67,9 +68,10 @@ enum class StepTerm : unsigned {
   Evaporation = 1u << 16,        ///< Interact: K_evap > 0 (reach set)
   Sources = 1u << 17,            ///< Sources: held regions
   SystemAssembly = 1u << 18,     ///< Geometry: M + h L refilled (new metric or new h; factors now stale)
+  FilmFriction = 1u << 19,       ///< FilmFriction: the film's drag on the fabric (free liquid)
 };
 /// Number of StepTerm bits (bit k = 1u << k for k in [0, kStepTermCount)).
-inline constexpr int kStepTermCount = 19;
+inline constexpr int kStepTermCount = 20;
 
 /// Short name of one term ("gravity", "density-diffusion-krylov", ...).
 const char* stepTermName(StepTerm term);
@@ -83,6 +85,11 @@ struct StepProfile {
   unsigned stagesRan = 0;          ///< bit k: Stage k did work this step
   unsigned terms = 0;              ///< StepTerm bits of the terms that ran (see describeTerms)
   int advectionSubsteps = 0;       ///< density-advection sub-steps taken
+  /// Film sub-steps (potential, friction, density advection) the step took
+  /// to keep the friction-dominated film stable (1 without the film terms).
+  int filmSubsteps = 0;
+  /// Kinetic energy the film's friction with the fabric took this step (J).
+  double frictionDissipation = 0;
   int intrinsicRefreshes = 0;      ///< 1 if the metric changed enough to rebuild the operators this step
   int factorizations = 0;          ///< numeric Cholesky factorizations this step (direct solves only; 0–2)
   double maxEdgeStrain = 0;        ///< largest |ℓ/ℓ_factored − 1| this step

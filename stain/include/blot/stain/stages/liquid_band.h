@@ -140,6 +140,9 @@ struct LiquidBandInputs {
   double h = 0.01;  ///< time step (s)
   Vector3 gravity = Vector3::Zero();  ///< world gravity acting this step (m/s²; zero when switched off)
   bool useAccelerations = false;      ///< linear inertia acts this step (p̈ enters the speed bound)
+  /// Largest kick of the film's potential gradient on the wet set (m/s²,
+  /// filmAccelerations; 0 without film pressure), added to every vertex's.
+  double filmAcceleration = 0;
   /// Frame velocities enter the extension (the surface moved): the extension
   /// then carries the liquid's world velocity, see extendBandVelocities.
   bool surfaceMoved = false;

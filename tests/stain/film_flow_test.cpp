@@ -1,0 +1,272 @@
+// The liquid as a thin viscous film (stages/film_flow.h, docs/transport.md
+// "The liquid film"): the Nusselt velocity of a uniform film under a body
+// force, a lake at rest in a bowl that stays at rest, and liquid in a basin
+// that settles instead of accelerating without bound (the paper's form,
+// without friction or pressure, shown failing in the same basin).
+#include <blot/stain/geometry/mesh_primitives.h>
+#include <blot/stain/stages/film_flow.h>
+#include <blot/stain/stain_solver.h>
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+namespace blot::stain {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kG = 9.8;
+
+/// No interaction, the film terms on, the rest as the paper has them.
+StainSolverDef filmDef() {
+  StainSolverDef def;
+  def.switches.absorption = def.switches.adsorption = def.switches.evaporation = false;
+  applyPhysicsModel(PhysicsModel::Film, def.switches, def.liquid);
+  def.geometryVertices = VertexRefresh::AllVertices;
+  return def;
+}
+
+/// A grid of `cells` x `cells` over [-half, half]², lifted onto the
+/// paraboloid z = r²/(2R): a bowl, normals up (into the liquid's side).
+TriangleMesh bowlMesh(int cells, double half, double radius) {
+  TriangleMesh mesh = gridMesh(cells, cells, 2 * half, 2 * half);
+  for (int i = 0; i < mesh.vertexPositions.rows(); ++i) {
+    const double x = mesh.vertexPositions(i, 0) - half, y = mesh.vertexPositions(i, 1) - half;
+    mesh.vertexPositions.row(i) = Vector3(x, y, (x * x + y * y) / (2 * radius)).transpose();
+  }
+  return mesh;
+}
+
+// ------------------------------------------------ the Nusselt film
+
+/// Steady depth-averaged velocity of a film of thickness H on a slope α with
+/// slip length λ: a H (H + 3λ)/(3ν), a = g sin α (Nusselt 1916 for λ = 0).
+double nusselt(double alpha, double H, double nu, double lambda) {
+  return kG * std::sin(alpha) * H * (H + 3 * lambda) / (3 * nu);
+}
+
+struct UniformFilm {
+  double speed = 0;  ///< |u| at the centre after the run (m/s)
+  std::vector<double> history;  ///< |u| at the centre after each step
+};
+
+/// A uniform film of thickness H on a 10 x 10 sheet tilted by α, alone with
+/// its body force and friction (no advection, diffusion or wall: every
+/// vertex is the same ODE), for `steps` steps of h.
+UniformFilm uniformFilm(double alpha, double H, double nu, double lambda, double h, int steps) {
+  TriangleMesh mesh = gridMesh(10, 10, 1.0, 1.0);
+  const Eigen::Matrix3d tilt = Eigen::AngleAxisd(-alpha, Vector3::UnitX()).toRotationMatrix();
+  mesh.vertexPositions = mesh.vertexPositions * tilt.transpose();
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  StainSolverDef def = filmDef();
+  def.switches.velocityAdvection = def.switches.densityAdvection = false;
+  def.switches.densityDiffusion = def.switches.velocityDiffusion = false;
+  def.switches.boundaryWall = false;
+  def.liquid.kinematicViscosity = nu;
+  def.liquid.slipLength = lambda;
+  StainSolver solver(topology, mesh.vertexPositions, isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 0.0),
+                     def);
+  StainState& state = solver.mutableState();
+  state.solvent.setConstant(def.liquid.liquidDensity * H);
+  const int centre = 5 * 11 + 5;
+  UniformFilm film;
+  for (int k = 0; k < steps; ++k) {
+    const StepReport r = solver.step(h, mesh.vertexPositions);
+    EXPECT_TRUE(r.ok()) << r.message;
+    film.history.push_back(solver.relativeVelocity(centre).norm());
+  }
+  film.speed = film.history.back();
+  return film;
+}
+
+TEST(FilmFlow, UniformFilmReachesTheNusseltVelocity) {
+  // Slopes, thicknesses (0.05-2 mm), viscosities (water to 20x water), with
+  // and without slip: after 60 relaxation times H(H+3λ)/(3ν) the velocity is
+  // the steady value to rounding, whatever h k is.
+  for (const double alpha : {kPi / 12, kPi / 4, kPi / 2})
+    for (const double H : {5e-5, 3e-4, 2e-3})
+      for (const double nu : {1e-6, 2e-5})
+        for (const double lambda : {0.0, 1e-5}) {
+          const double h = 0.01;
+          const double k = 3 * nu / (H * (H + 3 * lambda));
+          const int steps = std::max(50, static_cast<int>(std::ceil(60.0 / (k * h) * (1 + k * h))));
+          if (steps > 3000) continue;  // 60 relaxation times of a 2 mm water film (1.3 s) is 8000 steps
+          const UniformFilm film = uniformFilm(alpha, H, nu, lambda, h, steps);
+          const double expected = nusselt(alpha, H, nu, lambda);
+          EXPECT_NEAR(film.speed, expected, 1e-11 * expected)
+              << "alpha " << alpha << " H " << H << " nu " << nu << " lambda " << lambda;
+        }
+}
+
+TEST(FilmFlow, TransientFollowsTheClosureAndConvergesInTheStep) {
+  // The start-up of a 1 mm water film on a 30° slope. Backward Euler on
+  // du/dt = a − k u gives u_n = (a/k)(1 − (1 + hk)^−n) exactly; against the
+  // closure's own exponential (a/k)(1 − e^{−kt}) the error at t = 1/k is
+  // first order in h. (The closure's decay rate 3ν/H² stands for the exact
+  // Stokes start-up's slowest mode, π²ν/(4H²): 18 % slower, docs/accuracy.md.)
+  const double alpha = kPi / 6, H = 1e-3, nu = 1e-6, lambda = 0.0;
+  const double k = 3 * nu / (H * H), a = kG * std::sin(alpha);
+  double previousError = 0;
+  for (const int perTau : {8, 16, 32, 64}) {
+    const double h = 1.0 / (k * perTau);
+    const UniformFilm film = uniformFilm(alpha, H, nu, lambda, h, perTau);
+    const double closedForm = (a / k) * (1 - std::pow(1 + h * k, -perTau));
+    EXPECT_NEAR(film.speed, closedForm, 1e-12 * closedForm);
+    const double error = std::abs(film.speed - (a / k) * (1 - std::exp(-1.0)));
+    std::printf("h = tau/%d: u(tau) %.6f m/s, closure %.6f, error %.3e\n", perTau, film.speed,
+                (a / k) * (1 - std::exp(-1.0)), error);
+    if (previousError > 0) {
+      EXPECT_NEAR(previousError / error, 2.0, 0.15);
+    }
+    previousError = error;
+  }
+}
+
+// ------------------------------------------------ a lake at rest
+
+TEST(FilmFlow, LakeAtRestInABowlStaysAtRest) {
+  // A level pool in a paraboloid bowl (R = 10 m, 1 m across, 5 mm deep at
+  // the centre, its shore between vertices): φ = −g·x + g_n H is the same at
+  // every wet vertex, so the one discrete gradient of gravity and pressure
+  // vanishes and the shoreline's reconstruction holds the dry bank still.
+  // Friction, both diffusions and the interaction off: nothing else could
+  // stop a slosh. 1000 steps of 0.01 s.
+  const TriangleMesh mesh = bowlMesh(24, 0.5, 10.0);
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  StainSolverDef def = filmDef();
+  def.switches.filmFriction = false;
+  def.switches.densityDiffusion = def.switches.velocityDiffusion = false;
+  StainSolver solver(topology, mesh.vertexPositions, isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 1e-4),
+                     def);
+  solver.completeGeometry();
+  const ExtrinsicGeometry& geometry = solver.geometry().extrinsic();
+  const double level = kG * 0.005;  // φ of the lake: its surface at z = 5 mm
+  StainState& state = solver.mutableState();
+  int wet = 0;
+  for (int i = 0; i < topology.vertexCount(); ++i) {
+    const double gn = kG * geometry.frames[static_cast<size_t>(i)].col(2).z();  // −g·n, n up
+    const double H = (level - kG * mesh.vertexPositions(i, 2)) / gn;
+    state.solvent[i] = H > 0 ? def.liquid.liquidDensity * H : 0.0;
+    wet += H > 0 ? 1 : 0;
+  }
+  double worst = 0;
+  for (int k = 0; k < 1000; ++k) {
+    const StepReport r = solver.step(0.01, mesh.vertexPositions);
+    ASSERT_TRUE(r.ok()) << r.message;
+    for (int i = 0; i < topology.vertexCount(); ++i)
+      if (solver.state().solvent[i] > 0) worst = std::max(worst, std::abs(solver.state().velocities[i]));
+  }
+  std::printf("lake at rest, %d wet vertices, 1000 steps: max |u| %.3e m/s\n", wet, worst);
+  EXPECT_GT(wet, 100);
+  EXPECT_LE(worst, 1e-12);
+}
+
+// ------------------------------------------------ a basin
+
+struct BasinRun {
+  double startEnergy = 0, worstEnergy = 0, finalEnergy = 0;  ///< film energy (J)
+  double finalSpeed = 0;  ///< max |u| over the liquid at the end (m/s)
+  double worstSpeed = 0;  ///< max over the run
+  double centroidShift = 0;  ///< largest distance of the liquid's centroid from where it started (m)
+  int filmSubsteps = 0;  ///< most film sub-steps a step took
+};
+
+/// A 0.2 kg drop of water released at rest at (x, 0) in a paraboloid bowl
+/// (R = 1 m, 1 m across, 16 x 16 cells), interaction off, for `seconds`; the
+/// energy is the film's own (filmEnergy: kinetic, gravitational, pressure).
+BasinRun basin(PhysicsModel model, bool densityDiffusion, double x, double seconds) {
+  const TriangleMesh mesh = bowlMesh(16, 0.5, 1.0);
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  const int n = topology.vertexCount();
+  StainSolverDef def;
+  def.switches.absorption = def.switches.adsorption = def.switches.evaporation = false;
+  applyPhysicsModel(model, def.switches, def.liquid);
+  def.switches.densityDiffusion = densityDiffusion;
+  StainSolver solver(topology, mesh.vertexPositions, isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 1e-4),
+                     def);
+  DropDef drop;
+  drop.centerPoint = Vector3(x, 0.0, x * x / 2);
+  drop.radius = 0.1;
+  drop.solventMass = 0.2;
+  solver.addDrop(drop);
+  StepContext ctx = makeStepContext(0.01, def.gravity, def.switches, def.liquid);
+  ctx.switches.filmPressure = true;  // the same energy for both models
+  std::vector<char> wet(static_cast<size_t>(n));
+  const auto measure = [&](double& e, Vector3& centroid) {
+    const Vector& areas = solver.geometry().intrinsic().vertexDualAreas;
+    double mass = 0;
+    centroid.setZero();
+    for (int i = 0; i < n; ++i) {
+      wet[static_cast<size_t>(i)] = solver.state().solvent[i] > def.liquid.wetThreshold ? 2 : 0;
+      mass += areas[i] * solver.state().solvent[i];
+      centroid += areas[i] * solver.state().solvent[i] * mesh.vertexPositions.row(i).transpose();
+    }
+    centroid /= mass;
+    e = filmEnergy(ctx, solver.geometry().extrinsic(), areas, solver.state(), wet).total();
+  };
+  BasinRun run;
+  Vector3 start, centroid;
+  measure(run.startEnergy, start);
+  run.worstEnergy = run.startEnergy;
+  const int steps = static_cast<int>(std::lround(seconds / 0.01));
+  for (int k = 0; k < steps; ++k) {
+    const StepReport r = solver.step(0.01, mesh.vertexPositions);
+    EXPECT_TRUE(r.ok()) << r.message;
+    if (!r.ok()) break;
+    double e = 0;
+    measure(e, centroid);
+    run.worstEnergy = std::max(run.worstEnergy, e);
+    run.filmSubsteps = std::max(run.filmSubsteps, solver.profile().filmSubsteps);
+    run.centroidShift = std::max(run.centroidShift, (centroid - start).norm());
+    double speed = 0;
+    for (int i = 0; i < n; ++i)
+      if (wet[static_cast<size_t>(i)] != 0) speed = std::max(speed, std::abs(solver.state().velocities[i]));
+    run.worstSpeed = std::max(run.worstSpeed, speed);
+    run.finalSpeed = speed;
+    run.finalEnergy = e;
+  }
+  return run;
+}
+
+TEST(FilmFlow, LiquidInABowlSettlesAndGainsNoEnergy) {
+  // Released on the bowl's wall: it runs down, sloshes and settles. Without
+  // the density diffusion nothing but gravity can give the film energy, so it
+  // never grows; with it (wicking) the film spreads up the walls against
+  // gravity and its flow balances the wicking (u H = D ∇H) instead of
+  // stopping. The paper's form keeps accelerating at the bottom.
+  const BasinRun film = basin(PhysicsModel::Film, false, 0.25, 20.0);
+  const BasinRun wicking = basin(PhysicsModel::Film, true, 0.25, 20.0);
+  const BasinRun paper = basin(PhysicsModel::Paper, false, 0.25, 5.0);
+  std::printf("bowl, from the wall: film (20 s): E %.4e -> max %.4e -> %.4e J, max |u| %.3e m/s (end %.3e)\n"
+              "                     film + wicking (20 s): E %.4e -> max %.4e -> %.4e J, max |u| %.3e (end %.3e)\n"
+              "                     paper (5 s): E %.4e -> max %.4e J, max |u| %.3e m/s (end %.3e)\n",
+              film.startEnergy, film.worstEnergy, film.finalEnergy, film.worstSpeed, film.finalSpeed,
+              wicking.startEnergy, wicking.worstEnergy, wicking.finalEnergy, wicking.worstSpeed, wicking.finalSpeed,
+              paper.startEnergy, paper.worstEnergy, paper.worstSpeed, paper.finalSpeed);
+  EXPECT_LE(film.worstEnergy, film.startEnergy + 1e-9 * std::abs(film.startEnergy));
+  EXPECT_LT(film.finalEnergy, 0.25 * film.startEnergy);
+  EXPECT_LT(film.finalSpeed, 0.05 * film.worstSpeed);
+  EXPECT_LT(wicking.worstSpeed, 1.2 * film.worstSpeed);
+  EXPECT_LT(wicking.finalSpeed, 0.1 * wicking.worstSpeed);
+  EXPECT_GT(paper.worstSpeed, 10 * film.worstSpeed);
+  EXPECT_GT(paper.worstEnergy, 10 * paper.startEnergy);
+}
+
+TEST(FilmFlow, DropAtTheBottomOfABowlStaysThere) {
+  // Placed at the lowest point: pressure spreads it a little, friction
+  // stops it, and it stays (the paper's form sends it sloshing ever faster).
+  const BasinRun film = basin(PhysicsModel::Film, true, 0.0, 20.0);
+  const BasinRun paper = basin(PhysicsModel::Paper, true, 0.0, 5.0);
+  std::printf("bowl, at the bottom: film (20 s): centroid moved %.3e m, max |u| %.3e m/s (end %.3e), %d film sub-steps\n"
+              "                     paper (5 s): centroid moved %.3e m, max |u| %.3e m/s (end %.3e)\n",
+              film.centroidShift, film.worstSpeed, film.finalSpeed, film.filmSubsteps, paper.centroidShift, paper.worstSpeed,
+              paper.finalSpeed);
+  EXPECT_LT(film.centroidShift, 5e-3);
+  EXPECT_LT(film.worstSpeed, 0.5);
+  EXPECT_GT(paper.worstSpeed, 10 * film.worstSpeed);
+}
+
+}  // namespace
+}  // namespace blot::stain
