@@ -224,6 +224,15 @@ blot::engine::EngineDef toEngineDef(const blotEngineDef& d) {
     def.fabricPatchDiffusivities.push_back(fabric.diffusivity);
   }
 
+  // The model first: it sets the film terms and the evaporation boundary.
+  switch (enumValue(d.model)) {
+    case BLOT_PHYSICS_FILM: blot::stain::applyPhysicsModel(blot::stain::PhysicsModel::Film, def.stain.switches, def.stain.liquid); break;
+    case BLOT_PHYSICS_PAPER: blot::stain::applyPhysicsModel(blot::stain::PhysicsModel::Paper, def.stain.switches, def.stain.liquid); break;
+    default: throw std::invalid_argument("model " + std::to_string(enumValue(d.model)) + ": expected a blotPhysicsModel");
+  }
+  def.stain.liquid.slipLength = fabric.slipLength;
+  def.stain.liquid.liquidDensity = d.liquid.liquidDensity;
+  def.stain.liquid.kinematicViscosity = d.liquid.kinematicViscosity;
   def.stain.liquid.absorptionRate = d.liquid.absorptionRate;
   def.stain.liquid.saturationDensity = d.liquid.saturationDensity;
   def.stain.liquid.desorptionRate = d.liquid.desorptionRate;
@@ -278,6 +287,7 @@ blotFabricDef blotDefaultFabricDef(void) {
   out.weavePreset = nullptr;
   out.weft[0] = 1.0;
   out.weft[1] = out.weft[2] = 0.0;
+  out.slipLength = e.stain.liquid.slipLength;
   return out;
 }
 
@@ -289,6 +299,8 @@ blotLiquidDef blotDefaultLiquidDef(void) {
   out.desorptionRate = l.desorptionRate;
   out.adsorptionCapacity = l.adsorptionCapacity;
   out.evaporationRate = l.evaporationRate;
+  out.liquidDensity = l.liquidDensity;
+  out.kinematicViscosity = l.kinematicViscosity;
   return out;
 }
 
@@ -309,6 +321,7 @@ blotEngineDef blotDefaultEngineDef(void) {
   setVec3(out.gravity, e.stain.gravity);
   out.timeStep = e.timeStep;
   out.maxStepsPerCall = e.maxStepsPerCall;
+  out.model = BLOT_PHYSICS_FILM;
   return out;
 }
 

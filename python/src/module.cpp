@@ -386,8 +386,16 @@ a step of it runs on another thread raises RuntimeError.
           "from_mesh",
           [](const Eigen::MatrixX3d& vertices, py::object faces, double timeStep, double diffusivity,
              double viscosity, py::object gravity, py::object angularVelocity, py::object pivot,
-             py::object linearVelocity, double strainTolerance, int threads) {
+             py::object linearVelocity, double strainTolerance, int threads, const std::string& model,
+             py::object kinematicViscosity, py::object slipLength) {
             EngineDef def;
+            if (model == "paper") {
+              blot::stain::applyPhysicsModel(blot::stain::PhysicsModel::Paper, def.stain.switches, def.stain.liquid);
+            } else if (model != "film") {
+              throw py::value_error("from_mesh: model \"" + model + "\": expected \"film\" or \"paper\"");
+            }
+            if (!kinematicViscosity.is_none()) def.stain.liquid.kinematicViscosity = kinematicViscosity.cast<double>();
+            if (!slipLength.is_none()) def.stain.liquid.slipLength = slipLength.cast<double>();
             def.mesh = meshFromArrays(vertices, faceIndices(faces, static_cast<int>(vertices.rows())));
             blot::stain::validateMesh(def.mesh, "from_mesh");
             def.timeStep = timeStep;
@@ -410,9 +418,13 @@ a step of it runs on another thread raises RuntimeError.
           py::arg("diffusivity") = 0.01, py::arg("viscosity") = 2e-3,
           py::arg("gravity") = py::make_tuple(0.0, 0.0, -9.8), py::arg("angular_velocity") = py::none(),
           py::arg("pivot") = py::none(), py::arg("linear_velocity") = py::none(),
-          py::arg("strain_tolerance") = 1e-3, py::arg("threads") = 0,
+          py::arg("strain_tolerance") = 1e-3, py::arg("threads") = 0, py::arg("model") = "film",
+          py::arg("kinematic_viscosity") = py::none(), py::arg("slip_length") = py::none(),
           "An engine on your own mesh (vertices #V x 3 in m, faces #F x 3 integer indices), isotropic fabric, no "
-          "files: a static surface, or a rigid motion when angular_velocity or linear_velocity is given. For Bullet "
+          "files: a static surface, or a rigid motion when angular_velocity or linear_velocity is given. model: "
+          "\"film\" (a thin viscous film: friction with the fabric, hydrostatic pressure) or \"paper\" (the "
+          "paper's equations); kinematic_viscosity (m²/s, default water's 1e-6) and slip_length (m, default "
+          "1e-5) set the film's friction. For Bullet "
           "cloth, fabric patterns and every other key use a scene (from_dict / from_scene_json).")
       .def(
           "step",

@@ -217,7 +217,8 @@ double weightedSum(const Vector& density, const Vector& areas) { return density.
 /// `def` when every parameter is usable, checked before anything is built from
 /// it: a negative rate would create mass and a NaN would only surface steps
 /// later as a non-finite density far from its cause. Rates, capacities and
-/// a_evap finite and >= 0; σ_sat and ρ finite and > 0 (they divide); gravity
+/// a_evap and the slip length finite and >= 0; σ_sat, ρ and ν finite and > 0
+/// (they divide); gravity
 /// finite; strain tolerance finite and > 0. Throws std::invalid_argument naming
 /// the field, the value and what was expected.
 const StainSolverDef& checkedDefinition(const StainSolverDef& def) {
@@ -242,6 +243,8 @@ const StainSolverDef& checkedDefinition(const StainSolverDef& def) {
   nonNegative("liquid.boundaryEvaporationFactor", liquid.boundaryEvaporationFactor);
   nonNegative("liquid.wetThreshold", liquid.wetThreshold);
   positive("liquid.liquidDensity", liquid.liquidDensity);
+  positive("liquid.kinematicViscosity", liquid.kinematicViscosity);
+  nonNegative("liquid.slipLength", liquid.slipLength);
   const std::string threadRange = "a count in [0, " + std::to_string(kMaxThreads) + "] (0: the OpenMP default)";
   require(def.threads >= 0 && def.threads <= kMaxThreads, "threads", def.threads, threadRange.c_str());
   for (int k = 0; k < 3; ++k)

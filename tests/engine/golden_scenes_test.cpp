@@ -62,11 +62,15 @@ struct GoldenScene {
   const char* name;
   int resolution;
   int steps;
+  /// The physics model the scene runs with (physics.model): "film" (the
+  /// default; goldens in tests/data/goldens/) or "paper" (tests/data/goldens/paper/).
+  const char* model = "film";
 };
 
 /// gtest prints the parameter in failure messages.
 void PrintTo(const GoldenScene& scene, std::ostream* os) {
-  *os << scene.name << " (resolution " << scene.resolution << ", " << scene.steps << " steps)";
+  *os << scene.name << " (" << scene.model << " model, resolution " << scene.resolution << ", " << scene.steps
+      << " steps)";
 }
 
 // Add a scene here (and run scripts/goldens once to create its golden).
@@ -80,6 +84,18 @@ const GoldenScene kScenes[] = {
     {"tablecloth", 30, 300},
     {"waving_flag", 30, 300},
     {"waving_flag_two_way", 30, 300},
+};
+// The same scenes with the paper's equations ("physics": {"model": "paper"}).
+const GoldenScene kPaperScenes[] = {
+    {"static_drop", 30, 300, "paper"},
+    {"rotating_cloth", 32, 300, "paper"},
+    {"two_way_flag", 30, 300, "paper"},
+    {"anisotropy", 30, 300, "paper"},
+    {"anisotropy_halo", 30, 300, "paper"},
+    {"static_flag_splash", 30, 300, "paper"},
+    {"tablecloth", 30, 300, "paper"},
+    {"waving_flag", 30, 300, "paper"},
+    {"waving_flag_two_way", 30, 300, "paper"},
 };
 
 /// Tolerances (see the design note for why each).
@@ -95,7 +111,11 @@ constexpr const char* kRegenerateHint =
     "regenerate deliberately with `scripts/goldens` (or `BLOT_UPDATE_GOLDENS=1 ctest -R golden`), "
     "check the diff of tests/data/goldens/ and say why the results changed";
 
-fs::path goldenPath(const std::string& scene) { return fs::path(BLOT_TEST_DATA_DIR) / "goldens" / (scene + ".json"); }
+fs::path goldenPath(const GoldenScene& scene) {
+  const fs::path folder = fs::path(BLOT_TEST_DATA_DIR) / "goldens";
+  const std::string file = std::string(scene.name) + ".json";
+  return std::string(scene.model) == "film" ? folder / file : folder / scene.model / file;
+}
 
 std::string readText(const fs::path& path) {
   std::ifstream in(path);
@@ -195,7 +215,8 @@ TEST_P(GoldenSceneTest, MatchesGolden) {
   ASSERT_TRUE(fs::exists(sceneFile)) << sceneFile << " is registered in kScenes but does not exist";
   omp_set_num_threads(1);
 
-  const json scene = reducedScene(json::parse(readText(sceneFile)), name, entry.resolution, sceneFile);
+  json scene = reducedScene(json::parse(readText(sceneFile)), name, entry.resolution, sceneFile);
+  scene["physics"]["model"] = entry.model;
   auto engine = Engine::fromSceneJson(scene.dump(), sceneFile.parent_path().string(), sceneFile.string());
   const stain::StepReport report = engine->advanceSteps(entry.steps);
   ASSERT_EQ(report.status, stain::StepStatus::Ok)
@@ -206,7 +227,7 @@ TEST_P(GoldenSceneTest, MatchesGolden) {
                        {"threads", 1},
                        {"vertices", engine->vertexCount()}};
   const json actual = summarize(*engine);
-  const fs::path path = goldenPath(name);
+  const fs::path path = goldenPath(entry);
 
   const char* update = std::getenv(kUpdateVariable);
   if (update != nullptr && std::string(update) == "1") {
@@ -272,8 +293,10 @@ TEST(GoldenSummaryTest, CentroidFollowsTheStainAndMassesAddUp) {
 
 std::string sceneName(const ::testing::TestParamInfo<GoldenScene>& info) { return info.param.name; }
 
-// Instantiated as "golden" so that `ctest -R golden` selects these tests.
+// Instantiated as "golden" and "golden_paper" so that `ctest -R golden`
+// selects these tests.
 INSTANTIATE_TEST_SUITE_P(golden, GoldenSceneTest, ::testing::ValuesIn(kScenes), sceneName);
+INSTANTIATE_TEST_SUITE_P(golden_paper, GoldenSceneTest, ::testing::ValuesIn(kPaperScenes), sceneName);
 
 }  // namespace
 }  // namespace blot::engine

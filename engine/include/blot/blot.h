@@ -74,6 +74,12 @@ typedef enum blotMotionSource {
   BLOT_MOTION_CALLER = 3  /**< positions the caller gives before every step (blotEngine_SetSurfaceFrame) */
 } blotMotionSource;
 
+/** Which equations the liquid follows (docs/scene-format.md, "physics.model"). */
+typedef enum blotPhysicsModel {
+  BLOT_PHYSICS_FILM = 0, /**< a thin viscous film: friction with the fabric, hydrostatic pressure (the default) */
+  BLOT_PHYSICS_PAPER = 1 /**< the paper's equations as written, for comparison */
+} blotPhysicsModel;
+
 /** Bullet soft-body cloth (see blot::cloth::ClothDef, docs/cloth.md). */
 typedef struct blotClothDef {
   double totalMass;         /**< kg, > 0, spread by lumped area */
@@ -97,6 +103,7 @@ typedef struct blotFabricDef {
    *  (e.g. "twill-2-1"), homogenized once, on every face, weft along `weft`. */
   const char* weavePreset;
   double weft[3];       /**< weft direction (projected into each face), used with weavePreset */
+  double slipLength;    /**< m, >= 0: the liquid's slip over the fibres (film model's friction) */
 } blotFabricDef;
 
 /** The liquid's interaction with the fabric (see blot::stain::LiquidParameters). */
@@ -106,6 +113,8 @@ typedef struct blotLiquidDef {
   double desorptionRate;     /**< K_d, 1/s */
   double adsorptionCapacity; /**< A_d, kg/m² */
   double evaporationRate;    /**< K_evap, kg/(m² s) */
+  double liquidDensity;      /**< rho, kg/m³, > 0: the film's thickness is (solvent + solute) / rho */
+  double kinematicViscosity; /**< nu = mu / rho, m²/s, > 0: the film's friction with the fabric */
 } blotLiquidDef;
 
 /** Everything an engine is built from. Only the mesh has no default. */
@@ -124,15 +133,17 @@ typedef struct blotEngineDef {
   double gravity[3];        /**< m/s², also given to the Bullet cloth */
   double timeStep;          /**< the fixed internal step h (s, in [1e-6, 1], as a scene's time_step) */
   int maxStepsPerCall;      /**< >= 1 */
+  blotPhysicsModel model;   /**< the film (default) or the paper's equations */
 } blotEngineDef;
 
 /** Bullet's stable cloth settings: 0.15 kg, kLST 1, bending 0.2, 4 iterations, 4 substeps, tethers. No pins, one-way. */
 blotClothDef blotDefaultClothDef(void);
-/** Isotropic, diffusivity 0.01 m²/s, viscosity 2e-3 m²/s, weft +x. */
+/** Isotropic, diffusivity 0.01 m²/s, viscosity 2e-3 m²/s, weft +x, slip length 1e-5 m. */
 blotFabricDef blotDefaultFabricDef(void);
 /** The engine's liquid defaults (docs/scene-format.md, "liquid"). */
 blotLiquidDef blotDefaultLiquidDef(void);
-/** No mesh, static, the default cloth, fabric and liquid, gravity (0, 0, -9.8), h = 1/120 s, 8 steps per call. */
+/** No mesh, static, the default cloth, fabric and liquid, gravity (0, 0, -9.8), h = 1/120 s, 8 steps per call,
+ *  the film model. */
 blotEngineDef blotDefaultEngineDef(void);
 
 /** Liquid mass totals (kg) and the relative conservation errors. */
