@@ -93,6 +93,7 @@ void BM_WetArea(benchmark::State& state) {
   const int n = static_cast<int>(mesh.vertexPositions.rows());
   const SurfaceTopology topology(mesh.faces, n);
   StainSolverDef def;
+  applyPhysicsModel(PhysicsModel::Film, def.switches, def.liquid);  // the engine's default model
   def.liquid.evaporationRate = 0.002;
   if (allVertices) def.geometryVertices = VertexRefresh::AllVertices;
   StainSolver solver(topology, mesh.vertexPositions,

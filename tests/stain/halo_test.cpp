@@ -2,12 +2,13 @@
 // dries into a ring (more solute deposited at the rim than at the centre)
 // when interaction is on, and does not when it is off.
 //
-// What makes the ring (measured with this setup, 30 rings, 1000 steps):
-// the outward flow of the film-pressure term −∇p/ρ (PhysicsSwitches::
-// filmPressure, eq. (3), which the paper ignores) carries dissolved solute to
-// the edge, where the film is thinnest and dries first; evaporation faster at
-// the liquid's own edge (EvaporationBoundary::WetFront) strengthens it
-// (rim/centre 3.0 without it, 4.0 with it; 2.40 and 3.01 at the 20 rings here). Two conditions on the paper's
+// What makes the ring (measured with this setup, 20 rings, 500 steps): the
+// outward flow of the film's hydrostatic pressure (PhysicsSwitches::
+// filmPressure: gravity and ρ g_n H as one potential gradient, the term the
+// paper's eq. (3) writes and then ignores) carries dissolved solute to the
+// edge, where the film is thinnest and dries first: rim/centre 2.53 with
+// evaporation faster at the liquid's own edge (EvaporationBoundary::WetFront),
+// 2.78 with a_evap on the mesh boundary only. Two conditions on the paper's
 // laws: the Langmuir capacity A_d must be small next to the solute present
 // (with the default A_d = 0.5 kg/m² adsorption fixes the solute where it
 // lands within seconds and the deposit is flat, rim/centre 1.0), and
@@ -114,20 +115,18 @@ TEST(Halo, ASpotWithInteractionDriesIntoARing) {
   EXPECT_LE(p.budget.freeSolute, 1e-6 * p.budget.addedSolute);
   EXPECT_LE(p.budget.soluteError(), 1e-12);
   EXPECT_LE(p.budget.solventError(), 1e-12);
-  // Measured 3.03 (2.41 with a_evap on the mesh boundary only; 3.82 and 3.03
-  // before the liquid band of issue 14); flat is 1,
-  // without the film pressure 0.94.
+  // Measured 2.53; flat is 1, without the film pressure 0.93.
   EXPECT_GT(rimOverCentre(p.deposited), 2.0);
 }
 
-TEST(Halo, EvaporationAtTheWetFrontSharpensTheRing) {
-  const RadialProfile front = runSpot(HaloSetup{});
+TEST(Halo, TheRingDoesNotDependOnWhereEvaporationIsFaster) {
+  // The flow makes the ring; a_evap on the mesh boundary only (the paper's
+  // literal reading) leaves one too (measured 2.78).
   HaloSetup meshBoundary;
   meshBoundary.evaporationBoundary = EvaporationBoundary::MeshBoundary;
   const RadialProfile literal = runSpot(meshBoundary);
   print("deposited solute, a_evap on the mesh boundary only", literal.deposited);
-  EXPECT_GT(rimOverCentre(literal.deposited), 1.5);
-  EXPECT_GT(rimOverCentre(front.deposited), rimOverCentre(literal.deposited));
+  EXPECT_GT(rimOverCentre(literal.deposited), 2.0);
 }
 
 // Without interaction nothing is deposited, and the solute goes exactly where

@@ -35,8 +35,14 @@
 
 #include <blot/stain/stages/liquid_band.h>
 
+#include "numerics/threads.h"
+
 namespace blot::stain {
 namespace {
+
+// Below this many vertices the potential's loop runs on one thread (as the
+// body forces': a few dozen flops a vertex do not pay for the fork/join).
+constexpr int kMinParallelVertices = 8192;
 
 /// The effective gravity g − p̈_i acting on the film at vertex i (m/s²).
 Vector3 effectiveGravity(const StepContext& ctx, const ExtrinsicGeometry& geometry, int i) {
@@ -86,43 +92,51 @@ double filmAccelerations(const StepContext& ctx, const SurfaceTopology& topology
   const std::vector<int>& ringFaces = topology.ringFaces();
   const std::vector<signed char>& ringCorners = topology.ringCorners();
   const RowVectors3& p = geometry.positions;
+  const int count = static_cast<int>(vertices.size());
   double largest = 0.0;
-  for (const int i : vertices) {
-    if (!isFilmVertex(state, wet, i)) {
-      accelerations[i] = Complex(0.0, 0.0);
-      continue;
+  threads::runLoop(count >= kMinParallelVertices, [&] {
+    double mine = 0.0;  // this thread's largest |a| (max: the same in any order)
+#pragma omp for schedule(static)
+    for (int v = 0; v < count; ++v) {
+      const int i = vertices[static_cast<size_t>(v)];
+      if (!isFilmVertex(state, wet, i)) {
+        accelerations[i] = Complex(0.0, 0.0);
+        continue;
+      }
+      const double phiI = filmPotential(ctx, geometry, state, wet, i);
+      // φ*_j − φ_i for a corner j of one of i's faces (reconstructed at the shoreline).
+      const auto difference = [&](int j) {
+        if (isFilmVertex(state, wet, j)) return filmPotential(ctx, geometry, state, wet, j) - phiI;
+        return std::min(heightPotential(ctx, geometry, j) - phiI, 0.0);
+      };
+      Vector3 weightedGradient = Vector3::Zero();  // Σ_T A_T ∇φ*_T (m³/s²)
+      double area = 0.0;
+      for (int m = offsets[static_cast<size_t>(i)]; m < offsets[static_cast<size_t>(i) + 1]; ++m) {
+        const int f = ringFaces[static_cast<size_t>(m)];
+        if (f < 0) continue;
+        const int corner = ringCorners[static_cast<size_t>(m)];
+        const int j = faces(f, (corner + 1) % 3), k = faces(f, (corner + 2) % 3);
+        const Vector3 pi = p.row(i).transpose(), pj = p.row(j).transpose(), pk = p.row(k).transpose();
+        const Vector3 doubleAreaNormal = (pj - pi).cross(pk - pi);  // 2 A_T N_T
+        const double doubleArea = doubleAreaNormal.norm();
+        if (!(doubleArea > 0.0)) continue;
+        const Vector3 unitNormal = doubleAreaNormal / doubleArea;
+        // A_T ∇λ_j = ½ N × (p_i − p_k), A_T ∇λ_k = ½ N × (p_j − p_i).
+        weightedGradient += 0.5 * unitNormal.cross(difference(j) * (pi - pk) + difference(k) * (pj - pi));
+        area += 0.5 * doubleArea;
+      }
+      if (!(area > 0.0)) {
+        accelerations[i] = Complex(0.0, 0.0);
+        continue;
+      }
+      const Vector3 a = -weightedGradient / area;
+      const Matrix3& frame = geometry.frames[static_cast<size_t>(i)];
+      accelerations[i] = Complex(frame.col(0).dot(a), frame.col(1).dot(a));
+      mine = std::max(mine, std::abs(accelerations[i]));
     }
-    const double phiI = filmPotential(ctx, geometry, state, wet, i);
-    // φ*_j − φ_i for a corner j of one of i's faces (reconstructed at the shoreline).
-    const auto difference = [&](int j) {
-      if (isFilmVertex(state, wet, j)) return filmPotential(ctx, geometry, state, wet, j) - phiI;
-      return std::min(heightPotential(ctx, geometry, j) - phiI, 0.0);
-    };
-    Vector3 weightedGradient = Vector3::Zero();  // Σ_T A_T ∇φ*_T (m³/s²)
-    double area = 0.0;
-    for (int m = offsets[static_cast<size_t>(i)]; m < offsets[static_cast<size_t>(i) + 1]; ++m) {
-      const int f = ringFaces[static_cast<size_t>(m)];
-      if (f < 0) continue;
-      const int corner = ringCorners[static_cast<size_t>(m)];
-      const int j = faces(f, (corner + 1) % 3), k = faces(f, (corner + 2) % 3);
-      const Vector3 pi = p.row(i).transpose(), pj = p.row(j).transpose(), pk = p.row(k).transpose();
-      const Vector3 doubleAreaNormal = (pj - pi).cross(pk - pi);  // 2 A_T N_T
-      const double doubleArea = doubleAreaNormal.norm();
-      if (!(doubleArea > 0.0)) continue;
-      const Vector3 unitNormal = doubleAreaNormal / doubleArea;
-      // A_T ∇λ_j = ½ N × (p_i − p_k), A_T ∇λ_k = ½ N × (p_j − p_i).
-      weightedGradient += 0.5 * unitNormal.cross(difference(j) * (pi - pk) + difference(k) * (pj - pi));
-      area += 0.5 * doubleArea;
-    }
-    if (!(area > 0.0)) {
-      accelerations[i] = Complex(0.0, 0.0);
-      continue;
-    }
-    const Vector3 a = -weightedGradient / area;
-    const Matrix3& frame = geometry.frames[static_cast<size_t>(i)];
-    accelerations[i] = Complex(frame.col(0).dot(a), frame.col(1).dot(a));
-    largest = std::max(largest, std::abs(accelerations[i]));
-  }
+#pragma omp critical(blot_threads_combine)
+    largest = std::max(largest, mine);
+  });
   return largest;
 }
 
