@@ -11,7 +11,8 @@
 // any check fails:
 //   * contact: the flag's centre is pushed along +y by the sphere, against the
 //     same run without the sphere;
-//   * the stain moves with the cloth: its solvent-weighted centroid moves
+//   * the stain moves with the cloth: its solvent-weighted centroid (free and
+//     absorbed) moves
 //     like the cloth under it;
 //   * the stain's mass is conserved;
 //   * a body the game builds itself (appendNode/appendLink/appendFace) can be
@@ -89,8 +90,10 @@ blot::EngineDef flag(btSoftRigidDynamicsWorld& world) {
   return def;
 }
 
+// Weighted by the solvent, free and absorbed: the film's friction holds the
+// drop where it lands while the fibres soak it up.
 Eigen::Vector3d stainCentroid(const blot::Engine& engine) {
-  const Eigen::VectorXd& w = engine.solvent();
+  const Eigen::VectorXd w = engine.solvent() + engine.absorbedSolvent();
   return (engine.positions().transpose() * w) / w.sum();
 }
 

@@ -1003,6 +1003,14 @@ StepReport StainSolver::runStages() {
   return finishStep();
 }
 
+FilmEnergy StainSolver::liquidEnergy() const {
+  const ExtrinsicGeometry& extrinsic = geometry_.extrinsic();
+  const bool after = extrinsic.nextPositions.rows() == state_.vertexCount();  // the state's time is t + h
+  return stain::liquidEnergy(def_.switches.gravity ? def_.gravity : Vector3::Zero(), def_.liquid.liquidDensity,
+                             geometry_.topology(), after ? extrinsic.nextPositions : extrinsic.positions,
+                             geometry_.intrinsic().vertexDualAreas, state_);
+}
+
 bool StainSolver::smallBand() const {
   // A list in band order reads the fields out of order and the interaction's
   // needs a sort: worth it below a quarter of the mesh (the same results).

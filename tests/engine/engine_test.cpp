@@ -654,14 +654,16 @@ TEST(EngineTest, StatisticsCountTheStepsEachTermRanIn) {
       if (static_cast<unsigned>(term) == 1u << k) return ran[static_cast<size_t>(k)];
     return std::int64_t{-1};
   };
-  // Spinning and wet every step: frames, inertia, Coriolis, transport and
-  // absorption each ran 20 times; film pressure (off) and sources (none) never.
+  // Spinning and wet every step: frames, inertia, Coriolis, transport, the
+  // film's pressure and friction (the default model) and absorption each ran
+  // 20 times; sources (none) never.
   EXPECT_EQ(steps(stain::StepTerm::RigidFrames), 20);
   EXPECT_EQ(steps(stain::StepTerm::LinearInertia), 20);
   EXPECT_EQ(steps(stain::StepTerm::Coriolis), 20);
   EXPECT_EQ(steps(stain::StepTerm::DensityAdvection), 20);
   EXPECT_EQ(steps(stain::StepTerm::Absorption), 20);
-  EXPECT_EQ(steps(stain::StepTerm::FilmPressure), 0);
+  EXPECT_EQ(steps(stain::StepTerm::FilmPressure), 20);
+  EXPECT_EQ(steps(stain::StepTerm::FilmFriction), 20);
   EXPECT_EQ(steps(stain::StepTerm::Sources), 0);
   EXPECT_EQ(steps(stain::StepTerm::IntrinsicRebuild), 0) << "a rigid motion keeps the metric";
 }

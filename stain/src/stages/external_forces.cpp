@@ -54,11 +54,10 @@ void applyBodyForces(const StepContext& ctx, const ExtrinsicGeometry& geometry, 
     for (int k = 0; k < visits; ++k) {
       const int i = visited(k, among);
       if (!allWet && !wet[static_cast<size_t>(i)]) continue;
-      // With the film's pressure, gravity acts on the film through its
-      // potential gradient (film_flow.h), not per vertex.
-      const bool byPotential = filmGravity && isFilmVertex(state, wet, i);
-      if (byPotential && !useInertia) continue;
-      Vector3 a = byPotential ? Vector3::Zero() : gravity;
+      // With the film's pressure, gravity and the surface's acceleration act
+      // on the film through its potential gradient (film_flow.h), not per vertex.
+      if (filmGravity && isFilmVertex(state, wet, i)) continue;
+      Vector3 a = gravity;
       if (useInertia) a -= geometry.vertexAccelerations.row(i).transpose();
       const Matrix3& frame = geometry.frames[static_cast<size_t>(i)];
       state.velocities(i) += h * Complex(frame.col(0).dot(a), frame.col(1).dot(a));

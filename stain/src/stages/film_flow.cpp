@@ -76,14 +76,6 @@ bool isFilmVertex(const StainState& state, const std::vector<char>& wet, int i) 
   return wet[static_cast<size_t>(i)] == LiquidBand::kHoldsLiquid && state.solvent[i] + state.solute[i] > 0.0;
 }
 
-double filmPotential(const StepContext& ctx, const ExtrinsicGeometry& geometry, const StainState& state,
-                     const std::vector<char>& wet, int i) {
-  double phi = heightPotential(ctx, geometry, i);
-  if (ctx.switches.filmPressure && isFilmVertex(state, wet, i))
-    phi += normalGravity(ctx, geometry, i) * filmThickness(state, i, ctx.liquid);
-  return phi;
-}
-
 double filmAccelerations(const StepContext& ctx, const SurfaceTopology& topology, const ExtrinsicGeometry& geometry,
                          const StainState& state, const std::vector<char>& wet, const std::vector<int>& vertices,
                          ComplexVector& accelerations) {
@@ -103,11 +95,17 @@ double filmAccelerations(const StepContext& ctx, const SurfaceTopology& topology
         accelerations[i] = Complex(0.0, 0.0);
         continue;
       }
-      const double phiI = filmPotential(ctx, geometry, state, wet, i);
-      // φ*_j − φ_i for a corner j of one of i's faces (reconstructed at the shoreline).
+      // φ*_j − φ_i for a corner j of one of i's faces (reconstructed at the
+      // shoreline), with i's effective gravity g − p̈_i on the ring: the
+      // surface's own acceleration is in the potential too, so a film on a
+      // cloth accelerating rigidly is a film on a still one under g − p̈.
+      const Vector3 g = effectiveGravity(ctx, geometry, i);
+      const Vector3 xi = p.row(i).transpose();
+      const double pressureI = normalGravity(ctx, geometry, i) * filmThickness(state, i, ctx.liquid);
       const auto difference = [&](int j) {
-        if (isFilmVertex(state, wet, j)) return filmPotential(ctx, geometry, state, wet, j) - phiI;
-        return std::min(heightPotential(ctx, geometry, j) - phiI, 0.0);
+        const double height = -g.dot(p.row(j).transpose() - xi);
+        if (!isFilmVertex(state, wet, j)) return std::min(height - pressureI, 0.0);
+        return height + normalGravity(ctx, geometry, j) * filmThickness(state, j, ctx.liquid) - pressureI;
       };
       Vector3 weightedGradient = Vector3::Zero();  // Σ_T A_T ∇φ*_T (m³/s²)
       double area = 0.0;
@@ -207,6 +205,34 @@ FilmEnergy filmEnergy(const StepContext& ctx, const ExtrinsicGeometry& geometry,
       const double H = filmThickness(state, i, ctx.liquid);
       e.pressure += 0.5 * a * ctx.liquid.liquidDensity * normalGravity(ctx, geometry, i) * H * H;
     }
+  }
+  return e;
+}
+
+FilmEnergy liquidEnergy(const Vector3& gravity, double liquidDensity, const SurfaceTopology& topology,
+                        const RowVectors3& positions, const Vector& areas, const StainState& state) {
+  FilmEnergy e;
+  const Triangles& faces = topology.faces();
+  const std::vector<int>& offsets = topology.ringOffsets();
+  const std::vector<int>& ringFaces = topology.ringFaces();
+  for (int i = 0; i < state.vertexCount(); ++i) {
+    const double sigma = state.solvent[i] + state.solute[i];
+    if (!(sigma > 0.0)) continue;
+    const double a = areas[i];
+    e.kinetic += 0.5 * a * sigma * std::norm(state.velocities[i]);
+    e.gravitational += -a * sigma * gravity.dot(positions.row(i).transpose());
+    Vector3 normal = Vector3::Zero();  // Σ_T 2 A_T N_T
+    for (int m = offsets[static_cast<size_t>(i)]; m < offsets[static_cast<size_t>(i) + 1]; ++m) {
+      const int f = ringFaces[static_cast<size_t>(m)];
+      if (f < 0) continue;
+      const Vector3 pa = positions.row(faces(f, 0)).transpose();
+      normal += (positions.row(faces(f, 1)).transpose() - pa).cross(positions.row(faces(f, 2)).transpose() - pa);
+    }
+    const double length = normal.norm();
+    if (!(length > 0.0)) continue;
+    const double gn = std::max(0.0, -gravity.dot(normal / length));
+    const double H = sigma / liquidDensity;
+    e.pressure += 0.5 * a * liquidDensity * gn * H * H;
   }
   return e;
 }

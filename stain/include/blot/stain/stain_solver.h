@@ -13,6 +13,7 @@
 #include <blot/stain/stages/sources.h>
 #include <blot/stain/stain_state.h>
 #include <blot/stain/step_context.h>
+#include <blot/stain/stages/film_flow.h>
 #include <blot/stain/geometry/surface_geometry.h>
 #include <blot/stain/stages/velocity_advection.h>
 
@@ -257,6 +258,10 @@ class StainSolver {
   /// coupling's start-of-step momentum with RelativeMomentum::Free).
   void completeGeometryAfterOutsideWrite();
   const StepProfile& profile() const { return profile_; }
+  /// The free liquid's energy now (J): kinetic ½σ|u|² relative to the cloth,
+  /// gravitational −σ g·x and hydrostatic ½ρ g_n H² (film_flow.h,
+  /// liquidEnergy). O(#V); for reports, not for the frame loop.
+  FilmEnergy liquidEnergy() const;
   const StainSolverDef& definition() const { return def_; }
   /// Threads the steps use (≥ 1; StainSolverDef::threads resolved), and a new
   /// count (≥ 1; 0 resolves as in StainSolverDef) from the next step on.

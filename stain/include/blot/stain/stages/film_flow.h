@@ -45,17 +45,14 @@ double filmDragRate(double thickness, const LiquidParameters& liquid);
 /// vertices whose frames the step prepared).
 bool isFilmVertex(const StainState& state, const std::vector<char>& wet, int i);
 
-/// The potential φ_i = −g·x_i + g_n,i H_i at a film vertex (m²/s²), or the
-/// bare −g·x_i elsewhere (H = 0): the variation of the film's potential
-/// energy Σ A (−σ g·x + ½ ρ g_n H²) with its mass.
-double filmPotential(const StepContext& ctx, const ExtrinsicGeometry& geometry, const StainState& state,
-                     const std::vector<char>& wet, int i);
-
 /// a_i = −∇φ* at each film vertex i of `vertices` (others: 0), in F_i's
 /// tangent axes (m/s²), written to `accelerations` (#V, entries of other
 /// vertices untouched). ∇φ* is the area-weighted mean of the P1 gradients on
 /// i's faces, each written with differences φ*_j − φ_i, so a level pool (φ
-/// equal at every vertex of i's faces) gives exactly 0. Hydrostatic
+/// equal at every vertex of i's faces) gives exactly 0. On i's ring the
+/// height part uses i's effective gravity g − p̈_i (with linear inertia on),
+/// so the surface's acceleration acts through the potential too and a film
+/// on a rigidly accelerating cloth is one on a still cloth under g − p̈. Hydrostatic
 /// reconstruction at the shoreline (after Audusse et al. 2004): a neighbour
 /// j that holds no film counts with φ*_j = min(−g·x_j, φ_i), i.e. dry ground
 /// above i's level is a wall at that level and dry ground below is a slope
@@ -99,5 +96,12 @@ struct FilmEnergy {
 };
 FilmEnergy filmEnergy(const StepContext& ctx, const ExtrinsicGeometry& geometry, const Vector& areas,
                       const StainState& state, const std::vector<char>& wet);
+
+/// The same energy of every vertex holding free liquid, from the positions
+/// alone (#V by 3, m): g_n = max(0, −g·n) with n the area-weighted normal of
+/// the vertex's faces (no p̈: the energy in the frame the cloth is at rest
+/// in, for a still or slow cloth). For reports between steps (O(#V)).
+FilmEnergy liquidEnergy(const Vector3& gravity, double liquidDensity, const SurfaceTopology& topology,
+                        const RowVectors3& positions, const Vector& areas, const StainState& state);
 
 }  // namespace blot::stain
