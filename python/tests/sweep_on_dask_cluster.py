@@ -5,8 +5,8 @@ address and process ids in the environment.
 
 A two-run sweep (a wine drop on a small still patch at two time steps, the finer
 one the reference) goes to the cluster through the command line; the table must
-say that both runs succeeded on those worker processes, and match the same sweep
-run serially in this process's machine bit for bit (state hashes, errors).
+say that both runs succeeded on those worker processes and give the same bits
+(state hashes, errors) as the same sweep on the serial executor.
 
 usage: sweep_on_dask_cluster.py OUT_DIR   (BLOT_BINARY: the blot executable)
 """
