@@ -20,10 +20,12 @@ energy passes it.
   * "not settling": no bound broken, but still moving at the end;
   * "stable": none of these; the liquid comes to rest.
 
-usage: film_stability_chart.py SWEEP_JSON SWEEP_CSV CHART_PNG [--doc ACCURACY_MD --command TEXT]
+usage: film_stability_chart.py SWEEP_JSON SWEEP_CSV CHART_PNG [--doc ACCURACY_MD --command TEXT --wall S] [--check]
 With --doc, the table between the markers <!-- film_stability:begin --> and
 <!-- film_stability:end --> in that file is replaced by this run's, with a line
-saying when, on which machine and by which command it was made.
+saying when, on which machine and by which command it was made. --check exits 1
+unless every run of the paper's model blows up, no film run blows up or fails,
+and every film run at h <= 0.1 s is stable.
 """
 import argparse
 import csv
