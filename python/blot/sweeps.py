@@ -29,6 +29,14 @@ Metrics (all on the final state, on the rest shape of the cloth):
 The field is ``total_solute`` (free + absorbed + adsorbed solute, the pigment
 that stays) unless the sweep names another; the threshold is
 ``stain_threshold`` kg/m2, default 1e-3 of the reference's maximum.
+
+The free liquid's motion, for stability studies: ``max_speed_m_s`` (the largest
+speed relative to the cloth at a vertex holding at least 1e-3 of the largest
+free-liquid density) and
+``peak_kinetic_energy_j`` (sum_i A_i sigma_i |u_i|^2 / 2, sigma the free solvent
+and solute) are the largest over ``samples`` equally spaced measurements of the
+run (the last at its end, or at the last good step of a failed run);
+``kinetic_energy_j`` and ``free_liquid_kg`` are the last one's.
 """
 from __future__ import annotations
 
@@ -76,6 +84,13 @@ FILE_BYTE_LIMIT = 16 << 20
 MAX_RUNS = 10000
 # The most worker processes of a local cluster.
 MAX_WORKERS = 1024
+# The most measurements of the liquid's motion per run (the sweep's "samples").
+MAX_SAMPLES = 100000
+# The share of the largest free-liquid density (solvent + solute) a vertex must
+# hold for its speed to count in max_speed_m_s: the film, not the traces of a
+# few nanometres at its wet front, where the wicking flux's velocity can be
+# large while the liquid it moves is not.
+FILM_FRACTION = 1e-3
 
 # Table columns whose values depend on the machine and its load; everything
 # else is the same whichever executor ran the sweep.
@@ -233,10 +248,25 @@ def _field(engine, name: str) -> np.ndarray:
     return np.array(getattr(engine, name))
 
 
+def _liquid_motion(engine, areas: np.ndarray) -> Dict[str, float]:
+    """The free liquid's largest speed (m/s, relative to the cloth, over vertices
+    holding at least FILM_FRACTION of the largest density), kinetic energy (J, on
+    the rest areas) and mass (kg)."""
+    sigma = np.asarray(engine.solvent) + np.asarray(engine.solute)
+    u = np.asarray(engine.velocities)
+    speed2 = np.einsum("ij,ij->i", u, u)
+    top = float(sigma.max()) if sigma.size else 0.0
+    wet = (sigma >= FILM_FRACTION * top) & (sigma > 0)
+    return {"max_speed_m_s": float(np.sqrt(speed2[wet].max())) if wet.any() else 0.0,
+            "kinetic_energy_j": float(0.5 * np.dot(areas * sigma, speed2)),
+            "free_liquid_kg": float(np.dot(areas, sigma))}
+
+
 def run_one(task: Dict[str, Any]) -> Dict[str, Any]:
     """Runs one sweep run in this process and returns its result (never raises).
 
-    task: name, scene (dict), base_directory, resolution, duration, threads, field.
+    task: name, scene (dict), base_directory, resolution, duration, threads, field,
+    samples (measurements of the liquid's motion, default 1: the end only).
     """
     import blot  # here, so that a Dask worker imports it in its own process
 
@@ -251,13 +281,33 @@ def run_one(task: Dict[str, Any]) -> Dict[str, Any]:
         engine.threads = task.get("threads", 1)
         h = engine.time_step
         steps = max(1, int(round(task["duration"] / h)))
+        samples = max(1, min(int(task.get("samples", 1)), steps))
+        areas = np.asarray(engine.vertex_areas)
+        motion: Dict[str, float] = {}
+        measure_wall = measure_cpu = 0.0
         wall0, cpu0 = time.perf_counter(), time.process_time()
         error = ""
-        try:
-            engine.advance_steps(steps)
-        except blot.StepError as e:  # the engine kept the last good state; the run failed
-            error = str(e)
-        wall, cpu = time.perf_counter() - wall0, time.process_time() - cpu0
+        done_steps = 0
+        for k in range(1, samples + 1):
+            # Equal shares of the steps (the same bits as one call: the engine's
+            # steps do not depend on how they are grouped into calls).
+            count = (k * steps) // samples - done_steps
+            try:
+                engine.advance_steps(count)
+            except blot.StepError as e:  # the engine kept the last good state; the run failed
+                error = str(e)
+            done_steps += count
+            t0, c0 = time.perf_counter(), time.process_time()
+            now = _liquid_motion(engine, areas)
+            motion["max_speed_m_s"] = max(motion.get("max_speed_m_s", 0.0), now["max_speed_m_s"])
+            motion["peak_kinetic_energy_j"] = max(motion.get("peak_kinetic_energy_j", 0.0), now["kinetic_energy_j"])
+            motion["kinetic_energy_j"], motion["free_liquid_kg"] = now["kinetic_energy_j"], now["free_liquid_kg"]
+            measure_wall += time.perf_counter() - t0
+            measure_cpu += time.process_time() - c0
+            if error:
+                break
+        # The cost is the steps' alone.
+        wall, cpu = time.perf_counter() - wall0 - measure_wall, time.process_time() - cpu0 - measure_cpu
         stats = engine.statistics()
         done = stats["steps"]
         result.update({
@@ -274,6 +324,7 @@ def run_one(task: Dict[str, Any]) -> Dict[str, Any]:
             "solute_budget_error": stats["mass_budget"]["solute_error"],
             "solvent_budget_error": stats["mass_budget"]["solvent_error"],
         })
+        result.update(motion)
         totals = stats["total_ms"]
         for stage, ms in totals["stages"].items():
             result[f"ms_{stage}"] = ms / max(done, 1)
@@ -524,7 +575,7 @@ def plan(spec: Dict[str, Any]) -> Dict[str, Any]:
     src = spec.get("_source", "<sweep>")
     directory = spec.get("_directory", os.getcwd())
     known = {"name", "description", "scene", "duration", "grid", "runs", "reference", "field",
-             "stain_threshold", "threads", "output", "cost", "_source", "_directory"}
+             "stain_threshold", "threads", "output", "cost", "samples", "_source", "_directory"}
     for key in spec:
         _expect(key in known, src, f"unknown key '{key}' (expected one of {sorted(k for k in known if k[0] != '_')})")
     _expect("scene" in spec, src, "missing 'scene' (a scene file path or a scene object)")
@@ -555,6 +606,9 @@ def plan(spec: Dict[str, Any]) -> Dict[str, Any]:
     threads = spec.get("threads", 1)
     _expect(isinstance(threads, int) and not isinstance(threads, bool) and 0 <= threads <= 1024, f"{src}: threads",
             f"expected an integer in [0, 1024], got {threads!r}")
+    samples = spec.get("samples", 1)
+    _expect(isinstance(samples, int) and not isinstance(samples, bool) and 1 <= samples <= MAX_SAMPLES,
+            f"{src}: samples", f"expected an integer in [1, {MAX_SAMPLES}], got {samples!r}")
     threshold = spec.get("stain_threshold")
     _expect(threshold is None or (_is_number(threshold) and math.isfinite(threshold) and threshold > 0),
             f"{src}: stain_threshold", f"expected a finite number of kg/m2 > 0, got {threshold!r}")
@@ -627,7 +681,7 @@ def plan(spec: Dict[str, Any]) -> Dict[str, Any]:
 
     def task(run):
         t = {"name": run["name"], "overrides": run["overrides"], "base_directory": base_directory,
-             "duration": float(duration), "threads": threads, "field": field}
+             "duration": float(duration), "threads": threads, "field": field, "samples": samples}
         try:
             t["scene"], t["resolution"] = apply_overrides(scene, run["overrides"])
         except ValueError as e:  # an override no run could take: the sweep file's error, before any run
@@ -698,7 +752,8 @@ def _columns(rows, axes):
         "steps", "time_step_s", "simulated_time_s", "vertices",
         "wall_s", "cpu_s", "wall_ms_per_step", "cpu_ms_per_step", "peak_rss_mb", "rss_before_mb"]
     stage = sorted({k for r in rows for k in r if k.startswith("ms_")})
-    last = ["intrinsic_refreshes", "solute_budget_error", "solvent_budget_error", "state_hash", "worker",
+    last = ["max_speed_m_s", "peak_kinetic_energy_j", "kinetic_energy_j", "free_liquid_kg",
+            "intrinsic_refreshes", "solute_budget_error", "solvent_budget_error", "state_hash", "worker",
             "overrides", "error"]
     return first + stage + last
 

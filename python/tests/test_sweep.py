@@ -323,6 +323,11 @@ class BadInput(unittest.TestCase):
             self.refused(small_spec(stain_threshold=value), "stain_threshold", "expected a finite number")
         sweeps.plan(small_spec(stain_threshold=1e-4))  # accepted
 
+    def test_samples_an_integer_in_range(self):
+        for value in (0, -1, 100001, 2.5, True, "4"):
+            self.refused(small_spec(samples=value), "samples", "expected an integer in [1, 100000]")
+        sweeps.plan(small_spec(samples=100000))  # accepted
+
     def test_overrides_name_the_key_and_value(self):
         cases = [
             ({"fabric.diffusivity": float("nan")}, ["'fabric.diffusivity'", "finite number", "nan"]),
@@ -388,6 +393,29 @@ class UndefinedMetrics(unittest.TestCase):
         self.assertIn("no area_error", by_name["time_step=0.02"]["error"])
         self.assertIn("no centroid_distance_m", by_name["dry"]["error"])
         self.assertEqual(by_name["dry"]["centroid_distance_m"], "")
+
+
+class LiquidMotion(unittest.TestCase):
+    def test_samples_measure_the_motion_without_changing_the_run(self):
+        # A drop on a still patch, one of them thrown across it: it spreads under
+        # its own weight and slows down (friction, interaction), so its speed and
+        # kinetic energy peak early, not at the end.
+        spec = small_spec(duration=0.2, grid={"time_step": [0.01]},
+                          runs=[{"name": "thrown", "overrides": {"drops[0].relative_velocity": [0.05, 0, 0]}}])
+        with tempfile.TemporaryDirectory() as tmp:
+            once = blot.sweep(spec, executor="serial", output=tmp, isolate=False)
+            often = blot.sweep(dict(spec, samples=20), executor="serial", output=tmp, isolate=False)
+        for a, b in zip(once, often):
+            self.assertEqual(a["state_hash"], b["state_hash"], a["name"])
+            self.assertEqual(a["kinetic_energy_j"], b["kinetic_energy_j"], a["name"])
+            self.assertEqual(a["free_liquid_kg"], b["free_liquid_kg"], a["name"])
+            self.assertGreater(b["free_liquid_kg"], 0.0)
+            self.assertGreaterEqual(b["peak_kinetic_energy_j"], a["peak_kinetic_energy_j"])
+            self.assertGreaterEqual(b["max_speed_m_s"], a["max_speed_m_s"])
+            self.assertEqual(a["peak_kinetic_energy_j"], a["kinetic_energy_j"])  # one sample: the end
+        thrown = next(r for r in often if r["name"] == "thrown")
+        self.assertGreater(thrown["max_speed_m_s"], 0.01)
+        self.assertGreater(thrown["peak_kinetic_energy_j"], 2 * thrown["kinetic_energy_j"])
 
 
 class Docs(unittest.TestCase):
