@@ -115,7 +115,7 @@ TEST(Halo, ASpotWithInteractionDriesIntoARing) {
   EXPECT_LE(p.budget.soluteError(), 1e-12);
   EXPECT_LE(p.budget.solventError(), 1e-12);
   // Measured 3.03 (2.41 with a_evap on the mesh boundary only; 3.82 and 3.03
-  // before the liquid band of issue 14); flat is 1,
+  // without the liquid band); flat is 1,
   // without the film pressure 0.94.
   EXPECT_GT(rimOverCentre(p.deposited), 2.0);
 }
