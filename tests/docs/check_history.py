@@ -75,6 +75,24 @@ def files_under(path, excluded):
                 yield full
 
 
+COMMENT_LEAD = re.compile(r"^\s*(?:///?|#|\*|--|<!--)?\s*")
+
+
+def split_across(lines, number):
+    """The history pattern that starts on line `number` (1-based) and ends on the
+    next one ("issue" at the end of a line, "4" at the start of the next),
+    comment markers at the start of the next line aside."""
+    if number >= len(lines):
+        return None
+    first = lines[number - 1].rstrip()
+    joined = first + " " + COMMENT_LEAD.sub("", lines[number])
+    for what, pattern in HISTORY:
+        for m in pattern.finditer(joined):
+            if m.start() < len(first) < m.end():
+                return what
+    return None
+
+
 def findings(path):
     try:
         with open(path, encoding="utf-8", errors="replace") as f:
@@ -89,6 +107,10 @@ def findings(path):
                 yield number, what, line.strip()
                 break
         else:
+            what = split_across(lines, number)
+            if what:
+                yield number, what + " (split across two lines)", line.strip()
+                continue
             if GENERATED.search(line):
                 continue
             for what, pattern in DATED:
