@@ -8,8 +8,13 @@ ObjectReader calls `x.number("key", ...)`, `x.integer`, `x.boolean`,
 key the reference page lists (docs/scene-format.md: the backquoted names in
 the first column of its tables, e.g. `patch.size` or `icosphere.radius`,
 `disc.radius`; an object's keys in its type cell, {`face`, `direction`};
-a key defined in prose as "`source` (**required**): ..."). Keys are compared by name, the way the parser's readers see
-them: `patch.size` lists `size` and the object `patch` that holds it. Fails, naming them, when the parser
+a key defined in prose as "`source` (**required**): ..."). Keys are compared
+by name within their section: a parser function's keys (parsePhysics) against
+the keys listed under the page's heading for it (`## physics`), so that
+`physics.model` is not taken as documented by `cloth.wind.model`; `patch.size`
+lists `size` and the object `patch` that holds it. Keys that a helper reads
+for several sections (vertexOrPoint: pins, drops, held regions) may be listed
+in any section. Fails, naming them, when the parser
 accepts a key the page does not list or the page lists a key the parser does
 not accept.
 
@@ -37,21 +42,58 @@ def strip_comments(text):
     return re.sub(r"//[^\n]*", "", text)
 
 
+# Which section of the page a parser function's keys belong to. Keys read
+# elsewhere (a helper such as vertexOrPoint, shared by pins, drops and held
+# regions) may be listed in any section.
+SECTION_OF_FUNCTION = {
+    "parseMesh": "mesh",
+    "parsePin": "cloth", "parseCollider": "cloth", "parseBullet": "cloth", "parseCloth": "cloth",
+    "parseTensor": "fabric", "parseFabric": "fabric",
+    "parseLiquid": "liquid", "applyPreset": "liquid", "presetByName": "liquid",
+    "parsePhysics": "physics",
+    "parseDrop": "drops",
+    "parseHeldRegion": "held regions",
+    "parseOutputs": "outputs",
+}
+# parseScene reads the top level and the display itself, and the physics model.
+SECTION_OF_SCENE_READER = {"r": "top level", "d": "display", "p": "physics"}
+ANY = "*"
+FUNCTION_START = re.compile(r"^[A-Za-z][\w:<>,&\* ]*?\b(\w+)\([^;{]*\)\s*(?:const\s*)?\{", re.M)
+READER_CALL_NAMED = re.compile(
+    r"\b([A-Za-z_]\w*)\s*(?:\.|->)\s*(?:number|integer|boolean|choice|vector3|vector2|string|array|find|has|require)"
+    r"\s*\(\s*\"([A-Za-z_][A-Za-z0-9_]*)\"")
+
+
 def parser_keys(path):
+    """{(section, key)}: the section is the page's, or ANY."""
     code = strip_comments(open(path, encoding="utf-8").read())
-    keys = set(READER_CALL.findall(code))
-    for group in ALLOW_ONLY.findall(code):
-        keys.update(STRING.findall(group))
+    starts = [(m.start(), m.group(1)) for m in FUNCTION_START.finditer(code)]
+    keys = set()
+    for k, (start, function) in enumerate(starts):
+        body = code[start:starts[k + 1][0] if k + 1 < len(starts) else len(code)]
+        for reader, key in READER_CALL_NAMED.findall(body):
+            if function == "parseScene":
+                keys.add((SECTION_OF_SCENE_READER.get(reader, ANY), key))
+            else:
+                keys.add((SECTION_OF_FUNCTION.get(function, ANY), key))
+        for group in ALLOW_ONLY.findall(body):
+            section = "top level" if function == "parseScene" else SECTION_OF_FUNCTION.get(function, ANY)
+            keys.update((section, key) for key in STRING.findall(group))
     return keys
 
 
 def page_keys(path):
+    """{(section, key): line}: the section is the `## ` heading above, lower case."""
     keys = {}
+    section = ""
     for number, line in enumerate(open(path, encoding="utf-8"), 1):
+        if line.startswith("## "):
+            section = line[3:].strip().lower()
+            continue
         # A key defined in prose: "`source` (**required**): ...".
         m = PROSE_KEY.match(line)
         if m:
-            keys.setdefault(m.group(1), number)
+            keys.setdefault((section, m.group(1)), number)
         if not line.startswith("|"):
             continue
         cells = re.split(r"(?<!\\)\|", line.strip().strip("|"))
@@ -64,14 +106,14 @@ def page_keys(path):
                 continue
             # `preview.width` lists `width` and, as the object that holds it, `preview`.
             for name in re.sub(r"\[[^\]]*\]", "", span).split("."):
-                keys.setdefault(name, number)
+                keys.setdefault((section, name), number)
         # An object's own keys spelled in its type: {`face`, `direction`} or {`"label"`: L}.
         if len(cells) > 1:
             for group in re.findall(r"\{([^}]*)\}", cells[1]):
                 for span in CODE_SPAN.findall(group):
                     name = span.strip().strip('"')
                     if KEY_PATH.match(name):
-                        keys.setdefault(name, number)
+                        keys.setdefault((section, name), number)
     return keys
 
 
@@ -88,14 +130,23 @@ def main(argv):
     if not listed:
         print(f"check_scene_keys: found no key tables in {args.page}", file=sys.stderr)
         return 2
-    undocumented = sorted(accepted - set(listed))
-    unknown = sorted(set(listed) - accepted)
+    sections = {section for section, _ in accepted if section != ANY}
+    listed_anywhere = {key for _, key in listed}
+    undocumented = sorted(
+        (section, key) for section, key in accepted
+        if ((section, key) not in listed if section != ANY else key not in listed_anywhere))
+    shared = {key for section, key in accepted if section == ANY}
+    unknown = sorted(
+        (section, key) for section, key in listed
+        if section in sections and (section, key) not in accepted and key not in shared)
     page = os.path.relpath(args.page, ROOT)
-    for key in undocumented:
-        print(f"{page}: undocumented key: `{key}` is accepted by {os.path.relpath(args.parser, ROOT)} "
-              f"but listed in no table of the page")
-    for key in unknown:
-        print(f"{page}:{listed[key]}: unknown key: `{key}` is listed but the parser does not accept it")
+    parser = os.path.relpath(args.parser, ROOT)
+    for section, key in undocumented:
+        where = "any table of the page" if section == ANY else f"the page's '{section}' section"
+        print(f"{page}: undocumented key: `{key}` is accepted by {parser} but listed in no table of {where}")
+    for section, key in unknown:
+        print(f"{page}:{listed[(section, key)]}: unknown key: `{key}` is listed in the '{section}' section "
+              f"but the parser does not accept it there")
     if undocumented or unknown:
         print(f"check_scene_keys: {len(undocumented)} undocumented, {len(unknown)} unknown "
               f"({len(accepted)} keys accepted, {len(listed)} listed)", file=sys.stderr)
