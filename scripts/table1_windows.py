@@ -2,8 +2,8 @@
 """Draws docs/charts/table1_windows.png: the stain's cost step by step on Table 1's Bullet rows.
 
 Table 1 (tests/bench/table1_bench.cpp) times 100 steps after a warm-up of 30,
-and a second window from the warm-up to step 300 (docs/performance.md, "Stop
-57"). This chart shows where those windows fall in each row's run: the
+and a second window from the warm-up to step 300 (docs/performance.md,
+"How to read Table 1"). This chart shows where those windows fall in each row's run: the
 stain's ms a step (Engine statistics, one internal step a frame) for steps
 0-299 of table1_tablecloth.json, table1_flag.json and table1_flag_two_way.json,
 the median of RUNS runs of each step (default 3), with the metric rebuilds
@@ -17,7 +17,7 @@ their paper ratios. It runs, for each scene and run,
 
 (the row's own scene, no random drops), one thread. On this shared 2-core
 machine pin it to one CPU: `taskset -c 1 scripts/table1_windows.py [RUNS]`
-(docs/performance.md, "Stop 56": the two vCPUs differ by about 1.4x at a time).
+(the two vCPUs of a shared machine can differ by about 1.4x at a time).
 Debian's python3-matplotlib, hence /usr/bin/python3.
 """
 import csv

@@ -1,7 +1,7 @@
 // blot-viewer: an interactive samples viewer (GLFW + OpenGL + Dear ImGui), in
 // the manner of Box2D's samples app. Uses only the public engine API
 // (engine/include/blot/engine/*.h). Controls and the command-line script are
-// in README.md ("Interactive viewer") and docs/viewer.md.
+// in docs/viewer.md.
 #include <blot/engine/engine.h>
 #include <blot/engine/image.h>
 #include <blot/engine/scene.h>

@@ -1,15 +1,15 @@
 // The coupled 2.5K-vertex two-way flag: per 1/60 s step, the
 // Bullet cloth step, the stain step and the coupling, and in the same loop a
 // bare Bullet cloth (same mesh, same ClothDef, no liquid) stepped alongside,
-// so both see the same machine load. Target (issue 15): stain + coupling ≤ 0.25 × bare Bullet.
+// so both see the same machine load. Target: stain + coupling ≤ 0.25 × bare Bullet.
 //  - Arg strain: the stain's strainTolerance in per mille (1 = the default
 //    1e-3, which on a Bullet cloth rebuilds the stain's intrinsic tier and
 //    refactorizes every step; 20 = 2%, what the coupled tests use; 50 = 5%,
-//    the Bullet scenes' default since issue 15; 1000 =
+//    the Bullet scenes' default; 1000 =
 //    never rebuild, to show what the rebuilds cost).
 //  - Arg free_velocity: PhysicsSwitches::velocityOnFreeLiquid (1, the default:
-//    u = 0 at soaked vertices without free liquid; 0: as before issue 15's
-//    session 5, when their u kept accumulating the forces).
+//    u = 0 at soaked vertices without free liquid; 0: their u keeps
+//    accumulating the forces).
 // Counters (ms per step, wall clock, mean over the timed steps): bullet,
 // stain, coupling, bare (the bare Bullet step), ratio = (stain + coupling) /
 // bare, rebuilds = fraction of steps that rebuilt the stain's intrinsic tier,

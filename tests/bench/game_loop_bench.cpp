@@ -1,12 +1,12 @@
 // The game loop of demos/game_loop.cpp (runGameLoop: the two-way flag of
 // assets/scenes/two_way_flag.json, 600 frames at 60 Hz, splashes thrown at it
 // from seed 1), run several times, each on a fresh engine, and the frame
-// times' spread: issue 15's target "in the game loop the frame time's p99 is
+// times' spread against the target "in the game loop the frame time's p99 is
 // within 1.5× its p50 (no spikes from rebuilds or refactorizations)".
 //
 // Design note. On a shared machine one run's p99 counts the frames the
 // process lost its core (the cloth alone, whose work is the same every frame,
-// had p99/p50 1.23–1.56 in single runs of the demo on 7 Dec). The loop is
+// had p99/p50 1.23–1.56 in single runs of the demo). The loop is
 // deterministic, so a frame does the same work in every run (the benchmark
 // checks that every run ends in the same state hash), and the least time of a
 // frame over the runs is its cost without those interruptions: the spikes

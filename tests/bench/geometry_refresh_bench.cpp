@@ -9,7 +9,7 @@
 // Counters: ns_per_vertex (wall time per vertex), newton_iterations (average
 // per vertex), strain (largest edge strain, ~1e-16 for rigid motion).
 //
-// The intrinsic rebuild on deforming Bullet cloth (issue 15, "metric refresh
+// The intrinsic rebuild on deforming Bullet cloth ("a metric refresh
 // that costs what changed"): the two-way flag and the tablecloth scenes
 // (assets/scenes/two_way_flag.json, tablecloth.json) are run through the
 // Engine at strain tolerance 2e-2 (the Bullet scenes' default then) and the
@@ -402,7 +402,7 @@ BENCHMARK(BM_IntrinsicRebuildPart)
 // intrinsic_refresh "region" needs strain_test "around-liquid"): under the
 // whole-mesh test a region refresh leaves the lengths outside it unmeasured,
 // and the test then tripped on nearly every step (0.996 a step against Full's
-// 0.567 on the two-way flag before 7 Dec). So Region rebuilds on other steps:
+// 0.567 on the two-way flag, measured with an earlier form of the step). So Region rebuilds on other steps:
 // compare rebuilds_per_step × us_per_rebuild.
 // One iteration = one step of the run (wrapping around with a fresh geometry).
 // Counters: rebuilds_per_step, us_per_rebuild (0 when it never trips),

@@ -16,8 +16,8 @@
 // and viscosity 1e-4 m²/s keep max h L_ii / A_i small, so both solves run on
 // the liquid's support; 4e-3 and 2e-3 m²/s (the Table 1 flag's) make them
 // 40x stiffer, where Auto weighs CG on the support against the whole-mesh
-// factorizations by predicted cost (until stop 34 of issue 15 it took the
-// factors there, whole-mesh solves however small the stain). Static rows (no
+// factorizations by predicted cost (rather than always taking the factors
+// there: whole-mesh solves however small the stain). Static rows (no
 // motion) show the geometry refresh skipped. Deforming rows (moving = 2)
 // add a travelling wave across the grid under the same rotation, z̄ +=
 // A sin(k x̄ − Ω t) cos(k ȳ) (A = 3 mm, wavelength 0.5 m, 1 Hz), stepped by

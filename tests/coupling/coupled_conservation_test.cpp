@@ -88,7 +88,7 @@ void runClosedSystem(RelativeMomentum relative) {
   // pushes the cloth harder (its relative momentum goes through the cloth),
   // so Bullet's rounding adds up to more: 1.7e-3 since the discrete frame
   // change (Coriolis) moves the film more freely, against 3.6e-4 dragged;
-  // since the liquid band (issue 14) the front keeps the film's velocity and
+  // with the liquid band the front keeps the film's velocity and
   // both push harder: measured 2.9e-3 free, 1.0e-3 dragged.
   EXPECT_LT(drift, relative == RelativeMomentum::Free ? 5e-3 : 2e-3);
   EXPECT_EQ(surface.evaporatedMomentum(), Eigen::Vector3d::Zero());

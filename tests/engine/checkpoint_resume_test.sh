@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 8: a `blot run` killed with SIGKILL and resumed from its last checkpoint
+# A `blot run` killed with SIGKILL and resumed from its last checkpoint
 # ends with the same state (summary state hash) and byte-identical PLY frames
 # and PNG as an uninterrupted run. The kill is real: the child process sends
 # itself SIGKILL after frame 7 (--kill-after-frame, so the test is not timing

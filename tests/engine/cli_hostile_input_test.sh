@@ -131,7 +131,7 @@ no_temporaries "$work/ck"
 hash() { grep '"state_hash"' "$1"; }
 [ "$(hash "$work/resumed.json")" = "$(hash "$work/ref.json")" ] || fail "resumed state hash differs from the uninterrupted run"
 
-# The other commands (an outside-in probe, 7 Dec): each refuses before it works.
+# The other commands: each refuses before it works.
 cat > "$work/bigpreview.json" <<'JSON'
 {"name": "big", "mesh": {"patch": {"size": [0.4, 0.4], "resolution": [8, 8]}}, "cloth": {"source": "static"},
  "outputs": {"preview": {"width": 8192, "height": 8192, "supersampling": 1}}}

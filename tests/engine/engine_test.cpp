@@ -295,10 +295,10 @@ TEST(EngineTest, AStaticSurfaceResumesItsStillShortcutAndSavesTheSameBytes) {
 
 // A cloth accelerating rigidly at a is, for the liquid on it, a still cloth
 // under gravity g − a: the same stain to rounding, from the first step on.
-// The first step took p(−h) = p(0) − h v(0), so its centred acceleration was
-// a / 2: the liquid landing at t = 0 missed half a kick, a difference of
-// 1.5e-2 of the peak density at h = 0.01 that never decayed (an outside-in
-// probe). The rigid motion now gives its exact p(−h).
+// With p(−h) = p(0) − h v(0) the first step's centred acceleration would be
+// a / 2: the liquid landing at t = 0 would miss half a kick, a difference of
+// 1.5e-2 of the peak density at h = 0.01 that never decays. The rigid motion
+// gives its exact p(−h).
 TEST(EngineTest, AnAcceleratingClothIsAStillOneUnderShiftedGravityFromTheFirstStep) {
   const Eigen::Vector3d a(2.0, 1.5, -4.0), g(0.0, 0.0, -9.8);
   EngineDef accelerating = rotatingPatch(16);

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 8: a numerical failure stops `blot run` with exit code 3, a message
+# A numerical failure stops `blot run` with exit code 3, a message
 # naming the stage, the internal step and the vertex, and where the last good
 # frame is; every frame written before it is complete (byte-identical to a
 # run without the fault) and the engine's last good state is saved. The fault

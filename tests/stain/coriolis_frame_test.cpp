@@ -135,7 +135,7 @@ TEST(CoriolisFrame, InertialVelocityIsCarriedUnchanged) {
 
 // The previous split step (exp(−2iω_n h) after advection) fails at ωh = 2;
 // the discrete frame change does not. This is the regression the stability
-// sweep found (docs/accuracy.md). Before the liquid band (issue 14) the split
+// sweep found (docs/accuracy.md). Without the liquid band the split
 // step gained energy (×4.8: dry vertices the film left kept their stale u
 // and fed it back); with the velocity extended from the liquid it instead
 // gathers the film into a few vertices at the centre, and its world velocity

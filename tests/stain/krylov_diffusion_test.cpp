@@ -438,7 +438,7 @@ TEST(KrylovDiffusion, StainStepConservesMassForAThousandSteps) {
               iterations / 1000.0, worst.freeSolvent, worst.freeSolute, lowest);
   // The drop soaks in: once no vertex holds free liquid above the wet
   // threshold, a step moves nothing and solves nothing (419 iterations in
-  // all at 12:50 UTC, 4 Dec 2026).
+  // all when measured).
   EXPECT_GT(iterations, 200) << "the CG path should have run";
   EXPECT_LE(worst.freeSolvent, 1e-12);
   EXPECT_LE(worst.freeSolute, 1e-12);

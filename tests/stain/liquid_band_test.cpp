@@ -1,4 +1,4 @@
-// The liquid band (issue 14): liquid keeps its momentum at the wet front.
+// The liquid band: liquid keeps its momentum at the wet front.
 // A drop on a frictionless incline accelerates at g sin α, a drop launched
 // sideways coasts at its speed (with and without viscosity), liquid at rest
 // in the inertial frame on a rotating disc stays at rest, held regions get
@@ -1264,8 +1264,8 @@ TEST(LiquidBand, IncrementalWetSetEqualsTheFullScan) {
 
 // The incremental wet set's list counts each noted vertex once: the stages
 // note the same band again and again, and only more than #V/8 distinct
-// vertices make the next update scan every vertex (before stop 53, noting a
-// list of 15 of 160 vertices twice did).
+// vertices make the next update scan every vertex (counting each noting, a
+// list of 15 of 160 vertices noted twice would).
 TEST(LiquidBand, NotedListsCountEachVertexOnce) {
   const int n = 160;
   LiquidBand band;

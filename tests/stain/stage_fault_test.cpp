@@ -280,8 +280,8 @@ bool sameTier(const IntrinsicGeometry& a, const IntrinsicGeometry& b) {
 // bit, as any failed step: SurfaceGeometry kept the old tier), and the solver
 // then goes on bitwise as one that never took the failed step (the tables
 // stamped with the abandoned tier's rebuild count forgotten, M + hL
-// reassembled). Until stop 36 the new tier was kept and the densities
-// rescaled to it: the mass stayed, the bits did not, and a collapsed face
+// reassembled). Keeping the new tier and rescaling the densities to it
+// would not do: the mass stayed, the bits did not, and a collapsed face
 // made every density NaN (docs/reliability.md, finding 10). Both with the
 // automatic choice and with direct solves (whose factors are of M + hL as
 // assembled, not of the tier).
@@ -370,11 +370,12 @@ TEST(StageFault, ARebuildOnACollapsedFaceFailsAtGeometryAndKeepsTheTier) {
 // three corners moved onto the next; then the solver goes on bitwise as a
 // twin that never took the failed step, along a moving surface.
 // - Anisotropic: laying the weft out in a face with a zero-length edge threw
-//   std::invalid_argument out of the step (before stop 48), the geometry
-//   half rebuilt.
+//   std::invalid_argument out of the step, the geometry half rebuilt (the
+//   regression this guards).
 // - Both: the rebuild had released M + hL and restoreBackup did not assemble
 //   it again, so the restarted solver took its next step for a first step
-//   (u in the frames at t) and drifted from the twin (before stop 48).
+//   (u in the frames at t) and drifted from the twin (the regression this
+//   guards).
 TEST(StageFault, ARebuildOnACollapsedFaceGoesOnAsIfTheStepNeverRan) {
   const Scene scene;
   for (const bool anisotropic : {false, true}) {
@@ -556,7 +557,7 @@ TEST(StageFault, ABandRestrictedStepIsRolledBackToTheBit) {
 // The rollback point lists the vertices a step changes until they pass a
 // quarter of the mesh, counted once each: the stages list the same band again
 // and again, and a band of 15 % of the mesh noted eight times is still a list
-// (before stop 53, the second time made it a full copy). Restore gives back
+// (counting each noting, the second time would make it a full copy). Restore gives back
 // exactly the listed vertices.
 TEST(StageFault, TheRollbackListCountsEachVertexOnce) {
   const int n = 100;

@@ -271,7 +271,7 @@ TEST(StepTerms, HeldRegionOnADryClothRunsSources) {
   region.vertices = {cloth.vertexCount() / 2};
   region.solventDensity = 0.5;
   solver.addHeldRegion(region);
-  // Held regions are topped up before the forces (issue 14): the liquid they
+  // Held regions are topped up before the forces: the liquid they
   // add is wet in the same step and transported with it.
   ASSERT_EQ(solver.step(0.01, cloth.mesh.vertexPositions).status, StepStatus::Ok);
   EXPECT_TRUE(solver.profile().ran(StepTerm::Sources));

@@ -740,9 +740,9 @@ TEST(SurfaceGeometry, PartialRefreshKeepsTheOperatorInvariants) {
 // A partial refresh that throws (an anisotropic face collapsed: its weft has
 // no plane to be laid out in) leaves no vertex marked. After the undo the
 // next refresh, a bump far from that face, re-measures and re-assembles what
-// a twin that never failed does: the same tier and the same counts (before
-// stop 50 the failed refresh's marks stayed set, and the next refresh
-// re-assembled around those vertices too).
+// a twin that never failed does: the same tier and the same counts (a failed
+// refresh's marks left set would make the next refresh re-assemble around
+// those vertices too).
 TEST(SurfaceGeometry, APartialRefreshThatThrowsLeavesNothingMarked) {
   const TriangleMesh mesh = wavySheet();
   const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));

@@ -1,6 +1,6 @@
 // Study (label "study", skipped by CI): what the strain tolerance of the
-// intrinsic rebuild costs in accuracy and saves in time (issue 15, "metric
-// refresh that costs what changed"; docs/accuracy.md, "Strain tolerance").
+// intrinsic rebuild costs in accuracy and saves in time ("a metric refresh
+// that costs what changed"; docs/accuracy.md, "Strain tolerance").
 //
 // The two-way flag (assets/scenes/two_way_flag.json) and the tablecloth
 // (assets/scenes/tablecloth.json), both Bullet cloth two-way coupled with a

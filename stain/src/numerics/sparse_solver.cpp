@@ -323,8 +323,7 @@ struct CholeskySolver<Scalar>::Impl : cholmod_detail::SolverCore {
   std::vector<Scalar> solveWork;  // 2n: simplicialSolve for up to two right-hand sides (sized at factorize)
   // L's row indices as 16 bits (filled at factorize where every index fits;
   // empty otherwise). The back substitution reads every entry of L once a
-  // solve and is bound by those reads (docs/performance.md, "Stop 48"):
-  // 10 bytes an entry instead of 12.
+  // solve and is bound by those reads: 10 bytes an entry instead of 12.
   std::vector<std::uint16_t> shortRows;
   bool shortRowsAllowed = true;  // setShortRowIndices
 

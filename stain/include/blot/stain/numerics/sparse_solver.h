@@ -85,7 +85,7 @@ class CholeskySolver {
   long factorNonZeros() const;
   /// Whether the simplicial solves read L's row indices as 16 bits (the
   /// default, where n ≤ 65,536: 2 bytes less read per entry, the same bits;
-  /// docs/performance.md, "Stop 49"). Off: CHOLMOD's own 32-bit indices, for
+  /// the back substitution is bound by those reads). Off: CHOLMOD's own 32-bit indices, for
   /// the benchmark and the test that compare the two. Takes effect at the next
   /// factorize.
   void setShortRowIndices(bool on);

@@ -39,9 +39,9 @@
 // only shortens the hold at one thread to kFirstHold), starting out as after
 // a hold at one thread: on a busy machine a probe's four steps at `most` can
 // all be lucky, and a hold at `most` that is slower costs far more than one
-// at one thread. (Until 4 Dec 2026 one probe decided starting out: on the
-// game loop's flag with both cores busy, a lucky first probe held two threads
-// for 32 steps of 4-43 ms per frame against 2-9 at one thread.) On a quiet
+// at one thread. (With one probe deciding at the start, on the game loop's
+// flag with both cores busy, a lucky first probe held two threads for 32
+// steps of 4-43 ms per frame against 2-9 at one thread.) On a quiet
 // machine this delays two threads by kFirstHold + kProbeSteps steps.
 //
 // The winner then runs for a hold of kFirstHold steps,

@@ -61,7 +61,7 @@ inline constexpr int kMaxIterations = 100;
 inline constexpr int kKrylovChunkRows = 1024;
 /// Active rows from which those chunks run on OpenMP threads (below, one
 /// thread does them in the same order: three fork/joins per iteration cost
-/// more than the loops; measured in docs/performance.md, "Threads").
+/// more than the loops, measured).
 inline constexpr int kKrylovParallelRows = 16384;
 /// Partial sums stored per chunk (DiffusionScratch::krylovPartials).
 inline constexpr int kKrylovPartialsPerChunk = 10;
