@@ -283,7 +283,7 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   velocityScratch_.prepare(topology);
   densityScratch_.resize(n, topology.edgeCount(), topology.faceCount());
   band_.resize(n, static_cast<int>(topology.ringNeighbors().size()));
-  filmAccelerations_ = ComplexVector::Zero(n);
+  filmScratch_.resize(n);
   interactionScratch_.reserve(static_cast<size_t>(n));
   diffusedPastReach_.reserve(static_cast<size_t>(n));
   momentumScratch_.resize(n, static_cast<int>(topology.ringNeighbors().size()));
@@ -649,7 +649,7 @@ void StainSolver::prepareBand() {
   // joins the speed bound (on top of the tangential g − p̈ already there).
   if (on.filmPressure)
     inputs.filmAcceleration = filmAccelerations(ctx_, geometry_.topology(), geometry_.extrinsic(), state_,
-                                                band_.wetMask, band_.vertices, filmAccelerations_);
+                                                band_.wetMask, band_.vertices, filmScratch_);
   growLiquidBand(inputs, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), band_, state_, &geometry_);
   if (on.velocityDiffusion && !velocityByFactor_ && systems_.solverChoice() == DiffusionSolverChoice::Auto &&
       velocityCostOnBand(systems_, band_.interiorCount) >
@@ -978,8 +978,8 @@ StepReport StainSolver::runStages() {
   filmContext.invH = 1.0 / filmContext.h;
   const StepContext& sub = filmSteps > 1 ? filmContext : ctx;
   for (int s = 0; s < filmSteps; ++s) {
-    if (!runStage(Stage::FilmPressure, on.filmPressure, report, [&] { if (s > 0) filmAccelerations(sub, topology, extrinsic, state_, band_.wetMask, band_.vertices, filmAccelerations_);
-                                                                       applyFilmPotential(sub, filmAccelerations_, band_.wetMask, band_.vertices, state_);
+    if (!runStage(Stage::FilmPressure, on.filmPressure, report, [&] { if (s > 0) filmAccelerations(sub, topology, extrinsic, state_, band_.wetMask, band_.vertices, filmScratch_);
+                                                                       applyFilmPotential(sub, filmScratch_, band_.wetMask, band_.vertices, state_);
                                                                        profile_.markRan(StepTerm::FilmPressure); }) ||
         !runStage(Stage::FilmFriction, on.filmFriction, report, [&] { profile_.frictionDissipation += applyFilmFriction(sub, intrinsic.vertexDualAreas, band_.wetMask, band_.vertices, state_);
                                                                        profile_.markRan(StepTerm::FilmFriction); }))

@@ -76,15 +76,30 @@ bool isFilmVertex(const StainState& state, const std::vector<char>& wet, int i) 
   return wet[static_cast<size_t>(i)] == LiquidBand::kHoldsLiquid && state.solvent[i] + state.solute[i] > 0.0;
 }
 
+void FilmScratch::resize(int vertexCount) {
+  accelerations = ComplexVector::Zero(vertexCount);
+  heads = Vector::Zero(vertexCount);
+}
+
 double filmAccelerations(const StepContext& ctx, const SurfaceTopology& topology, const ExtrinsicGeometry& geometry,
                          const StainState& state, const std::vector<char>& wet, const std::vector<int>& vertices,
-                         ComplexVector& accelerations) {
+                         FilmScratch& scratch) {
   const Triangles& faces = topology.faces();
   const std::vector<int>& offsets = topology.ringOffsets();
   const std::vector<int>& ringFaces = topology.ringFaces();
   const std::vector<signed char>& ringCorners = topology.ringCorners();
   const RowVectors3& p = geometry.positions;
   const int count = static_cast<int>(vertices.size());
+  ComplexVector& accelerations = scratch.accelerations;
+  Vector& heads = scratch.heads;
+  // g_n H of every film vertex once (each is read from up to six faces).
+  threads::runLoop(count >= kMinParallelVertices, [&] {
+#pragma omp for schedule(static)
+    for (int v = 0; v < count; ++v) {
+      const int i = vertices[static_cast<size_t>(v)];
+      if (isFilmVertex(state, wet, i)) heads[i] = normalGravity(ctx, geometry, i) * filmThickness(state, i, ctx.liquid);
+    }
+  });
   double largest = 0.0;
   threads::runLoop(count >= kMinParallelVertices, [&] {
     double mine = 0.0;  // this thread's largest |a| (max: the same in any order)
@@ -101,11 +116,11 @@ double filmAccelerations(const StepContext& ctx, const SurfaceTopology& topology
       // cloth accelerating rigidly is a film on a still one under g − p̈.
       const Vector3 g = effectiveGravity(ctx, geometry, i);
       const Vector3 xi = p.row(i).transpose();
-      const double pressureI = normalGravity(ctx, geometry, i) * filmThickness(state, i, ctx.liquid);
+      const double pressureI = heads[i];
       const auto difference = [&](int j) {
         const double height = -g.dot(p.row(j).transpose() - xi);
         if (!isFilmVertex(state, wet, j)) return std::min(height - pressureI, 0.0);
-        return height + normalGravity(ctx, geometry, j) * filmThickness(state, j, ctx.liquid) - pressureI;
+        return height + heads[j] - pressureI;
       };
       Vector3 weightedGradient = Vector3::Zero();  // Σ_T A_T ∇φ*_T (m³/s²)
       double area = 0.0;
@@ -138,11 +153,11 @@ double filmAccelerations(const StepContext& ctx, const SurfaceTopology& topology
   return largest;
 }
 
-void applyFilmPotential(const StepContext& ctx, const ComplexVector& accelerations, const std::vector<char>& wet,
+void applyFilmPotential(const StepContext& ctx, const FilmScratch& scratch, const std::vector<char>& wet,
                         const std::vector<int>& vertices, StainState& state) {
   const double h = ctx.h;
   for (const int i : vertices)
-    if (isFilmVertex(state, wet, i)) state.velocities[i] += h * accelerations[i];
+    if (isFilmVertex(state, wet, i)) state.velocities[i] += h * scratch.accelerations[i];
 }
 
 double applyFilmFriction(const StepContext& ctx, const Vector& areas, const std::vector<char>& wet,

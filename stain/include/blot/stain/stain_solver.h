@@ -402,7 +402,7 @@ class StainSolver {
   /// processes them with the reach set (marked in it while it runs).
   std::vector<int> diffusedPastReach_;
   DiffusiveMomentumScratch momentumScratch_;  // carryMomentumWithDiffusion's
-  ComplexVector filmAccelerations_;  // #V: −∇φ* on the film vertices (filmAccelerations), this step's
+  FilmScratch filmScratch_;  // #V: −∇φ* and g_n H on the film vertices (filmAccelerations), this step's
   RowVectors3 surfaceVelocityScratch_;  // addDrop: surfaceVelocity of every vertex
   bool surfaceMoved_ = false;           // this step's surface moved (refreshGeometry)
   Vector areaScratch_;

@@ -45,8 +45,15 @@ double filmDragRate(double thickness, const LiquidParameters& liquid);
 /// vertices whose frames the step prepared).
 bool isFilmVertex(const StainState& state, const std::vector<char>& wet, int i);
 
+/// The film stages' per-vertex arrays, sized once (#V; no allocation in a step).
+struct FilmScratch {
+  ComplexVector accelerations;  ///< a_i = −∇φ* in F_i's tangent axes (m/s²)
+  Vector heads;                 ///< g_n H at the film vertices (m²/s²)
+  void resize(int vertexCount);
+};
+
 /// a_i = −∇φ* at each film vertex i of `vertices` (others: 0), in F_i's
-/// tangent axes (m/s²), written to `accelerations` (#V, entries of other
+/// tangent axes (m/s²), written to scratch.accelerations (#V, entries of other
 /// vertices untouched). ∇φ* is the area-weighted mean of the P1 gradients on
 /// i's faces, each written with differences φ*_j − φ_i, so a level pool (φ
 /// equal at every vertex of i's faces) gives exactly 0. On i's ring the
@@ -60,10 +67,10 @@ bool isFilmVertex(const StainState& state, const std::vector<char>& wet, int i);
 /// and, when linear inertia acts, vertexAccelerations. Returns max |a_i|.
 double filmAccelerations(const StepContext& ctx, const SurfaceTopology& topology, const ExtrinsicGeometry& geometry,
                          const StainState& state, const std::vector<char>& wet, const std::vector<int>& vertices,
-                         ComplexVector& accelerations);
+                         FilmScratch& scratch);
 
 /// u_i += h a_i at the film vertices of `vertices` (a from filmAccelerations).
-void applyFilmPotential(const StepContext& ctx, const ComplexVector& accelerations, const std::vector<char>& wet,
+void applyFilmPotential(const StepContext& ctx, const FilmScratch& scratch, const std::vector<char>& wet,
                         const std::vector<int>& vertices, StainState& state);
 
 /// u_i ← u_i / (1 + h k(H_i)) at the film vertices of `vertices`: backward
