@@ -1,10 +1,8 @@
 // The SO(3) rotation fits: Kabsch by SVD, Newton on SO(3), and the batch
-// fit in SIMD lanes that SurfaceGeometry's vertex frames call.
+// fit in SIMD lanes behind SurfaceGeometry's vertex frames.
 //
 // Design note: docs/design-notes.md, "stain/src/geometry/surface_geometry.cpp".
 #include <blot/stain/geometry/rotation_fit.h>
-
-#include <blot/stain/geometry/surface_geometry.h>
 
 #include <Eigen/SVD>
 
@@ -299,15 +297,15 @@ RotationFit fitRotation(const Matrix3& covariance, const Eigen::Quaterniond& ini
   return fit;
 }
 
-void SurfaceGeometry::fitSlots(SlotFit* jobs, int count, FitCounts& counts) const {
-  const std::vector<Matrix3>& restFrames = dynamic_.extrinsic.restFrames;
+void fitRotations(RotationFitJob* jobs, int count, const std::vector<Matrix3>& restFrames, RotationFitMethod method,
+                  RotationFitStats& counts) {
   // The slot's normal once its frame is written: n / |n| (unit), or, where a
   // fully folded fan has none, the fitted frame's.
-  const auto setNormal = [](SlotFit& job, const double (&unit)[3]) {
+  const auto setNormal = [](RotationFitJob& job, const double (&unit)[3]) {
     for (int c = 0; c < 3; ++c)
       (*job.normals)(job.vertex, c) = job.normalSquared > 0.0 ? unit[c] : (*job.frame)(c, 2);
   };
-  const auto finish = [&](SlotFit& job, const Eigen::Quaterniond& q, const Matrix3& U) {
+  const auto finish = [&](RotationFitJob& job, const Eigen::Quaterniond& q, const Matrix3& U) {
     *job.rotation = q;
     *job.fit = U;
     job.frame->noalias() = U * restFrames[static_cast<size_t>(job.vertex)];
@@ -317,9 +315,9 @@ void SurfaceGeometry::fitSlots(SlotFit* jobs, int count, FitCounts& counts) cons
       for (int c = 0; c < 3; ++c) unit[c] = job.normal(c) * inverse;
     }
     setNormal(job, unit);
-    ++counts.fitted;
+    ++counts.fittedVertices;
   };
-  if (rotationFitMethod_ == RotationFitMethod::Svd) {
+  if (method == RotationFitMethod::Svd) {
     for (int k = 0; k < count; ++k) {
       const Matrix3 U = rotationFromCovariance(jobs[k].covariance);
       finish(jobs[k], Eigen::Quaterniond(U), U);
@@ -331,7 +329,7 @@ void SurfaceGeometry::fitSlots(SlotFit* jobs, int count, FitCounts& counts) cons
     FitInputs in[kFitLanes];
     const Matrix3* C[kFitLanes];
     for (int l = 0; l < kFitLanes; ++l) {
-      const SlotFit& job = jobs[start + std::min(l, used - 1)];
+      const RotationFitJob& job = jobs[start + std::min(l, used - 1)];
       in[l] = {&job.normal, job.normalSquared, &job.edge, &restFrames[static_cast<size_t>(job.vertex)]};
       C[l] = &job.covariance;
     }
@@ -352,10 +350,10 @@ void SurfaceGeometry::fitSlots(SlotFit* jobs, int count, FitCounts& counts) cons
       lanes::store(frame[e], frameOf[e]);
     }
     for (int l = 0; l < used; ++l) {
-      SlotFit& job = jobs[start + l];
-      counts.iterations += iterations[l];
+      RotationFitJob& job = jobs[start + l];
+      counts.newtonIterations += iterations[l];
       if (status[l] != LaneStatus::Converged) {
-        ++counts.fallbacks;
+        ++counts.svdFallbacks;
         const Matrix3 fitted = rotationFromCovariance(job.covariance);
         finish(job, Eigen::Quaterniond(fitted), fitted);
         continue;
@@ -368,7 +366,7 @@ void SurfaceGeometry::fitSlots(SlotFit* jobs, int count, FitCounts& counts) cons
           (*job.frame)(r, c) = frameOf[3 * r + c][l];
         }
       setNormal(job, {unitNormal[0][l], unitNormal[1][l], unitNormal[2][l]});
-      ++counts.fitted;
+      ++counts.fittedVertices;
     }
   }
 }

@@ -293,7 +293,7 @@ void SurfaceGeometry::measureStrain() {
 SurfaceGeometry::DynamicState SurfaceGeometry::dynamicState() const {
   DynamicState d = dynamic_;
   const int n = topology_->vertexCount();
-  FitCounts counts;
+  RotationFitStats counts;
   int ids[kPrepareGroup];
   bool currentValid[kPrepareGroup];
   int stale = 0;

@@ -8,7 +8,7 @@
 namespace blot::stain::detail {
 
 // Vertices prepared together (prepareGroup): their fits, up to two each,
-// fill the lanes of fitSlots.
+// fill the lanes of fitRotations.
 constexpr int kPrepareGroup = 4;
 // Below this many vertices a refresh takes a few microseconds and waking a
 // second thread costs more than it saves (and much more on a loaded machine).

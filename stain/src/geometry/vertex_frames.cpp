@@ -38,7 +38,7 @@ void SurfaceGeometry::evaluateSlot(const SlotRule& rule, int i, Eigen::Quaternio
   normals.row(i) = frame.col(2).transpose();
 }
 
-void SurfaceGeometry::sampleSlot(const RowVectors3& positions, int i, SlotFit& job) const {
+void SurfaceGeometry::sampleSlot(const RowVectors3& positions, int i, RotationFitJob& job) const {
   const SurfaceTopology& topology = *topology_;
   const std::vector<int>& offsets = topology.ringOffsets();
   const std::vector<int>& neighbors = topology.ringNeighbors();
@@ -78,9 +78,9 @@ void SurfaceGeometry::sampleSlot(const RowVectors3& positions, int i, SlotFit& j
 }
 
 void SurfaceGeometry::prepareGroup(DynamicState& d, const int* vertices, const bool* currentValid, int count,
-                                   FitCounts& counts) const {
+                                   RotationFitStats& counts) const {
   ExtrinsicGeometry& ex = d.extrinsic;
-  SlotFit jobs[2 * kPrepareGroup];
+  RotationFitJob jobs[2 * kPrepareGroup];
   Matrix3 unused[kPrepareGroup];
   int jobCount = 0;
   // A slot's values: fitted in the lanes below, or from its rule.
@@ -90,7 +90,7 @@ void SurfaceGeometry::prepareGroup(DynamicState& d, const int* vertices, const b
       evaluateSlot(rule, i, rotation, frame, normals, fit);
       return;
     }
-    SlotFit& job = jobs[jobCount++];
+    RotationFitJob& job = jobs[jobCount++];
     sampleSlot(positions, i, job);
     job.rotation = &rotation;
     job.frame = &frame;
@@ -108,7 +108,7 @@ void SurfaceGeometry::prepareGroup(DynamicState& d, const int* vertices, const b
       slot(nextRule_, ex.nextPositions, i, d.nextRotations[k], ex.nextFrames[k], d.nextNormals,
            ex.kabschRotations[k]);
   }
-  fitSlots(jobs, jobCount, counts);
+  fitRotations(jobs, jobCount, dynamic_.extrinsic.restFrames, rotationFitMethod_, counts);
   for (int g = 0; g < count; ++g) finishVertex(d, vertices[g]);
 }
 
@@ -142,14 +142,14 @@ void SurfaceGeometry::finishVertex(DynamicState& d, int i) const {
   }
 }
 
-void SurfaceGeometry::addCounts(const FitCounts& counts) {
-  rotationFitStats_.fittedVertices += counts.fitted;
-  rotationFitStats_.newtonIterations += counts.iterations;
-  rotationFitStats_.svdFallbacks += counts.fallbacks;
+void SurfaceGeometry::addCounts(const RotationFitStats& counts) {
+  rotationFitStats_.fittedVertices += counts.fittedVertices;
+  rotationFitStats_.newtonIterations += counts.newtonIterations;
+  rotationFitStats_.svdFallbacks += counts.svdFallbacks;
 }
 
 template <typename VertexAt>
-int SurfaceGeometry::prepareEach(int count, const VertexAt& vertexAt, FitCounts& total) {
+int SurfaceGeometry::prepareEach(int count, const VertexAt& vertexAt, RotationFitStats& total) {
   // Groups of kPrepareGroup list positions, the stale vertices of each fitted
   // together (prepareGroup), on the calling thread's OpenMP threads from
   // kMinParallelVertices on (threads::runLoop). A vertex's values depend on
@@ -158,7 +158,7 @@ int SurfaceGeometry::prepareEach(int count, const VertexAt& vertexAt, FitCounts&
   int prepared = 0;
   const int groups = (count + kPrepareGroup - 1) / kPrepareGroup;
   threads::runLoop(count >= kMinParallelVertices, [&] {
-    FitCounts here;
+    RotationFitStats here;
     int preparedHere = 0;
 #pragma omp for schedule(static) nowait
     for (int group = 0; group < groups; ++group) {
@@ -180,9 +180,9 @@ int SurfaceGeometry::prepareEach(int count, const VertexAt& vertexAt, FitCounts&
     }
 #pragma omp critical(blot_threads_combine)
     {
-      total.fitted += here.fitted;
-      total.fallbacks += here.fallbacks;
-      total.iterations += here.iterations;
+      total.fittedVertices += here.fittedVertices;
+      total.svdFallbacks += here.svdFallbacks;
+      total.newtonIterations += here.newtonIterations;
       prepared += preparedHere;
     }
   });
@@ -201,7 +201,7 @@ void SurfaceGeometry::prepareVertices(const int* vertices, int count) {
   // and the parallel loop never sees a repeat (two threads would write one
   // vertex). A list longer than #V has repeats: it goes in windows of #V ids,
   // one after the other.
-  FitCounts total;
+  RotationFitStats total;
   for (int start = 0; start < count; start += n) {
     const int window = std::min(n, count - start);
     prepareOrder_.assign(vertices + start, vertices + start + window);  // capacity #V: no allocation
@@ -214,7 +214,7 @@ void SurfaceGeometry::prepareVertices(const int* vertices, int count) {
 }
 
 void SurfaceGeometry::prepareAllVertices() {
-  FitCounts total;
+  RotationFitStats total;
   preparedCount_ += prepareEach(topology_->vertexCount(), [](int i) { return i; }, total);
   addCounts(total);
 }

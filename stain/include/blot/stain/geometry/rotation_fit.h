@@ -4,6 +4,8 @@
 /// Newton's method on SO(3) with the SVD as fallback.
 #include <blot/stain/types.h>
 
+#include <vector>
+
 namespace blot::stain {
 
 /// How refreshExtrinsic fits the per-vertex rotations U_i.
@@ -45,5 +47,31 @@ struct RotationFit {
 /// guess within ~0.1 rad converges in 1–3 iterations to rounding; falls back to
 /// the SVD when it does not converge. Allocates nothing.
 RotationFit fitRotation(const Matrix3& covariance, const Eigen::Quaterniond& initialGuess);
+
+/// One vertex's rotation fit in a batch (fitRotations): what the fit reads,
+/// the sums over the vertex's one-ring at one time slot, and where its values
+/// go.
+struct RotationFitJob {
+  int vertex = 0;            ///< its id: restFrames[vertex] is read, row `vertex` of *normals written
+  Matrix3 covariance;        ///< Σ_j (p_j − p_i)(p̄_j − p̄_i)ᵀ over the ring (m²)
+  Vector3 normal;            ///< Σ of the ring's face cross products (unnormalised, m²)
+  double normalSquared = 0;  ///< |normal|²
+  Vector3 edge;              ///< to the first ring neighbour (m)
+  Eigen::Quaterniond* rotation = nullptr;  ///< out: U as a unit quaternion
+  Matrix3* frame = nullptr;                ///< out: the frame U F̄
+  RowVectors3* normals = nullptr;          ///< out: row `vertex`, normal / |normal| (the frame's z where it is 0)
+  Matrix3* fit = nullptr;                  ///< out: U
+};
+
+/// Fits jobs[0, count): U from each job's covariance by `method`
+/// (WarmStartedNewton: Newton from the rotation of the rest frame F̄ =
+/// restFrames[vertex] onto the frame of the job's normal and edge, four fits
+/// at a time in SIMD lanes, the SVD where Newton fails; Svd: the SVD), then
+/// writes U, the frame U F̄ and the unit normal through the job's pointers.
+/// Adds to `counts` the fits, Newton iterations and SVD fallbacks. A job's
+/// values depend on its own inputs only (not on its lane, its companions or
+/// the batch). restFrames: #V 3x3 frames. Allocates nothing.
+void fitRotations(RotationFitJob* jobs, int count, const std::vector<Matrix3>& restFrames, RotationFitMethod method,
+                  RotationFitStats& counts);
 
 }  // namespace blot::stain

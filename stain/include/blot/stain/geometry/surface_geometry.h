@@ -417,40 +417,22 @@ class SurfaceGeometry {
     bool shared = false;    // U^t one rotation for every vertex: one rotation vector
     Vector3 sharedAxis = Vector3::Zero();
   };
-  struct FitCounts {
-    int fitted = 0;
-    long iterations = 0;
-    int fallbacks = 0;
-  };
   // One slot's values of vertex i from a Rest or Rigid rule.
   void evaluateSlot(const SlotRule& rule, int i, Eigen::Quaterniond& rotation, Matrix3& frame, RowVectors3& normals,
                     Matrix3& fit) const;
-  // A Fitted slot of one vertex: what its fit reads (sampleSlot) and where
-  // its values go (fitSlots).
-  struct SlotFit {
-    int vertex = 0;
-    Matrix3 covariance;  // Σ_j (p_j − p_i)(p̄_j − p̄_i)ᵀ over the ring
-    Vector3 normal;      // Σ of the ring's face cross products (unnormalised)
-    double normalSquared = 0;
-    Vector3 edge;        // to the first ring neighbour
-    Eigen::Quaterniond* rotation = nullptr;
-    Matrix3* frame = nullptr;
-    RowVectors3* normals = nullptr;
-    Matrix3* fit = nullptr;
-  };
-  void sampleSlot(const RowVectors3& positions, int i, SlotFit& job) const;
-  // The fits of `count` slots, in lanes; their values written.
-  void fitSlots(SlotFit* jobs, int count, FitCounts& counts) const;
+  // What the fit of a Fitted slot of vertex i reads, from `positions` (the
+  // job's outputs are left to the caller; fitRotations fits it).
+  void sampleSlot(const RowVectors3& positions, int i, RotationFitJob& job) const;
   // This refresh's values of count (≤ kPrepareGroup) vertices into d;
   // currentValid[g]: d's t slot of vertices[g] is up to date.
   void prepareGroup(DynamicState& d, const int* vertices, const bool* currentValid, int count,
-                    FitCounts& counts) const;
+                    RotationFitStats& counts) const;
   // ω_i, p̈_i (and the t + h slot of a still surface) once the slots are in d.
   void finishVertex(DynamicState& d, int i) const;
   // Prepares the stale vertices among vertexAt(k), k in [0, count); returns how many.
   template <typename VertexAt>
-  int prepareEach(int count, const VertexAt& vertexAt, FitCounts& total);
-  void addCounts(const FitCounts& counts);
+  int prepareEach(int count, const VertexAt& vertexAt, RotationFitStats& total);
+  void addCounts(const RotationFitStats& counts);
 
   const SurfaceTopology* topology_;
   RowVectors3 restPositions_;
