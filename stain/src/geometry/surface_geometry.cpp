@@ -5,7 +5,6 @@
 #include <blot/stain/geometry/surface_geometry.h>
 
 #include <blot/stain/geometry/extrinsic_geometry.h>
-#include <blot/stain/geometry/intrinsic_geometry.h>
 #include <blot/stain/geometry/operators.h>
 
 #include <algorithm>
