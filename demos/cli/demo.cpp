@@ -13,6 +13,7 @@
 #include <blot/engine/output_options.h>
 #include <blot/engine/scene.h>
 #include <blot/engine/stain_color.h>
+#include <blot/stain/io/strict_json.h>
 
 #include <nlohmann/json.hpp>
 
@@ -192,7 +193,7 @@ int runDemo(const DemoOptions& options) {
       {"mass_budget_kg", engine::massBudgetJson(s.massBudget)},
       {"frames", frames},
       {"contact_sheet", sheetPath}};
-  std::cout << summary.dump(2) << "\n";
+  std::cout << stain::dumpJson(summary, 2) << "\n";
   std::cerr << "blot demo: wrote " << sheetPath << " and " << options.frames + 1 << " PLY frames in "
             << options.outputDirectory << "\n";
   return 0;

@@ -25,6 +25,7 @@
 #include <blot/engine/scene.h>
 #include <blot/stain/io/atomic_file.h>
 #include <blot/stain/thread_limit.h>
+#include <blot/stain/io/strict_json.h>
 
 #include <nlohmann/json.hpp>
 #include <omp.h>
@@ -94,7 +95,7 @@ std::string defaultScene(const std::string& file) { return findAsset("assets/sce
 /// ofstream wrote nothing into a folder named summary.json, exit 0, and hung
 /// on a named pipe there).
 void writeSummary(const std::string& directory, const nlohmann::json& summary) {
-  const std::string text = summary.dump(2) + "\n";
+  const std::string text = stain::dumpJson(summary, 2) + "\n";
   stain::writeFileAtomically((std::filesystem::path(directory) / "summary.json").string(), text.data(), text.size());
 }
 
@@ -164,7 +165,7 @@ int runFig5(const FigureOptions& o) {
                                   {"legend", "red: liquid centre of mass (world frame); blue: free particle"},
                                   {"png", png}};
   writeSummary(directory, summary);
-  std::cout << summary.dump(2) << "\n";
+  std::cout << stain::dumpJson(summary, 2) << "\n";
   return 0;
 }
 
@@ -226,7 +227,7 @@ int runParameterGrid(const FigureOptions& o) {
   const nlohmann::json summary = {{"scene", scenePath}, {"kind", o.kind}, {"frames", frames}, {"cells", cells},
                                   {"png", png}};
   writeSummary(directory, summary);
-  std::cout << summary.dump(2) << "\n";
+  std::cout << stain::dumpJson(summary, 2) << "\n";
   return 0;
 }
 

@@ -22,6 +22,7 @@
 
 #include <blot/stain/fabric/homogenization.h>
 #include <blot/stain/fabric/weave_pattern.h>
+#include <blot/stain/io/strict_json.h>
 
 #include <nlohmann/json.hpp>
 
@@ -57,7 +58,7 @@ void printObject(const Json& object) {
   std::cout << "{\n";
   size_t i = 0;
   for (const auto& [key, value] : object.items())
-    std::cout << "  " << Json(key).dump() << ": " << value.dump() << (++i < object.size() ? ",\n" : "\n");
+    std::cout << "  " << Json(key).dump() << ": " << stain::dumpJson(value) << (++i < object.size() ? ",\n" : "\n");
   std::cout << "}\n";
 }
 
@@ -72,7 +73,7 @@ int runHomogenize(const HomogenizeOptions& options) {
     Json presets = Json::array();
     for (const stain::WeavePreset& preset : stain::weavePresets())
       presets.push_back({{"name", preset.name}, {"description", preset.description}, {"cells", preset.cells}});
-    std::cout << presets.dump(2) << "\n";
+    std::cout << stain::dumpJson(presets, 2) << "\n";
     return 0;
   }
   if (options.patternPath.empty() == options.preset.empty()) {

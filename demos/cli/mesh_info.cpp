@@ -18,6 +18,7 @@
 #include <blot/stain/geometry/mesh_order.h>
 #include <blot/stain/io/mesh_io.h>
 #include <blot/stain/geometry/surface_topology.h>
+#include <blot/stain/io/strict_json.h>
 
 #include <nlohmann/json.hpp>
 
@@ -199,7 +200,7 @@ int runMeshInfo(const MeshInfoOptions& options) {
       renderPreview(options, mesh);
       summary["render"] = options.renderPath;
     }
-    std::cout << summary.dump(2) << "\n";
+    std::cout << stain::dumpJson(summary, 2) << "\n";
     return 0;
   } catch (const std::exception& error) {
     std::cerr << "blot mesh-info: error: " << error.what() << "\n";

@@ -158,7 +158,7 @@ void writeCheckpoint(const engine::Engine& engine, const std::filesystem::path& 
                                  {"file_hash", hexHash(fileHash)},
                                  {"scene_hash", hexHash(sceneHash)},
                                  {"record_hash", hexHash(recordHash(frame, stateFile, stateHash, fileHash, sceneHash))}};
-  const std::string text = record.dump(2) + "\n";
+  const std::string text = stain::dumpJson(record, 2) + "\n";
   stain::writeFileAtomically((directory / "checkpoint.json").string(), text.data(), text.size());
   if (!previousStateFile.empty() && previousStateFile != stateFile) {
     std::error_code ignored;
@@ -519,7 +519,7 @@ int runScene(const RunOptions& options) {
                                    {"state_hash", hexHash(engine->stateHash())},
                                    {"last_good_state", statePath},
                                    {"outputs", {{"directory", directory}, {"ply", plyPaths}, {"summary", summaryPath}}}};
-    const std::string text = failed.dump(2) + "\n";
+    const std::string text = stain::dumpJson(failed, 2) + "\n";
     try {
       stain::writeFileAtomically(summaryPath, text.data(), text.size());
     } catch (const std::exception& e) {
@@ -627,7 +627,7 @@ int runScene(const RunOptions& options) {
                    {"images", exporter->files().images}, {"videos", exporter->files().videos},
                    {"textures", exporter->files().colorTextures}, {"density_maps", exporter->files().densityMaps},
                    {"gltf", exporter->files().gltf}}}};
-  const std::string summaryText = summary.dump(2) + "\n";
+  const std::string summaryText = stain::dumpJson(summary, 2) + "\n";
   stain::writeFileAtomically(summaryPath, summaryText.data(), summaryText.size());  // every write checked
   std::cout << summaryText;
   return 0;

@@ -3,6 +3,7 @@
 // and time steps, drops and held regions, and a replay of the fuzz seed
 // corpora. Every case checks that the error names the problem (what was
 // expected) and where it is (file and key/row/column, field, vertex).
+#include <blot/stain/io/bounded_read.h>
 #include <blot/stain/io/mesh_io.h>
 #include <blot/stain/geometry/mesh_primitives.h>
 #include <blot/stain/stain_solver.h>
@@ -10,7 +11,9 @@
 #include <blot/stain/fabric/weave_pattern.h>
 
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -442,6 +445,33 @@ TEST(BadMesh, EndlessStreamIsRefusedByTheByteBudget) {
     expectMentions(error.what(), {big.string() + ": file is 1073741825 bytes, more than the limit of 1073741824 bytes"});
   }
   fs::remove(big);
+}
+
+/// Peak resident memory of this process so far (bytes).
+long long peakResidentBytes() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return static_cast<long long>(usage.ru_maxrss) * 1024;  // kilobytes on Linux
+}
+
+// An .obj that leads to an endless device is refused at the stream budget,
+// naming the file and the limit, after holding at most that budget (with the
+// buffer's doubling), not the 1 GiB a regular mesh file may have.
+TEST(BadMesh, ObjLinkedToDevZeroIsRefusedAtTheStreamBudget) {
+  const fs::path link = fs::temp_directory_path() / ("blot_zero_" + std::to_string(::getpid()) + ".obj");
+  fs::remove(link);
+  fs::create_symlink("/dev/zero", link);
+  const long long before = peakResidentBytes();
+  try {
+    loadMesh(link.string());
+    ADD_FAILURE() << "accepted";
+  } catch (const MeshError& error) {
+    expectMentions(error.what(), {link.string() + ": file has more than the limit of " +
+                                  std::to_string(kMeshStreamByteLimit) + " bytes (not a regular file"});
+  }
+  const long long grown = peakResidentBytes() - before;
+  EXPECT_LT(grown, static_cast<long long>(3 * kMeshStreamByteLimit)) << grown << " bytes more at the peak";
+  fs::remove(link);
 }
 
 }  // namespace

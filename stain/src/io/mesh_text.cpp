@@ -92,7 +92,7 @@ bool parseInteger(string_view token, long long& value) {
 
 std::string readFile(const std::string& path) {
   try {
-    return readFileBounded(path, kMeshFileByteLimit, "file");
+    return readFileBounded(path, kMeshFileByteLimit, "file", kMeshStreamByteLimit);
   } catch (const FileReadError& e) {
     throw MeshError(e.what());
   }

@@ -7,6 +7,7 @@
 // open object.
 #include <blot/stain/io/strict_json.h>
 
+#include <cmath>
 #include <set>
 #include <vector>
 
@@ -105,6 +106,37 @@ void appendBrief(const nlohmann::json& value, std::size_t maxChars, int depth, s
 }
 
 }  // namespace
+
+namespace {
+
+bool hasNonFiniteNumber(const nlohmann::json& value) {
+  if (value.is_number_float()) return !std::isfinite(value.get<double>());
+  if (value.is_array() || value.is_object()) {
+    for (const nlohmann::json& element : value)
+      if (hasNonFiniteNumber(element)) return true;
+  }
+  return false;
+}
+
+void nameNonFiniteNumbers(nlohmann::json& value) {
+  if (value.is_number_float()) {
+    const double number = value.get<double>();
+    if (std::isnan(number)) value = "NaN";
+    else if (std::isinf(number)) value = number > 0 ? "Infinity" : "-Infinity";
+  } else if (value.is_array() || value.is_object()) {
+    for (nlohmann::json& element : value) nameNonFiniteNumbers(element);
+  }
+}
+
+}  // namespace
+
+std::string dumpJson(const nlohmann::json& value, int indent) {
+  // The outputs are small and almost always finite: copied only when needed.
+  if (!hasNonFiniteNumber(value)) return value.dump(indent);
+  nlohmann::json named = value;
+  nameNonFiniteNumbers(named);
+  return named.dump(indent);
+}
 
 std::string briefJson(const nlohmann::json& value, std::size_t maxChars) {
   std::string text;

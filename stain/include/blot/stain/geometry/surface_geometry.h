@@ -12,7 +12,9 @@
 ///
 /// Values change only in SurfaceGeometry::refresh*(), called once per step by
 /// the step's "refresh geometry" stage; every other stage reads them const.
+#include <blot/stain/fabric/fabric_field.h>
 #include <blot/stain/geometry/operators.h>
+#include <blot/stain/geometry/rotation_fit.h>
 #include <blot/stain/geometry/surface_topology.h>
 #include <blot/stain/geometry/transport.h>
 #include <blot/stain/types.h>
@@ -21,20 +23,6 @@
 #include <vector>
 
 namespace blot::stain {
-
-/// Per-face fabric: tensors in the fabric basis (s_ww, s_wp, s_pp) and weft
-/// directions (operators.h). One set for the densities (S_f), one for the
-/// velocity (S_v).
-struct FabricField {
-  Eigen::MatrixX3d densityTensors;   ///< #F by 3 (m²/s), S_f
-  Eigen::MatrixX3d velocityTensors;  ///< #F by 3 (m²/s), S_v
-  RowVectors3 weftDirections;        ///< #F by 3, in the rest shape
-};
-
-/// The same isotropic tensors on every face: densityDiffusivity·I for the
-/// densities, viscosity·I for the velocity (m²/s); weft directions zero
-/// (isotropic faces ignore the weft, see operators.h). faceCount >= 1.
-FabricField isotropicFabricField(int faceCount, double densityDiffusivity, double viscosity);
 
 struct IntrinsicGeometry {
   Vector edgeLengths;                   ///< #E (m), at the last rebuild
@@ -229,21 +217,6 @@ inline constexpr double kPartialRefreshMaxShare = 0.25;
 void intrinsicGeometryFromLengths(const SurfaceTopology& topology, const Vector& edgeLengths,
                                   const Eigen::MatrixX3d& densityTensors, const Eigen::MatrixX3d& velocityTensors,
                                   const Eigen::MatrixX2d& faceWeftCoefficients, IntrinsicGeometry& geometry);
-
-/// How refreshExtrinsic fits the per-vertex rotations U_i.
-enum class RotationFitMethod {
-  WarmStartedNewton,  ///< default: Newton on SO(3) from the rotation of the vertex's normal and
-                      ///< reference edge (a guess that depends on this slot's positions only), SVD fallback
-  Svd                 ///< exact 3x3 SVD at every vertex (the reference; several times slower)
-};
-
-/// Counters of the rotation fits since the last refreshExtrinsic (for profiles
-/// and tests): in VertexRefresh::OnDemand, the fits of the vertices prepared so far.
-struct RotationFitStats {
-  int fittedVertices = 0;      ///< vertices whose U_i was fitted (0 when the mesh did not move)
-  long newtonIterations = 0;   ///< total Newton iterations over those vertices
-  int svdFallbacks = 0;        ///< vertices where Newton did not converge and SVD decided
-};
 
 /// Which vertices a refresh computes the per-vertex extrinsic values of
 /// (normals, U_i, frames at t and t + h, p̈_i, ω_i).
@@ -444,40 +417,22 @@ class SurfaceGeometry {
     bool shared = false;    // U^t one rotation for every vertex: one rotation vector
     Vector3 sharedAxis = Vector3::Zero();
   };
-  struct FitCounts {
-    int fitted = 0;
-    long iterations = 0;
-    int fallbacks = 0;
-  };
   // One slot's values of vertex i from a Rest or Rigid rule.
   void evaluateSlot(const SlotRule& rule, int i, Eigen::Quaterniond& rotation, Matrix3& frame, RowVectors3& normals,
                     Matrix3& fit) const;
-  // A Fitted slot of one vertex: what its fit reads (sampleSlot) and where
-  // its values go (fitSlots).
-  struct SlotFit {
-    int vertex = 0;
-    Matrix3 covariance;  // Σ_j (p_j − p_i)(p̄_j − p̄_i)ᵀ over the ring
-    Vector3 normal;      // Σ of the ring's face cross products (unnormalised)
-    double normalSquared = 0;
-    Vector3 edge;        // to the first ring neighbour
-    Eigen::Quaterniond* rotation = nullptr;
-    Matrix3* frame = nullptr;
-    RowVectors3* normals = nullptr;
-    Matrix3* fit = nullptr;
-  };
-  void sampleSlot(const RowVectors3& positions, int i, SlotFit& job) const;
-  // The fits of `count` slots, in lanes; their values written.
-  void fitSlots(SlotFit* jobs, int count, FitCounts& counts) const;
+  // What the fit of a Fitted slot of vertex i reads, from `positions` (the
+  // job's outputs are left to the caller; fitRotations fits it).
+  void sampleSlot(const RowVectors3& positions, int i, RotationFitJob& job) const;
   // This refresh's values of count (≤ kPrepareGroup) vertices into d;
   // currentValid[g]: d's t slot of vertices[g] is up to date.
   void prepareGroup(DynamicState& d, const int* vertices, const bool* currentValid, int count,
-                    FitCounts& counts) const;
+                    RotationFitStats& counts) const;
   // ω_i, p̈_i (and the t + h slot of a still surface) once the slots are in d.
   void finishVertex(DynamicState& d, int i) const;
   // Prepares the stale vertices among vertexAt(k), k in [0, count); returns how many.
   template <typename VertexAt>
-  int prepareEach(int count, const VertexAt& vertexAt, FitCounts& total);
-  void addCounts(const FitCounts& counts);
+  int prepareEach(int count, const VertexAt& vertexAt, RotationFitStats& total);
+  void addCounts(const RotationFitStats& counts);
 
   const SurfaceTopology* topology_;
   RowVectors3 restPositions_;
@@ -561,30 +516,5 @@ class SurfaceGeometry {
   // mesh that never deforms does not hold it.
   OneRingEntries faceEntries_;
 };
-
-/// Best rotation (Kabsch, via SVD of the 3x3 covariance) taking the rest
-/// one-ring edge vectors (v̄_j − v̄_i) onto the current ones (v_j − v_i), with
-/// the reflection case handled (det = +1). restEdges, currentEdges: k by 3.
-Matrix3 kabschRotation(const Eigen::Ref<const Eigen::MatrixX3d>& restEdges,
-                       const Eigen::Ref<const Eigen::MatrixX3d>& currentEdges);
-
-/// R = argmax over SO(3) of tr(Rᵀ C), C = Σ_j (v_j − v_i)(v̄_j − v̄_i)ᵀ the 3x3
-/// covariance of current times rest edge vectors, through the SVD of C
-/// (det-corrected). What kabschRotation computes, from the covariance.
-Matrix3 rotationFromCovariance(const Matrix3& covariance);
-
-/// Result of fitRotation.
-struct RotationFit {
-  Eigen::Quaterniond rotation;  ///< unit quaternion of R
-  int iterations = 0;           ///< Newton iterations taken
-  bool usedSvd = false;         ///< Newton did not converge (or its Hessian was not
-                                ///< positive definite); rotationFromCovariance decided
-};
-
-/// The same maximiser as rotationFromCovariance, by Newton's method on SO(3)
-/// started at `initialGuess` (unit quaternion): quadratic convergence, so a
-/// guess within ~0.1 rad converges in 1–3 iterations to rounding; falls back to
-/// the SVD when it does not converge. Allocates nothing.
-RotationFit fitRotation(const Matrix3& covariance, const Eigen::Quaterniond& initialGuess);
 
 }  // namespace blot::stain

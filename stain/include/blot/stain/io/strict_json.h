@@ -24,4 +24,11 @@ nlohmann::json parseStrictJson(const std::string& text);
 /// more than a few levels deep: safe for error messages on any value.
 std::string briefJson(const nlohmann::json& value, std::size_t maxChars = 48);
 
+/// The JSON text of every JSON file and report blot writes: value.dump(indent),
+/// except that a number that is not finite, which nlohmann writes as `null`,
+/// is written as the string "NaN", "Infinity" or "-Infinity" (what Python's
+/// float() and JavaScript's Number() read back). So no output holds `null`,
+/// `NaN` or `Infinity` where a number belongs.
+std::string dumpJson(const nlohmann::json& value, int indent = -1);
+
 }  // namespace blot::stain
