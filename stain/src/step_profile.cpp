@@ -8,9 +8,11 @@
 namespace blot::stain {
 namespace {
 
-constexpr const char* kStageNames[kStageCount] = {
+constexpr const char* kStageNames[] = {
     "guard",    "drops",           "cloth",    "geometry",       "sources", "liquid-band", "forces",  "film-pressure",
     "advect-velocity", "coriolis", "advect-density", "diffuse", "interact", "validate",    "coupling"};
+// Every output names stages through stageName.
+static_assert(sizeof(kStageNames) / sizeof(kStageNames[0]) == kStageCount, "one name per Stage, in Stage order");
 
 }  // namespace
 
