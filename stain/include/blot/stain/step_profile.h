@@ -80,6 +80,9 @@ static_assert(1u << (kStepTermCount - 1) == static_cast<unsigned>(StepTerm::Syst
 
 /// Short name of one term ("gravity", "density-diffusion-krylov", ...).
 const char* stepTermName(StepTerm term);
+/// The stage's name with '_' for '-' ("advect_velocity"): its key in JSON and
+/// Python dicts.
+std::string stageKey(Stage stage);
 /// The stage a term belongs to.
 Stage stageOf(StepTerm term);
 
