@@ -31,35 +31,40 @@
 // added to blot.h without its line here, fails the static_asserts below.
 namespace blot::engine::c_struct_copy {
 
+// A C member that holds the listed field of the same name.
+#define BLOT_SAME_NAME(name) v.member(#name, c.name)
+
 template <class Visitor>
 constexpr void cMembers(blotMassBudget& c, Visitor& v) {
-  v.member("freeSolvent", c.freeSolvent);
-  v.member("absorbedSolvent", c.absorbedSolvent);
-  v.member("evaporatedSolvent", c.evaporatedSolvent);
-  v.member("addedSolvent", c.addedSolvent);
-  v.member("freeSolute", c.freeSolute);
-  v.member("absorbedSolute", c.absorbedSolute);
-  v.member("adsorbedSolute", c.adsorbedSolute);
-  v.member("addedSolute", c.addedSolute);
-  v.member("solventError", c.solventError);
-  v.member("soluteError", c.soluteError);
+  BLOT_SAME_NAME(freeSolvent);
+  BLOT_SAME_NAME(absorbedSolvent);
+  BLOT_SAME_NAME(evaporatedSolvent);
+  BLOT_SAME_NAME(addedSolvent);
+  BLOT_SAME_NAME(freeSolute);
+  BLOT_SAME_NAME(absorbedSolute);
+  BLOT_SAME_NAME(adsorbedSolute);
+  BLOT_SAME_NAME(addedSolute);
+  BLOT_SAME_NAME(solventError);
+  BLOT_SAME_NAME(soluteError);
 }
 
 template <class Visitor>
 constexpr void cMembers(blotStatistics& c, Visitor& v) {
-  v.member("steps", c.steps);
-  v.member("time", c.time);
-  v.member("droppedTime", c.droppedTime);
-  v.member("dropsApplied", c.dropsApplied);
-  v.member("intrinsicRefreshes", c.intrinsicRefreshes);
-  v.member("wallSeconds", c.wallSeconds);
-  v.member("stepsPerSecond", c.stepsPerSecond);
+  BLOT_SAME_NAME(steps);
+  BLOT_SAME_NAME(time);
+  BLOT_SAME_NAME(droppedTime);
+  BLOT_SAME_NAME(dropsApplied);
+  BLOT_SAME_NAME(intrinsicRefreshes);
+  BLOT_SAME_NAME(wallSeconds);
+  BLOT_SAME_NAME(stepsPerSecond);
   v.member("lastTimes.total", c.lastStepMilliseconds);
   v.member("lastTimes.cloth", c.lastClothMilliseconds);
   v.member("lastTimes.stain", c.lastStainMilliseconds);
   v.member("lastTimes.coupling", c.lastCouplingMilliseconds);
   v.nested("massBudget", c.massBudget);
 }
+
+#undef BLOT_SAME_NAME
 
 static_assert(cStructMirrors<stain::MassBudget, blotMassBudget>(),
               "blotMassBudget and MassBudget::fields disagree: give each listed field its member in blot.h and in "

@@ -81,6 +81,18 @@ struct OutputField {
     f.role = role_;
     return f;
   }
+  /// A part of `group_`'s total, shown as `label_`, under keyInGroup in JSON.
+  constexpr OutputField partOf(const char* group_, const char* keyInGroup, const char* label_) const {
+    return inGroup(group_, keyInGroup).as(FieldRole::Part).labelled(label_);
+  }
+  /// The total of `group_` (the parts' sum), under keyInGroup in JSON.
+  constexpr OutputField totalOf(const char* group_, const char* keyInGroup) const {
+    return inGroup(group_, keyInGroup).as(FieldRole::Total);
+  }
+  /// The relative error of `group_`'s balance, under keyInGroup in JSON.
+  constexpr OutputField errorOf(const char* group_, const char* keyInGroup) const {
+    return inGroup(group_, keyInGroup).as(FieldRole::Error);
+  }
   /// Kept out of the outputs in `targets` (OutputTarget bits).
   constexpr OutputField notIn(unsigned targets_) const {
     OutputField f = *this;

@@ -116,29 +116,21 @@ struct MassBudget {
   template <class Visitor> void visit(Visitor& v) const { fields(*this, v); }
   template <class Self, class Visitor>
   static constexpr void fields(Self& s, Visitor& v) {
-    constexpr FieldRole part = FieldRole::Part, total = FieldRole::Total, error = FieldRole::Error;
-    v.field(outputField("freeSolvent", "free_solvent", "kg")
-                .labelled("free solvent").inGroup("solvent", "free").as(part),
-            s.freeSolvent);
-    v.field(outputField("absorbedSolvent", "absorbed_solvent", "kg")
-                .labelled("absorbed solvent").inGroup("solvent", "absorbed").as(part),
+    v.field(outputField("freeSolvent", "free_solvent", "kg").partOf("solvent", "free", "free solvent"), s.freeSolvent);
+    v.field(outputField("absorbedSolvent", "absorbed_solvent", "kg").partOf("solvent", "absorbed", "absorbed solvent"),
             s.absorbedSolvent);
-    v.field(outputField("evaporatedSolvent", "evaporated_solvent", "kg")
-                .labelled("evaporated").inGroup("solvent", "evaporated").as(part),
+    v.field(outputField("evaporatedSolvent", "evaporated_solvent", "kg").partOf("solvent", "evaporated", "evaporated"),
             s.evaporatedSolvent);
-    v.field(outputField("addedSolvent", "added_solvent", "kg").inGroup("solvent", "added").as(total), s.addedSolvent);
-    v.field(outputField("freeSolute", "free_solute", "kg").labelled("free solute").inGroup("solute", "free").as(part),
-            s.freeSolute);
-    v.field(outputField("absorbedSolute", "absorbed_solute", "kg")
-                .labelled("absorbed solute").inGroup("solute", "absorbed").as(part),
+    v.field(outputField("addedSolvent", "added_solvent", "kg").totalOf("solvent", "added"), s.addedSolvent);
+    v.field(outputField("freeSolute", "free_solute", "kg").partOf("solute", "free", "free solute"), s.freeSolute);
+    v.field(outputField("absorbedSolute", "absorbed_solute", "kg").partOf("solute", "absorbed", "absorbed solute"),
             s.absorbedSolute);
-    v.field(outputField("adsorbedSolute", "adsorbed_solute", "kg")
-                .labelled("adsorbed solute").inGroup("solute", "adsorbed").as(part),
+    v.field(outputField("adsorbedSolute", "adsorbed_solute", "kg").partOf("solute", "adsorbed", "adsorbed solute"),
             s.adsorbedSolute);
-    v.field(outputField("addedSolute", "added_solute", "kg").inGroup("solute", "added").as(total), s.addedSolute);
-    v.computed(outputField("solventError", "solvent_error").inGroup("solvent", "relative_error").as(error),
+    v.field(outputField("addedSolute", "added_solute", "kg").totalOf("solute", "added"), s.addedSolute);
+    v.computed(outputField("solventError", "solvent_error").errorOf("solvent", "relative_error"),
                [&s] { return s.solventError(); });
-    v.computed(outputField("soluteError", "solute_error").inGroup("solute", "relative_error").as(error),
+    v.computed(outputField("soluteError", "solute_error").errorOf("solute", "relative_error"),
                [&s] { return s.soluteError(); });
   }
 };
