@@ -120,15 +120,35 @@ constexpr OutputField outputField(const char* name, const char* key, const char*
 
 namespace output_detail {
 
+constexpr bool sameText(const char* a, const char* b) {
+  while (*a != '\0' && *a == *b) ++a, ++b;
+  return *a == *b;
+}
+
 /// Counts the members a list names (field, record, perStage, perTerm; not
-/// computed values).
+/// computed values) and checks that no two lines share a name or a key.
 struct MemberCounter {
+  static constexpr int kCapacity = 64;
   int count = 0;
-  template <class T> constexpr void field(const OutputField&, T&) { ++count; }
-  template <class F> constexpr void computed(const OutputField&, F&&) {}
-  template <class R> constexpr void record(const OutputField&, R&) { ++count; }
-  template <class A, class S> constexpr void perStage(const OutputField&, A&, S, S) { ++count; }
-  template <class A> constexpr void perTerm(const OutputField&, A&) { ++count; }
+  int lines = 0;
+  bool unique = true;
+  OutputField fields[kCapacity] = {};
+
+  constexpr void line(const OutputField& f, bool member) {
+    if (member) ++count;
+    if (lines >= kCapacity) {
+      unique = false;
+      return;
+    }
+    for (int k = 0; k < lines; ++k)
+      if (sameText(fields[k].name, f.name) || sameText(fields[k].key, f.key)) unique = false;
+    fields[lines++] = f;
+  }
+  template <class T> constexpr void field(const OutputField& f, T&) { line(f, true); }
+  template <class F> constexpr void computed(const OutputField& f, F&&) { line(f, false); }
+  template <class R> constexpr void record(const OutputField& f, R&) { line(f, true); }
+  template <class A, class S> constexpr void perStage(const OutputField& f, A&, S, S) { line(f, true); }
+  template <class A> constexpr void perTerm(const OutputField& f, A&) { line(f, true); }
 };
 
 /// Converts to any member type, to count an aggregate's members.
@@ -156,15 +176,16 @@ constexpr std::size_t aggregateMemberCount() {
 
 }  // namespace output_detail
 
-/// True when Record's fields() names as many members as Record has: a member
-/// added to the struct without a line in its list fails the static_assert
-/// beside the list.
+/// True when Record's fields() names as many members as Record has, and no
+/// two of its lines share a name or a key: a member added to the struct
+/// without a line in its list (or a line copied without renaming) fails the
+/// static_assert beside the list.
 template <class Record>
 constexpr bool describesEveryMember() {
   Record record{};
   output_detail::MemberCounter counter;
   Record::fields(record, counter);
-  return static_cast<std::size_t>(counter.count) == output_detail::aggregateMemberCount<Record>();
+  return counter.unique && static_cast<std::size_t>(counter.count) == output_detail::aggregateMemberCount<Record>();
 }
 
 }  // namespace blot::stain
