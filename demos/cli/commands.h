@@ -12,14 +12,10 @@
 
 namespace blot::cli {
 
-/// Mean stain-stage times per step (ms), one key per stain stage (Geometry to
-/// Interact) named by stain::stageName with '_' for '-' after `prefix`
-/// ("geometry", "forces", "film_pressure", "advect_velocity", "coriolis", ...).
-nlohmann::json stageTimesJson(const std::array<double, stain::kStageCount>& milliseconds, double steps,
-                              const std::string& prefix);
 /// Mean milliseconds per internal step since the engine was built: the stain
-/// stages ("stain_geometry", ... as stageTimesJson) and "cloth", "stain",
-/// "coupling", "total".
+/// stages ("stain_geometry", "stain_forces", "stain_advect_velocity", ...) and
+/// "cloth", "stain", "coupling", "total" (engine::statisticsJson's
+/// "mean_ms_per_step").
 nlohmann::json meanTimesJson(const engine::EngineStatistics& statistics);
 
 void registerMeshInfoCommand(CLI::App& app, int& exitCode);

@@ -283,38 +283,10 @@ nlohmann::json termsJson(const engine::EngineDef& d) {
           {"two_way_coupling", d.coupling == coupling::CouplingMode::TwoWay}};
 }
 
-/// Internal steps in which each term of the stain step ran (terms that never
-/// ran are left out), e.g. {"gravity": 240, "density-diffusion-krylov": 238}.
-nlohmann::json termStepsJson(const engine::EngineStatistics& s) {
-  nlohmann::json ran = nlohmann::json::object();
-  for (int k = 0; k < stain::kStepTermCount; ++k)
-    if (s.totals.termSteps[static_cast<size_t>(k)] > 0)
-      ran[stain::stepTermName(static_cast<stain::StepTerm>(1u << k))] = s.totals.termSteps[static_cast<size_t>(k)];
-  return ran;
-}
-
 }  // namespace
 
-nlohmann::json stageTimesJson(const std::array<double, stain::kStageCount>& milliseconds, double steps,
-                              const std::string& prefix) {
-  nlohmann::json times = nlohmann::json::object();
-  for (int k = static_cast<int>(stain::kFirstStainStage); k <= static_cast<int>(stain::kLastStainStage); ++k) {
-    std::string key = prefix + stain::stageName(static_cast<stain::Stage>(k));
-    std::replace(key.begin(), key.end(), '-', '_');
-    times[key] = milliseconds[static_cast<size_t>(k)] / steps;
-  }
-  return times;
-}
-
 nlohmann::json meanTimesJson(const engine::EngineStatistics& s) {
-  const double n = s.steps > 0 ? static_cast<double>(s.steps) : 1.0;
-  const engine::PhaseTotals& t = s.totals;
-  nlohmann::json times = stageTimesJson(t.stageMilliseconds, n, "stain_");
-  times["cloth"] = t.cloth / n;
-  times["stain"] = t.stain / n;
-  times["coupling"] = t.coupling / n;
-  times["total"] = t.total / n;
-  return times;
+  return engine::statisticsJson(s)["mean_ms_per_step"];
 }
 
 namespace {
@@ -598,7 +570,7 @@ int runScene(const RunOptions& options) {
 
   const engine::EngineStatistics s = engine->statistics();
   const engine::EngineDef& d = scene.engine;
-  const nlohmann::json summary = {
+  nlohmann::json summary = {
       {"scene", options.scenePath},
       {"name", scene.name},
       {"status", "ok"},
@@ -611,22 +583,16 @@ int runScene(const RunOptions& options) {
       {"adaptive_threads", engine->adaptiveThreads()},
       {"time_step_s", d.timeStep},
       {"frames", frames},
-      {"steps", s.steps},
-      {"simulated_time_s", s.time},
       {"wall_time_s", wall},
-      {"steps_per_second", s.stepsPerSecond},
-      {"mean_ms_per_step", meanTimesJson(s)},
-      {"intrinsic_refreshes", s.intrinsicRefreshes},
-      {"drops_applied", s.dropsApplied},
       {"state_hash", hexHash(engine->stateHash())},
       {"terms", termsJson(d)},
-      {"terms_ran_steps", termStepsJson(s)},
+      {"terms_ran_steps", engine::termCountsJson(s.totals.termSteps)},  // the internal steps each term ran in
       {"last_step_terms", stain::describeTerms(s.lastProfile)},
-      {"mass_budget_kg", engine::massBudgetJson(s.massBudget)},
       {"outputs", {{"directory", directory}, {"ply", plyPaths}, {"preview", previewPath}, {"preview_rest_shape", restPreviewPath}, {"summary", summaryPath},
                    {"images", exporter->files().images}, {"videos", exporter->files().videos},
                    {"textures", exporter->files().colorTextures}, {"density_maps", exporter->files().densityMaps},
                    {"gltf", exporter->files().gltf}}}};
+  summary.update(engine::statisticsJson(s));  // steps, simulated_time_s, mean_ms_per_step, mass_budget_kg, ...
   const std::string summaryText = stain::dumpJson(summary, 2) + "\n";
   stain::writeFileAtomically(summaryPath, summaryText.data(), summaryText.size());  // every write checked
   std::cout << summaryText;

@@ -19,6 +19,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <memory>
 #include <sstream>
@@ -238,6 +239,72 @@ Options parseOptions(int argc, char** argv) {
   }
   return o;
 }
+
+/// The rows of the panel's "last step (ms)" bars, in order.
+enum class PanelRow { Hidden, Cloth, Geometry, Forces, Advection, Diffusion, Interaction, Coupling, Unplaced };
+constexpr int kPanelRows = static_cast<int>(PanelRow::Unplaced);
+constexpr const char* kPanelRowLabels[kPanelRows] = {"",          "cloth",     "geometry",    "forces",
+                                                     "advection", "diffusion", "interaction", "coupling"};
+
+/// The row a stage's time adds to (Hidden: not shown). Every Stage has its
+/// case: a new stage is placed here or the static_assert below fails.
+constexpr PanelRow panelRow(blot::stain::Stage stage) {
+  using blot::stain::Stage;
+  switch (stage) {
+    case Stage::Guard:
+    case Stage::Drops:
+    case Stage::Sources:
+    case Stage::LiquidBand:
+    case Stage::Validate: return PanelRow::Hidden;
+    case Stage::Cloth: return PanelRow::Cloth;
+    case Stage::Geometry: return PanelRow::Geometry;
+    case Stage::BodyForces:
+    case Stage::FilmPressure:
+    case Stage::FilmFriction:
+    case Stage::Coriolis: return PanelRow::Forces;
+    case Stage::AdvectVelocity:
+    case Stage::AdvectDensity: return PanelRow::Advection;
+    case Stage::Diffuse: return PanelRow::Diffusion;
+    case Stage::Interact: return PanelRow::Interaction;
+    case Stage::Coupling: return PanelRow::Coupling;
+  }
+  return PanelRow::Unplaced;
+}
+constexpr bool everyStageHasARow() {
+  for (int k = 0; k < blot::stain::kStageCount; ++k)
+    if (panelRow(static_cast<blot::stain::Stage>(k)) == PanelRow::Unplaced) return false;
+  return true;
+}
+static_assert(everyStageHasARow(), "place the new Stage in panelRow (a row of the panel, or Hidden)");
+
+/// The last internal step's time of a stage (ms): the coupled step times the
+/// cloth and the coupling (EngineStatistics::lastTimes), the stain solver the
+/// others (StepProfile).
+double lastStageTime(const blot::engine::EngineStatistics& s, blot::stain::Stage stage) {
+  if (stage == blot::stain::Stage::Cloth) return s.lastTimes.cloth;
+  if (stage == blot::stain::Stage::Coupling) return s.lastTimes.coupling;
+  return s.lastProfile.time(stage);
+}
+
+/// The mass budget's values as MassBudget::fields lists them, for its panel.
+struct MassBudgetEntries {
+  struct Entry {
+    blot::stain::OutputField field;
+    double value;
+  };
+  std::vector<Entry> entries;
+  void field(const blot::stain::OutputField& f, double value) { entries.push_back({f, value}); }
+  template <class Get>
+  void computed(const blot::stain::OutputField& f, Get&& get) {
+    entries.push_back({f, get()});
+  }
+  /// The Total of `group` (kg), 0 if it has none.
+  double total(const char* group) const {
+    for (const Entry& e : entries)
+      if (e.field.role == blot::stain::FieldRole::Total && std::strcmp(e.field.group, group) == 0) return e.value;
+    return 0;
+  }
+};
 
 /// Orbit camera around a target: yaw about world z, pitch above the horizon.
 struct OrbitCamera {
@@ -685,29 +752,39 @@ class Viewer {
     }
 
     section("last step (ms)");
-    using blot::stain::Stage;
-    const auto& prof = stats.lastProfile;
-    const auto& parts = stats.lastTimes;  // cloth and coupling are timed by the coupled step
-    const double rows[] = {parts.cloth, prof.time(Stage::Geometry),
-                           prof.time(Stage::BodyForces) + prof.time(Stage::FilmPressure) + prof.time(Stage::Coriolis),
-                           prof.time(Stage::AdvectVelocity) + prof.time(Stage::AdvectDensity), prof.time(Stage::Diffuse),
-                           prof.time(Stage::Interact), parts.coupling};
-    const char* labels[] = {"cloth", "geometry", "forces", "advection", "diffusion", "interaction", "coupling"};
-    const double maxMs = std::max(1e-3, *std::max_element(std::begin(rows), std::end(rows)));
-    for (int k = 0; k < 7; ++k) bar(labels[k], rows[k], maxMs, "ms");
-    ImGui::Text("step total %.2f ms (%.1f steps/s)", parts.total, stats.stepsPerSecond);
+    double rows[kPanelRows] = {};  // each stage's time added to its row, in stage order
+    for (int k = 0; k < blot::stain::kStageCount; ++k) {
+      const auto stage = static_cast<blot::stain::Stage>(k);
+      if (panelRow(stage) != PanelRow::Hidden) rows[static_cast<int>(panelRow(stage))] += lastStageTime(stats, stage);
+    }
+    const double maxMs = std::max(1e-3, *std::max_element(std::begin(rows) + 1, std::end(rows)));
+    for (int k = 1; k < kPanelRows; ++k) bar(kPanelRowLabels[k], rows[k], maxMs, "ms");
+    ImGui::Text("step total %.2f ms (%.1f steps/s)", stats.lastTimes.total, stats.stepsPerSecond);
 
     section("mass budget (g)");
-    const auto& m = stats.massBudget;
-    const double sv = std::max(m.addedSolvent, 1e-30), so = std::max(m.addedSolute, 1e-30);
-    bar("free solvent", 1e3 * m.freeSolvent, 1e3 * sv, "g");
-    bar("absorbed solvent", 1e3 * m.absorbedSolvent, 1e3 * sv, "g");
-    bar("evaporated", 1e3 * m.evaporatedSolvent, 1e3 * sv, "g");
-    bar("free solute", 1e3 * m.freeSolute, 1e3 * so, "g");
-    bar("absorbed solute", 1e3 * m.absorbedSolute, 1e3 * so, "g");
-    bar("adsorbed solute", 1e3 * m.adsorbedSolute, 1e3 * so, "g");
-    ImGui::Text("added %.3g g solvent, %.3g g solute", 1e3 * m.addedSolvent, 1e3 * m.addedSolute);
-    if (m.addedSolvent > 0) ImGui::Text("error %.1e solvent, %.1e solute", m.solventError(), m.soluteError());
+    // MassBudget::fields: each part a bar against its group's total, then the
+    // totals and the relative errors on a line each.
+    MassBudgetEntries m;
+    blot::stain::MassBudget::fields(stats.massBudget, m);
+    for (const auto& e : m.entries)
+      if (e.field.role == blot::stain::FieldRole::Part)
+        bar(e.field.label, 1e3 * e.value, 1e3 * std::max(m.total(e.field.group), 1e-30), "g");
+    std::string added = "added", errors = "error";
+    bool anyAdded = false, firstTotal = true;
+    char text[64];
+    for (const auto& e : m.entries) {
+      if (e.field.role == blot::stain::FieldRole::Total) {
+        std::snprintf(text, sizeof text, "%s %.3g g %s", firstTotal ? "" : ",", 1e3 * e.value, e.field.group);
+        added += text;
+        if (firstTotal) anyAdded = e.value > 0;  // the errors once the first group has some
+        firstTotal = false;
+      } else if (e.field.role == blot::stain::FieldRole::Error) {
+        std::snprintf(text, sizeof text, "%s %.1e %s", errors.size() > 5 ? "," : "", e.value, e.field.group);
+        errors += text;
+      }
+    }
+    ImGui::TextUnformatted(added.c_str());
+    if (anyAdded) ImGui::TextUnformatted(errors.c_str());
 
     section("camera");
     ImGui::TextWrapped("right drag: orbit, wheel: zoom");

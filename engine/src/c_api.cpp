@@ -12,6 +12,8 @@
 #include <blot/engine/scene.h>
 #include <blot/stain/fabric/weave_pattern.h>
 
+#include "c_struct_copy.h"
+
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -23,6 +25,56 @@
 #include <memory>
 #include <string>
 
+// The C output structs' members, each with the listed field it holds
+// (c_struct_copy.h): a field added to MassBudget::fields or
+// EngineStatistics::fields without its member here and in blot.h, or a member
+// added to blot.h without its line here, fails the static_asserts below.
+namespace blot::engine::c_struct_copy {
+
+// A C member that holds the listed field of the same name.
+#define BLOT_SAME_NAME(name) v.member(#name, c.name)
+
+template <class Visitor>
+constexpr void cMembers(blotMassBudget& c, Visitor& v) {
+  BLOT_SAME_NAME(freeSolvent);
+  BLOT_SAME_NAME(absorbedSolvent);
+  BLOT_SAME_NAME(evaporatedSolvent);
+  BLOT_SAME_NAME(addedSolvent);
+  BLOT_SAME_NAME(freeSolute);
+  BLOT_SAME_NAME(absorbedSolute);
+  BLOT_SAME_NAME(adsorbedSolute);
+  BLOT_SAME_NAME(addedSolute);
+  BLOT_SAME_NAME(solventError);
+  BLOT_SAME_NAME(soluteError);
+}
+
+template <class Visitor>
+constexpr void cMembers(blotStatistics& c, Visitor& v) {
+  BLOT_SAME_NAME(steps);
+  BLOT_SAME_NAME(time);
+  BLOT_SAME_NAME(droppedTime);
+  BLOT_SAME_NAME(dropsApplied);
+  BLOT_SAME_NAME(intrinsicRefreshes);
+  BLOT_SAME_NAME(wallSeconds);
+  BLOT_SAME_NAME(stepsPerSecond);
+  v.member("lastTimes.total", c.lastStepMilliseconds);
+  v.member("lastTimes.cloth", c.lastClothMilliseconds);
+  v.member("lastTimes.stain", c.lastStainMilliseconds);
+  v.member("lastTimes.coupling", c.lastCouplingMilliseconds);
+  v.nested("massBudget", c.massBudget);
+}
+
+#undef BLOT_SAME_NAME
+
+static_assert(cStructMirrors<stain::MassBudget, blotMassBudget>(),
+              "blotMassBudget and MassBudget::fields disagree: give each listed field its member in blot.h and in "
+              "cMembers(blotMassBudget&), with the same type");
+static_assert(cStructMirrors<EngineStatistics, blotStatistics>(),
+              "blotStatistics and EngineStatistics::fields disagree: give each field listed for C its member in "
+              "blot.h and in cMembers(blotStatistics&), with the same type (or keep it out: notIn(kCOutput))");
+
+}  // namespace blot::engine::c_struct_copy
+
 struct blotEngine {
   std::unique_ptr<blot::engine::Engine> engine;
   /// The scene's mesh renumbering (SceneDef::meshOrder.vertices; empty: the file's numbering).
@@ -30,6 +82,8 @@ struct blotEngine {
 };
 
 namespace {
+
+using blot::engine::c_struct_copy::copyToC;
 
 thread_local std::string gLastError;
 
@@ -141,21 +195,6 @@ int enumValue(const Enum& value) {
 
 void setVec3(double out[3], const Eigen::Vector3d& v) {
   for (int c = 0; c < 3; ++c) out[c] = v[c];
-}
-
-blotMassBudget toMassBudget(const blot::stain::MassBudget& b) {
-  blotMassBudget out;
-  out.freeSolvent = b.freeSolvent;
-  out.absorbedSolvent = b.absorbedSolvent;
-  out.evaporatedSolvent = b.evaporatedSolvent;
-  out.addedSolvent = b.addedSolvent;
-  out.freeSolute = b.freeSolute;
-  out.absorbedSolute = b.absorbedSolute;
-  out.adsorbedSolute = b.adsorbedSolute;
-  out.addedSolute = b.addedSolute;
-  out.solventError = b.solventError();
-  out.soluteError = b.soluteError();
-  return out;
 }
 
 /// blotEngineDef -> EngineDef; throws std::invalid_argument naming the field
@@ -359,19 +398,7 @@ blotStatus blotEngine_CopyLiquidRelativeVelocities(const blotEngine* engine, flo
 blotStatus blotEngine_GetStatistics(const blotEngine* engine, blotStatistics* out) {
   if (engine == nullptr || out == nullptr) return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_GetStatistics: null argument");
   return guarded("blotEngine_GetStatistics", [&] {
-    const blot::engine::EngineStatistics s = engine->engine->statistics();
-    out->steps = s.steps;
-    out->time = s.time;
-    out->droppedTime = s.droppedTime;
-    out->dropsApplied = s.dropsApplied;
-    out->intrinsicRefreshes = s.intrinsicRefreshes;
-    out->wallSeconds = s.wallSeconds;
-    out->stepsPerSecond = s.stepsPerSecond;
-    out->lastStepMilliseconds = s.lastTimes.total;
-    out->lastClothMilliseconds = s.lastTimes.cloth;
-    out->lastStainMilliseconds = s.lastTimes.stain;
-    out->lastCouplingMilliseconds = s.lastTimes.coupling;
-    out->massBudget = toMassBudget(s.massBudget);
+    copyToC(engine->engine->statistics(), *out);
     return BLOT_OK;
   });
 }
@@ -379,7 +406,7 @@ blotStatus blotEngine_GetStatistics(const blotEngine* engine, blotStatistics* ou
 blotStatus blotEngine_GetMassBudget(const blotEngine* engine, blotMassBudget* out) {
   if (engine == nullptr || out == nullptr) return fail(BLOT_ERROR_INVALID_ARGUMENT, "blotEngine_GetMassBudget: null argument");
   return guarded("blotEngine_GetMassBudget", [&] {
-    *out = toMassBudget(engine->engine->surface().stain().massBudget());
+    copyToC(engine->engine->surface().stain().massBudget(), *out);
     return BLOT_OK;
   });
 }

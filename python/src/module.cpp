@@ -13,6 +13,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -62,73 +63,52 @@ py::array copyOf(const Eigen::MatrixX3i& m) {
   return a;
 }
 
-py::dict massBudgetDict(const blot::stain::MassBudget& b) {
-  py::dict d;
-  d["free_solvent"] = b.freeSolvent;
-  d["absorbed_solvent"] = b.absorbedSolvent;
-  d["evaporated_solvent"] = b.evaporatedSolvent;
-  d["added_solvent"] = b.addedSolvent;
-  d["free_solute"] = b.freeSolute;
-  d["absorbed_solute"] = b.absorbedSolute;
-  d["adsorbed_solute"] = b.adsorbedSolute;
-  d["added_solute"] = b.addedSolute;
-  d["solvent_error"] = b.solventError();
-  d["solute_error"] = b.soluteError();
-  return d;
-}
-
-/// Stage name with '_' for '-' ("advect_velocity"), as `blot run`'s summary.
-std::string stageKey(blot::stain::Stage s) {
-  std::string name = blot::stain::stageName(s);
-  for (char& c : name)
-    if (c == '-') c = '_';
-  return name;
-}
-
-py::dict profileDict(const blot::stain::StepProfile& p) {
-  py::dict ms;
-  for (int k = 0; k < blot::stain::kStageCount; ++k) {
-    const auto s = static_cast<blot::stain::Stage>(k);
-    ms[py::str(stageKey(s))] = p.time(s);
+/// A listed output record (stain/output_fields.h) as a dict: every field
+/// whose line goes to Python, under its key, in the list's order; a nested
+/// record as a dict; a per-stage array as a dict keyed by stain::stageKey; a
+/// per-term array as a dict keyed by stain::stepTermName.
+class PyDictWriter {
+ public:
+  template <class T>
+  void field(const blot::stain::OutputField& f, const T& value) {
+    if (f.goesTo(blot::stain::kPythonOutput)) dict[f.key] = value;
   }
-  py::dict d;
-  d["milliseconds"] = ms;
-  d["total_ms"] = p.total;
-  d["terms"] = blot::stain::describeTerms(p);
-  d["advection_substeps"] = p.advectionSubsteps;
-  d["intrinsic_refreshes"] = p.intrinsicRefreshes;
-  d["factorizations"] = p.factorizations;
-  d["max_edge_strain"] = p.maxEdgeStrain;
-  d["wet_vertices"] = p.wetVertices;
-  d["band_vertices"] = p.bandVertices;
-  d["diffusion_iterations"] = p.diffusionIterations;
-  return d;
-}
-
-py::dict statisticsDict(const blot::engine::EngineStatistics& s) {
-  py::dict d;
-  d["steps"] = s.steps;
-  d["time"] = s.time;
-  d["dropped_time"] = s.droppedTime;
-  d["drops_applied"] = s.dropsApplied;
-  d["wall_seconds"] = s.wallSeconds;
-  d["steps_per_second"] = s.stepsPerSecond;
-  d["intrinsic_refreshes"] = s.intrinsicRefreshes;
-  d["last_profile"] = profileDict(s.lastProfile);
-  d["last_ms"] = py::dict(py::arg("cloth") = s.lastTimes.cloth, py::arg("stain") = s.lastTimes.stain,
-                          py::arg("coupling") = s.lastTimes.coupling, py::arg("total") = s.lastTimes.total);
-  // Sums over every internal step since construction (ms): mean = total / steps.
-  py::dict stages;
-  for (int k = 0; k < blot::stain::kStageCount; ++k) {
-    const auto st = static_cast<blot::stain::Stage>(k);
-    if (st < blot::stain::kFirstStainStage || st > blot::stain::kLastStainStage) continue;
-    stages[py::str(stageKey(st))] = s.totals.stage(st);
+  template <class Get>
+  void computed(const blot::stain::OutputField& f, Get&& get) {
+    if (f.goesTo(blot::stain::kPythonOutput)) dict[f.key] = get();
   }
-  d["total_ms"] = py::dict(py::arg("stages") = stages, py::arg("cloth") = s.totals.cloth,
-                           py::arg("stain") = s.totals.stain, py::arg("coupling") = s.totals.coupling,
-                           py::arg("total") = s.totals.total);
-  d["mass_budget"] = massBudgetDict(s.massBudget);
-  return d;
+  template <class Record>
+  void record(const blot::stain::OutputField& f, const Record& nested) {
+    if (!f.goesTo(blot::stain::kPythonOutput)) return;
+    PyDictWriter inner;
+    Record::fields(nested, inner);
+    dict[f.key] = inner.dict;
+  }
+  void perStage(const blot::stain::OutputField& f, const std::array<double, blot::stain::kStageCount>& values,
+                blot::stain::Stage first, blot::stain::Stage last) {
+    if (!f.goesTo(blot::stain::kPythonOutput)) return;
+    py::dict stages;
+    for (int k = static_cast<int>(first); k <= static_cast<int>(last); ++k)
+      stages[py::str(blot::stain::stageKey(static_cast<blot::stain::Stage>(k)))] = values[static_cast<size_t>(k)];
+    dict[f.key] = stages;
+  }
+  void perTerm(const blot::stain::OutputField& f, const std::array<std::int64_t, blot::stain::kStepTermCount>& counts) {
+    if (!f.goesTo(blot::stain::kPythonOutput)) return;
+    py::dict terms;
+    for (int k = 0; k < blot::stain::kStepTermCount; ++k)
+      terms[py::str(blot::stain::stepTermName(static_cast<blot::stain::StepTerm>(1u << k)))] =
+          counts[static_cast<size_t>(k)];
+    dict[f.key] = terms;
+  }
+
+  py::dict dict;
+};
+
+template <class Record>
+py::dict pythonDict(const Record& record) {
+  PyDictWriter writer;
+  Record::fields(record, writer);
+  return writer.dict;
 }
 
 /// The Python Engine: a blot::Engine and what the bindings keep per engine.
@@ -524,10 +504,10 @@ a step of it runs on another thread raises RuntimeError.
             return a;
           },
           "#V rest-shape lumped vertex areas (m², one third of the one-ring), a copy")
-      .def("statistics", [](PyEngine& w) { return statisticsDict(idle(w, "statistics").statistics()); },
+      .def("statistics", [](PyEngine& w) { return pythonDict(idle(w, "statistics").statistics()); },
            "Counters, timings (last step and sums in ms), the mass budget (kg): a dict")
-      .def("mass_budget", [](PyEngine& w) { return massBudgetDict(idle(w, "mass_budget").statistics().massBudget); })
-      .def("last_profile", [](PyEngine& w) { return profileDict(idle(w, "last_profile").statistics().lastProfile); },
+      .def("mass_budget", [](PyEngine& w) { return pythonDict(idle(w, "mass_budget").statistics().massBudget); })
+      .def("last_profile", [](PyEngine& w) { return pythonDict(idle(w, "last_profile").statistics().lastProfile); },
            "Per-stage times (ms) and counters of the last internal step")
       .def("inject_fault_for_testing",
            [](PyEngine& w, const std::string& stage, int step, int vertex) {

@@ -8,15 +8,24 @@
 namespace blot::stain {
 namespace {
 
-constexpr const char* kStageNames[kStageCount] = {
+constexpr const char* kStageNames[] = {
     "guard",    "drops",           "cloth",    "geometry",       "sources", "liquid-band", "forces",  "film-pressure",
     "film-friction", "advect-velocity", "coriolis", "advect-density", "diffuse", "interact", "validate",    "coupling"};
+// Every output names stages through stageName (and stageKey, made from it).
+static_assert(sizeof(kStageNames) / sizeof(kStageNames[0]) == kStageCount, "one name per Stage, in Stage order");
 
 }  // namespace
 
 const char* stageName(Stage stage) {
   const int k = static_cast<int>(stage);
   return k >= 0 && k < kStageCount ? kStageNames[k] : "unknown";
+}
+
+std::string stageKey(Stage stage) {
+  std::string key = stageName(stage);
+  for (char& c : key)
+    if (c == '-') c = '_';
+  return key;
 }
 
 bool parseStage(const std::string& name, Stage& stage) {

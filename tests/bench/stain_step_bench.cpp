@@ -183,7 +183,7 @@ void stainStep(benchmark::State& bench) {
   bench.counters["threads"] = threads;
   bench.counters["used"] = mean(used);  // threads a step used, mean
   bench.counters["geometry"] = mean(sum.time(Stage::Geometry));
-  bench.counters["forces"] = mean(sum.time(Stage::BodyForces) + sum.time(Stage::FilmPressure) + sum.time(Stage::Coriolis));
+  bench.counters["forces"] = mean(sum.time(Stage::BodyForces) + sum.time(Stage::FilmPressure) + sum.time(Stage::FilmFriction) + sum.time(Stage::Coriolis));
   bench.counters["advectVelocity"] = mean(sum.time(Stage::AdvectVelocity));
   bench.counters["advectDensity"] = mean(sum.time(Stage::AdvectDensity));
   bench.counters["diffuse"] = mean(sum.time(Stage::Diffuse));

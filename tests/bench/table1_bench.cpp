@@ -270,7 +270,7 @@ void BM_Table1(benchmark::State& state) {
     return sum / n;
   };
   using stain::Stage;
-  state.counters["inertia"] = stage({Stage::BodyForces, Stage::FilmPressure, Stage::Coriolis});
+  state.counters["inertia"] = stage({Stage::BodyForces, Stage::FilmPressure, Stage::FilmFriction, Stage::Coriolis});
   state.counters["advection"] = stage({Stage::AdvectVelocity, Stage::AdvectDensity});
   state.counters["diffusion"] = stage({Stage::Diffuse});
   state.counters["interaction"] = stage({Stage::Interact, Stage::Sources});

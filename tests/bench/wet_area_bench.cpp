@@ -180,7 +180,7 @@ void BM_WetArea(benchmark::State& state) {
   state.counters["band_ms"] = sum.time(Stage::LiquidBand) * k;  // includes the band's per-vertex geometry
   state.counters["geometry_vertices"] = geometryVertices * k;
   state.counters["intrinsic_rebuilds"] = rebuilds;
-  state.counters["forces_ms"] = (sum.time(Stage::BodyForces) + sum.time(Stage::FilmPressure) + sum.time(Stage::Coriolis)) * k;
+  state.counters["forces_ms"] = (sum.time(Stage::BodyForces) + sum.time(Stage::FilmPressure) + sum.time(Stage::FilmFriction) + sum.time(Stage::Coriolis)) * k;
   state.counters["advection_ms"] = (sum.time(Stage::AdvectVelocity) + sum.time(Stage::AdvectDensity)) * k;
   state.counters["diffusion_ms"] = sum.time(Stage::Diffuse) * k;
   state.counters["interaction_ms"] = (sum.time(Stage::Interact) + sum.time(Stage::Sources)) * k;

@@ -27,11 +27,10 @@ PlyFrame plyFrame(const Engine& e) {
   return ply;
 }
 
-nlohmann::json massBudgetJson(const stain::MassBudget& b) {
-  return {{"solvent", {{"added", b.addedSolvent}, {"free", b.freeSolvent}, {"absorbed", b.absorbedSolvent},
-                       {"evaporated", b.evaporatedSolvent}, {"relative_error", b.solventError()}}},
-          {"solute", {{"added", b.addedSolute}, {"free", b.freeSolute}, {"absorbed", b.absorbedSolute},
-                      {"adsorbed", b.adsorbedSolute}, {"relative_error", b.soluteError()}}}};
+nlohmann::json massBudgetJson(const stain::MassBudget& budget) { return outputJson(budget); }
+
+nlohmann::json statisticsJson(const EngineStatistics& statistics) {
+  return outputJson(statistics, statistics.steps > 0 ? static_cast<double>(statistics.steps) : 1.0);
 }
 
 RenderSettings previewRenderSettings(const ScenePreview& p) {

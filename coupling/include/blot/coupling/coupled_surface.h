@@ -42,7 +42,19 @@ enum class RelativeMomentum { Dragged, Free };
 /// Wall-clock milliseconds of the last step, per part.
 struct CoupledStepTimes {
   double cloth = 0, stain = 0, coupling = 0, total = 0;
+
+  /// Every field, once (stain/output_fields.h): Python "last_ms", blotStatistics.
+  template <class Visitor> void visit(Visitor& v) const { fields(*this, v); }
+  template <class Self, class Visitor>
+  static constexpr void fields(Self& s, Visitor& v) {
+    v.field(stain::outputField("cloth", "cloth", "ms"), s.cloth);
+    v.field(stain::outputField("stain", "stain", "ms"), s.stain);
+    v.field(stain::outputField("coupling", "coupling", "ms"), s.coupling);
+    v.field(stain::outputField("total", "total", "ms"), s.total);
+  }
 };
+static_assert(stain::describesEveryMember<CoupledStepTimes>(),
+              "CoupledStepTimes changed: list the new field in CoupledStepTimes::fields");
 
 /// Fills the mesh-derived fields of a ClothDef (rest positions, faces, UVs,
 /// edge list, bending pairs, lumped node areas) from a stain mesh, so that

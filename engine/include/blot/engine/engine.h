@@ -141,7 +141,26 @@ struct PhaseTotals {
   /// Per stain::StepTerm bit k: the internal steps in which that term ran
   /// (StepProfile::terms), so a run reports which terms it needed.
   std::array<std::int64_t, stain::kStepTermCount> termSteps{};
+
+  /// Every field, once (stain/output_fields.h): Python "total_ms", JSON
+  /// "mean_ms_per_step" (divided by the steps). The term counts are
+  /// summary.json's "terms_ran_steps" (only the terms that ran).
+  template <class Visitor> void visit(Visitor& v) const { fields(*this, v); }
+  template <class Self, class Visitor>
+  static constexpr void fields(Self& s, Visitor& v) {
+    constexpr unsigned notPythonNorJson = stain::kPythonOutput | stain::kJsonOutput;
+    v.perStage(stain::outputField("stageMilliseconds", "stages", "ms").json("stain_"), s.stageMilliseconds,
+               stain::kFirstStainStage, stain::kLastStainStage);
+    v.field(stain::outputField("stainTotal", "stain_total", "ms").notIn(notPythonNorJson), s.stainTotal);
+    v.field(stain::outputField("cloth", "cloth", "ms"), s.cloth);
+    v.field(stain::outputField("stain", "stain", "ms"), s.stain);
+    v.field(stain::outputField("coupling", "coupling", "ms"), s.coupling);
+    v.field(stain::outputField("total", "total", "ms"), s.total);
+    v.perTerm(stain::outputField("termSteps", "term_steps").notIn(notPythonNorJson), s.termSteps);
+  }
 };
+static_assert(stain::describesEveryMember<PhaseTotals>(),
+              "PhaseTotals changed: list the new field in PhaseTotals::fields");
 
 struct EngineStatistics {
   std::int64_t steps = 0;           ///< internal steps taken
@@ -155,7 +174,31 @@ struct EngineStatistics {
   PhaseTotals totals;               ///< sums since construction (ms); mean = total / steps
   int intrinsicRefreshes = 0;       ///< internal steps that rebuilt the metric
   stain::MassBudget massBudget;     ///< now (kg)
+
+  /// Every field, once (stain/output_fields.h): Python `statistics()`,
+  /// summary.json (`blot run`), blotStatistics (engine/src/c_api.cpp).
+  template <class Visitor> void visit(Visitor& v) const { fields(*this, v); }
+  template <class Self, class Visitor>
+  static constexpr void fields(Self& s, Visitor& v) {
+    using stain::kCOutput;
+    using stain::kJsonOutput;
+    using stain::outputField;
+    v.field(outputField("steps", "steps"), s.steps);
+    v.field(outputField("time", "time", "s").json("simulated_time_s"), s.time);
+    v.field(outputField("droppedTime", "dropped_time", "s").notIn(kJsonOutput), s.droppedTime);
+    v.field(outputField("dropsApplied", "drops_applied"), s.dropsApplied);
+    v.field(outputField("wallSeconds", "wall_seconds", "s").notIn(kJsonOutput), s.wallSeconds);
+    v.field(outputField("stepsPerSecond", "steps_per_second"), s.stepsPerSecond);
+    v.field(outputField("intrinsicRefreshes", "intrinsic_refreshes"), s.intrinsicRefreshes);
+    v.record(outputField("lastProfile", "last_profile").notIn(kJsonOutput | kCOutput), s.lastProfile);
+    v.record(outputField("lastTimes", "last_ms", "ms").notIn(kJsonOutput), s.lastTimes);
+    v.record(outputField("totals", "total_ms", "ms").json("mean_ms_per_step").meanPerStep().notIn(kCOutput),
+             s.totals);
+    v.record(outputField("massBudget", "mass_budget", "kg").json("mass_budget_kg"), s.massBudget);
+  }
 };
+static_assert(stain::describesEveryMember<EngineStatistics>(),
+              "EngineStatistics changed: list the new field in EngineStatistics::fields");
 
 /// Error loading a state file (tier b): names the file and the mismatch.
 class StateFileError : public std::runtime_error {

@@ -6,6 +6,7 @@
 /// refreshes the geometry with the new positions (so accelerations and angular
 /// velocities at t are centred), then advances the stain from t to t + h.
 #include <blot/stain/numerics/thread_choice.h>
+#include <blot/stain/output_fields.h>
 #include <blot/stain/stages/density_advection.h>
 #include <blot/stain/stages/diffusion.h>
 #include <blot/stain/stages/diffusive_momentum.h>
@@ -109,7 +110,32 @@ struct MassBudget {
   double freeSolute = 0, absorbedSolute = 0, adsorbedSolute = 0, addedSolute = 0;
   double solventError() const;  ///< |free + absorbed + evaporated − added| / added
   double soluteError() const;   ///< |free + absorbed + adsorbed − added| / added
+
+  /// Every field, once (output_fields.h): Python "mass_budget", JSON
+  /// "mass_budget_kg" (grouped by solvent and solute), blotMassBudget, the
+  /// viewer's mass budget bars (parts against the group's total).
+  template <class Visitor> void visit(Visitor& v) const { fields(*this, v); }
+  template <class Self, class Visitor>
+  static constexpr void fields(Self& s, Visitor& v) {
+    v.field(outputField("freeSolvent", "free_solvent", "kg").partOf("solvent", "free", "free solvent"), s.freeSolvent);
+    v.field(outputField("absorbedSolvent", "absorbed_solvent", "kg").partOf("solvent", "absorbed", "absorbed solvent"),
+            s.absorbedSolvent);
+    v.field(outputField("evaporatedSolvent", "evaporated_solvent", "kg").partOf("solvent", "evaporated", "evaporated"),
+            s.evaporatedSolvent);
+    v.field(outputField("addedSolvent", "added_solvent", "kg").totalOf("solvent", "added"), s.addedSolvent);
+    v.field(outputField("freeSolute", "free_solute", "kg").partOf("solute", "free", "free solute"), s.freeSolute);
+    v.field(outputField("absorbedSolute", "absorbed_solute", "kg").partOf("solute", "absorbed", "absorbed solute"),
+            s.absorbedSolute);
+    v.field(outputField("adsorbedSolute", "adsorbed_solute", "kg").partOf("solute", "adsorbed", "adsorbed solute"),
+            s.adsorbedSolute);
+    v.field(outputField("addedSolute", "added_solute", "kg").totalOf("solute", "added"), s.addedSolute);
+    v.computed(outputField("solventError", "solvent_error").errorOf("solvent", "relative_error"),
+               [&s] { return s.solventError(); });
+    v.computed(outputField("soluteError", "solute_error").errorOf("solute", "relative_error"),
+               [&s] { return s.soluteError(); });
+  }
 };
+static_assert(describesEveryMember<MassBudget>(), "MassBudget changed: list the new field in MassBudget::fields");
 
 /// Everything StainSolver::step depends on beyond the constructor's inputs
 /// (topology, rest shape, fabric, def): restoring it into a solver built from

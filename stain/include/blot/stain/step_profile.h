@@ -2,6 +2,8 @@
 /// The step's vocabulary: one Stage per line of the coupled step (DESIGN.md,
 /// docs/architecture.md), and what a step reports: its status, the time and
 /// work of each stage (StepProfile), and the terms each stage ran (StepTerm).
+#include <blot/stain/output_fields.h>
+
 #include <array>
 #include <string>
 
@@ -31,7 +33,9 @@ enum class Stage : int {
   Validate,        ///< every value finite and no negative density after the stain step
   Coupling,        ///< liquid mass and momentum exchanged with the cloth
 };
-inline constexpr int kStageCount = 16;
+/// The last stage: a stage added after Coupling moves this line.
+inline constexpr Stage kLastStage = Stage::Coupling;
+inline constexpr int kStageCount = static_cast<int>(kLastStage) + 1;
 /// The stain step's stages (StainSolver), Geometry through Interact.
 inline constexpr Stage kFirstStainStage = Stage::Geometry;
 inline constexpr Stage kLastStainStage = Stage::Interact;
@@ -71,12 +75,21 @@ enum class StepTerm : unsigned {
   FilmFriction = 1u << 19,       ///< FilmFriction: the film's drag on the fabric (free liquid)
 };
 /// Number of StepTerm bits (bit k = 1u << k for k in [0, kStepTermCount)).
+/// FilmFriction is the last bit: a term added after it moves this line.
 inline constexpr int kStepTermCount = 20;
+static_assert(1u << (kStepTermCount - 1) == static_cast<unsigned>(StepTerm::FilmFriction),
+              "kStepTermCount counts the StepTerm bits up to the last one");
 
 /// Short name of one term ("gravity", "density-diffusion-krylov", ...).
 const char* stepTermName(StepTerm term);
+/// The stage's name with '_' for '-' ("advect_velocity"): its key in JSON and
+/// Python dicts.
+std::string stageKey(Stage stage);
 /// The stage a term belongs to.
 Stage stageOf(StepTerm term);
+
+struct StepProfile;
+std::string describeTerms(const StepProfile& profile);  // below; StepProfile::fields lists it
 
 /// Wall-clock milliseconds per stage of the last step, what ran, and counters.
 struct StepProfile {
@@ -114,6 +127,43 @@ struct StepProfile {
   int densityDiffusionVertices = 0;   ///< rows of the density solve (Krylov support, #V if direct)
   int velocityDiffusionVertices = 0;  ///< rows of the velocity solve (band less its outer ring, #V if direct)
 
+  /// Every field, once (output_fields.h): Python "last_profile" (the stage
+  /// times, the terms that ran and a few counters), the viewer's stage bars.
+  template <class Visitor> void visit(Visitor& v) const { fields(*this, v); }
+  template <class Self, class Visitor>
+  static constexpr void fields(Self& s, Visitor& v) {
+    constexpr unsigned notPython = kPythonOutput;
+    v.perStage(outputField("milliseconds", "milliseconds", "ms"), s.milliseconds, Stage::Guard, kLastStage);
+    v.field(outputField("total", "total_ms", "ms"), s.total);
+    v.computed(outputField("describeTerms", "terms"), [&s] { return describeTerms(s); });
+    v.field(outputField("stagesRan", "stages_ran").notIn(notPython), s.stagesRan);
+    v.field(outputField("terms", "term_bits").notIn(notPython), s.terms);
+    v.field(outputField("advectionSubsteps", "advection_substeps"), s.advectionSubsteps);
+    v.field(outputField("filmSubsteps", "film_substeps"), s.filmSubsteps);
+    v.field(outputField("frictionDissipation", "friction_dissipation", "J"), s.frictionDissipation);
+    v.field(outputField("intrinsicRefreshes", "intrinsic_refreshes"), s.intrinsicRefreshes);
+    v.field(outputField("factorizations", "factorizations"), s.factorizations);
+    v.field(outputField("maxEdgeStrain", "max_edge_strain"), s.maxEdgeStrain);
+    v.field(outputField("wetVertices", "wet_vertices"), s.wetVertices);
+    v.field(outputField("bandVertices", "band_vertices"), s.bandVertices);
+    v.field(outputField("diffusionIterations", "diffusion_iterations"), s.diffusionIterations);
+    v.field(outputField("limiterCorrectedVertices", "limiter_corrected_vertices").notIn(notPython),
+            s.limiterCorrectedVertices);
+    v.field(outputField("limiterMovedMass", "limiter_moved_mass", "kg").notIn(notPython), s.limiterMovedMass);
+    v.field(outputField("vertexCount", "vertex_count").notIn(notPython), s.vertexCount);
+    v.field(outputField("threads", "threads").notIn(notPython), s.threads);
+    v.field(outputField("haloVertices", "halo_vertices").notIn(notPython), s.haloVertices);
+    v.field(outputField("soakedVertices", "soaked_vertices").notIn(notPython), s.soakedVertices);
+    v.field(outputField("bandRings", "band_rings").notIn(notPython), s.bandRings);
+    v.field(outputField("reachRings", "reach_rings").notIn(notPython), s.reachRings);
+    v.field(outputField("geometryVertices", "geometry_vertices").notIn(notPython), s.geometryVertices);
+    v.field(outputField("advectionVertices", "advection_vertices").notIn(notPython), s.advectionVertices);
+    v.field(outputField("densityDiffusionVertices", "density_diffusion_vertices").notIn(notPython),
+            s.densityDiffusionVertices);
+    v.field(outputField("velocityDiffusionVertices", "velocity_diffusion_vertices").notIn(notPython),
+            s.velocityDiffusionVertices);
+  }
+
   double time(Stage stage) const { return milliseconds[static_cast<size_t>(stage)]; }
   bool ran(Stage stage) const { return (stagesRan & (1u << static_cast<unsigned>(stage))) != 0; }
   bool ran(StepTerm term) const { return (terms & static_cast<unsigned>(term)) != 0; }
@@ -127,6 +177,7 @@ struct StepProfile {
     total += other.total;
   }
 };
+static_assert(describesEveryMember<StepProfile>(), "StepProfile changed: list the new field in StepProfile::fields");
 
 /// The terms that ran in `profile`, in StepTerm order, with the vertices they
 /// worked on, e.g. "rigid-frames[140625] gravity coriolis velocity-advection

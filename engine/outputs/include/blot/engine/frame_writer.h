@@ -7,6 +7,7 @@
 /// one addition here: a field in FrameWriterOptions and the code that acts on it.
 #include <blot/engine/engine.h>
 #include <blot/engine/image.h>
+#include <blot/engine/output_json.h>
 #include <blot/engine/ply_frame_writer.h>
 #include <blot/engine/renderer.h>
 #include <blot/engine/scene.h>
@@ -25,8 +26,15 @@ namespace blot::engine {
 PlyFrame plyFrame(const Engine& engine);
 
 /// The mass budget (kg): {"solvent": {added, free, absorbed, evaporated,
-/// relative_error}, "solute": {added, free, absorbed, adsorbed, relative_error}}.
+/// relative_error}, "solute": {added, free, absorbed, adsorbed, relative_error}}
+/// (MassBudget::fields, output_json.h).
 nlohmann::json massBudgetJson(const stain::MassBudget& budget);
+/// The statistics in a run's summary (EngineStatistics::fields, output_json.h):
+/// steps, simulated_time_s, drops_applied, steps_per_second,
+/// intrinsic_refreshes, mean_ms_per_step (the stain stages "stain_geometry",
+/// ..., "cloth", "stain", "coupling", "total": ms per internal step) and
+/// mass_budget_kg (massBudgetJson).
+nlohmann::json statisticsJson(const EngineStatistics& statistics);
 
 /// Which shape a preview shows the stain on: the surface now, or the rest
 /// shape (the stain as it lies on the flat, undeformed cloth).
