@@ -49,6 +49,13 @@ constexpr void cMembers(blotMassBudget& c, Visitor& v) {
 }
 
 template <class Visitor>
+constexpr void cMembers(blotLiquidEnergy& c, Visitor& v) {
+  BLOT_SAME_NAME(kinetic);
+  BLOT_SAME_NAME(gravitational);
+  BLOT_SAME_NAME(pressure);
+}
+
+template <class Visitor>
 constexpr void cMembers(blotStatistics& c, Visitor& v) {
   BLOT_SAME_NAME(steps);
   BLOT_SAME_NAME(time);
@@ -62,6 +69,7 @@ constexpr void cMembers(blotStatistics& c, Visitor& v) {
   v.member("lastTimes.stain", c.lastStainMilliseconds);
   v.member("lastTimes.coupling", c.lastCouplingMilliseconds);
   v.nested("massBudget", c.massBudget);
+  v.nested("liquidEnergy", c.liquidEnergy);
 }
 
 #undef BLOT_SAME_NAME

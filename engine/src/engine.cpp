@@ -531,6 +531,7 @@ EngineStatistics Engine::statistics() const {
   s.totals = totals_;
   s.intrinsicRefreshes = intrinsicRefreshes_;
   s.massBudget = surface_->stain().massBudget();
+  s.liquidEnergy = surface_->stain().liquidEnergy();
   return s;
 }
 

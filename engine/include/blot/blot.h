@@ -154,6 +154,11 @@ typedef struct blotMassBudget {
   double soluteError;  /**< |free + absorbed + adsorbed - added| / added */
 } blotMassBudget;
 
+/** The free liquid's energy (J): kinetic relative to the cloth, gravitational, hydrostatic. */
+typedef struct blotLiquidEnergy {
+  double kinetic, gravitational, pressure;
+} blotLiquidEnergy;
+
 /** Counters and timings since creation (see blot::engine::EngineStatistics). */
 typedef struct blotStatistics {
   int64_t steps;            /**< internal steps taken */
@@ -168,6 +173,7 @@ typedef struct blotStatistics {
   double lastStainMilliseconds;    /**< its stain part */
   double lastCouplingMilliseconds; /**< its coupling part */
   blotMassBudget massBudget;       /**< now */
+  blotLiquidEnergy liquidEnergy;   /**< now */
 } blotStatistics;
 
 /** Message of the last failing call on this thread ("" if none). Owned by the

@@ -174,6 +174,9 @@ struct EngineStatistics {
   PhaseTotals totals;               ///< sums since construction (ms); mean = total / steps
   int intrinsicRefreshes = 0;       ///< internal steps that rebuilt the metric
   stain::MassBudget massBudget;     ///< now (kg)
+  /// The free liquid's energy now (J): kinetic (relative to the cloth),
+  /// gravitational and hydrostatic (stain::StainSolver::liquidEnergy).
+  stain::FilmEnergy liquidEnergy;
 
   /// Every field, once (stain/output_fields.h): Python `statistics()`,
   /// summary.json (`blot run`), blotStatistics (engine/src/c_api.cpp).
@@ -195,6 +198,7 @@ struct EngineStatistics {
     v.record(outputField("totals", "total_ms", "ms").json("mean_ms_per_step").meanPerStep().notIn(kCOutput),
              s.totals);
     v.record(outputField("massBudget", "mass_budget", "kg").json("mass_budget_kg"), s.massBudget);
+    v.record(outputField("liquidEnergy", "liquid_energy", "J").json("liquid_energy_j"), s.liquidEnergy);
   }
 };
 static_assert(stain::describesEveryMember<EngineStatistics>(),

@@ -19,6 +19,7 @@
 /// gravity presses it on when (g − p̈)·n < 0. Where gravity pulls the film
 /// off the cloth (under an overhang) g_n is 0: no pressure, rather than a
 /// negative one that would gather the film into ridges (anti-diffusion).
+#include <blot/stain/output_fields.h>
 #include <blot/stain/stain_state.h>
 #include <blot/stain/step_context.h>
 #include <blot/stain/geometry/surface_geometry.h>
@@ -100,7 +101,17 @@ int filmSubsteps(const StepContext& ctx, const SurfaceTopology& topology, const 
 struct FilmEnergy {
   double kinetic = 0, gravitational = 0, pressure = 0;
   double total() const { return kinetic + gravitational + pressure; }
+
+  /// Every field, once (output_fields.h): EngineStatistics::liquidEnergy.
+  template <class Visitor> void visit(Visitor& v) const { fields(*this, v); }
+  template <class Self, class Visitor>
+  static constexpr void fields(Self& s, Visitor& v) {
+    v.field(outputField("kinetic", "kinetic", "J"), s.kinetic);
+    v.field(outputField("gravitational", "gravitational", "J"), s.gravitational);
+    v.field(outputField("pressure", "pressure", "J"), s.pressure);
+  }
 };
+static_assert(describesEveryMember<FilmEnergy>(), "FilmEnergy changed: list the new field in FilmEnergy::fields");
 FilmEnergy filmEnergy(const StepContext& ctx, const ExtrinsicGeometry& geometry, const Vector& areas,
                       const StainState& state, const std::vector<char>& wet);
 
