@@ -968,10 +968,10 @@ StepReport StainSolver::runStages() {
   // whole-mesh velocity solve.
   applyBoundaryWall(ctx, topology, intrinsic, band_.wetMask, state_, among);
   // The film (film_flow.h): its potential gradient and friction, then the
-  // densities it moves, in as many sub-steps as the friction-dominated film
-  // needs to stay stable (one without the film terms: the paper's order).
+  // densities it moves, in as many sub-steps as the film needs to stay
+  // stable (one without the film terms: the paper's order).
   const bool film = on.filmPressure || on.filmFriction;
-  const int filmSteps = film ? filmSubsteps(ctx, topology, extrinsic, state_, band_.wetMask, band_.vertices, kMaxFilmSubsteps) : 1;
+  const int filmSteps = film ? filmSubsteps(ctx, extrinsic, state_, band_, kMaxFilmSubsteps) : 1;
   profile_.filmSubsteps = filmSteps;
   StepContext filmContext = ctx;
   filmContext.h = ctx.h / filmSteps;

@@ -176,29 +176,24 @@ double applyFilmFriction(const StepContext& ctx, const Vector& areas, const std:
   return dissipated;
 }
 
-int filmSubsteps(const StepContext& ctx, const SurfaceTopology& topology, const ExtrinsicGeometry& geometry,
-                 const StainState& state, const std::vector<char>& wet, const std::vector<int>& vertices, int cap) {
+int filmSubsteps(const StepContext& ctx, const ExtrinsicGeometry& geometry, const StainState& state,
+                 const LiquidBand& band, int cap) {
   if (!ctx.switches.filmPressure) return 1;
-  const std::vector<int>& offsets = topology.ringOffsets();
-  const std::vector<int>& neighbors = topology.ringNeighbors();
-  const RowVectors3& p = geometry.positions;
   const double h = ctx.h;
   double needed = 1.0;
-  for (const int i : vertices) {
-    if (!isFilmVertex(state, wet, i)) continue;
+  for (int w = 0; w < band.wetCount(); ++w) {  // the wet set: the film vertices are among them
+    const int i = band.vertices[static_cast<size_t>(w)];
+    if (!isFilmVertex(state, band.wetMask, i)) continue;
     const double H = filmThickness(state, i, ctx.liquid);
     const double waveSpeedSquared = normalGravity(ctx, geometry, i) * H;  // c² = g_n H (m²/s²)
-    if (!(waveSpeedSquared > 0.0)) continue;
-    double shortest = std::numeric_limits<double>::infinity();  // ℓ² (m²)
-    for (int m = offsets[static_cast<size_t>(i)]; m < offsets[static_cast<size_t>(i) + 1]; ++m)
-      shortest = std::min(shortest, (p.row(neighbors[static_cast<size_t>(m)]) - p.row(i)).squaredNorm());
-    if (!(shortest > 0.0)) continue;
+    const double edge = band.distances[static_cast<size_t>(i)].shortestEdge;  // ℓ (m, intrinsic)
+    if (!(waveSpeedSquared > 0.0) || !(edge > 0.0)) continue;
     // n sub-steps of h/n are stable where (h/n)² c² / (ℓ² (1 + hk/n)) ≤ 1/4:
     // n² + n hk − 4X ≥ 0 with X = h² c²/ℓ², hk = 0 without friction.
-    const double X = h * h * waveSpeedSquared / shortest;
+    const double X = h * h * waveSpeedSquared / (edge * edge);
     const double k = ctx.switches.filmFriction ? filmDragRate(H, ctx.liquid) : 0.0;
-    const double Y = std::isfinite(k) ? h * k : std::numeric_limits<double>::infinity();
-    if (!std::isfinite(Y)) continue;  // no film to move
+    if (!std::isfinite(k)) continue;  // no film to move
+    const double Y = h * k;
     needed = std::max(needed, 0.5 * (std::sqrt(Y * Y + 16.0 * X) - Y));
   }
   const double steps = std::ceil(needed - 1e-12);

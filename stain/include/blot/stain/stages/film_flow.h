@@ -24,6 +24,7 @@
 #include <blot/stain/step_context.h>
 #include <blot/stain/geometry/surface_geometry.h>
 #include <blot/stain/geometry/surface_topology.h>
+#include <blot/stain/stages/liquid_band.h>
 
 #include <vector>
 
@@ -88,12 +89,12 @@ double applyFilmFriction(const StepContext& ctx, const Vector& areas, const std:
 /// The number of film sub-steps n that keep the film stable at step h. The
 /// explicit kick-then-move of a film is stable where
 /// (h/n)² g_n H / (ℓ² (1 + hk/n)) ≤ 1/4 at every film vertex (ℓ its
-/// shortest edge, k the drag rate): h c/ℓ ≤ 1/2 for shallow water without
+/// shortest edge, LiquidBand::Distances::shortestEdge, k the drag rate): h c/ℓ ≤ 1/2 for shallow water without
 /// friction (c = √(g_n H)), h D/ℓ² ≤ 1/4 where friction dominates (the
 /// lubrication equation ∂H/∂t = ∇·(D∇H), D = g_n H/k). At least 1, at most
 /// `cap`; 1 without the film's pressure.
-int filmSubsteps(const StepContext& ctx, const SurfaceTopology& topology, const ExtrinsicGeometry& geometry,
-                 const StainState& state, const std::vector<char>& wet, const std::vector<int>& vertices, int cap);
+int filmSubsteps(const StepContext& ctx, const ExtrinsicGeometry& geometry, const StainState& state,
+                 const LiquidBand& band, int cap);
 
 /// The free liquid's energy (J): Σ_i A_i (½ σ_i |u_i|² − σ_i g·x_i + ½ ρ g_n,i H_i²)
 /// over every vertex (σ = σ_f + σ_s; the pressure part at film vertices
