@@ -5,7 +5,6 @@
 
 #include <cmath>
 
-#include <blot/stain/stages/film_flow.h>
 #include <blot/stain/stages/liquid_band.h>
 
 #include "numerics/threads.h"
@@ -47,16 +46,18 @@ void applyBodyForces(const StepContext& ctx, const ExtrinsicGeometry& geometry, 
   const bool allWet = wet.empty();
   const double h = ctx.h;
   const Vector3 gravity = on.gravity ? ctx.gravity : Vector3::Zero();
-  const bool filmGravity = on.filmPressure && on.gravity && !allWet;
+  // With the film's pressure, gravity and the surface's acceleration act on
+  // the film through its potential gradient (film_flow.h), and the rest of
+  // the band holds the liquid's velocity extended from it: no kick there, or
+  // the front's fluxes (the mean of the two ends' velocities) would carry a
+  // velocity no friction ever slowed.
+  if (on.filmPressure && on.gravity && !allWet) return;
   const int visits = visitCount(n, among);
   threads::runLoop(visits >= kMinParallelVertices, [&] {
 #pragma omp for schedule(static)
     for (int k = 0; k < visits; ++k) {
       const int i = visited(k, among);
       if (!allWet && !wet[static_cast<size_t>(i)]) continue;
-      // With the film's pressure, gravity and the surface's acceleration act
-      // on the film through its potential gradient (film_flow.h), not per vertex.
-      if (filmGravity && isFilmVertex(state, wet, i)) continue;
       Vector3 a = gravity;
       if (useInertia) a -= geometry.vertexAccelerations.row(i).transpose();
       const Matrix3& frame = geometry.frames[static_cast<size_t>(i)];

@@ -12,7 +12,9 @@ namespace blot::stain {
 
 /// Stage BodyForces: u_i += h · tangential part, in frame F_i^t, of (g − p̈_i),
 /// each term as ctx.switches has it on (gravity, linearInertia). Forward Euler
-/// is exact here: the forcing does not depend on u.
+/// is exact here: the forcing does not depend on u. With the film's pressure
+/// on (and a `wet` mask) nothing: the film's potential carries both terms
+/// (film_flow.h) and the rest of the band holds the liquid's extended u.
 /// `wet` (#V, nonzero = worked on; the solver passes the liquid band)
 /// restricts the work; pass an empty vector for all. `among` (optional): the
 /// vertices visited instead of all #V, a superset of those `wet` marks
