@@ -1,8 +1,10 @@
 // The liquid film (stages/film_flow.h, docs/transport.md "The liquid film")
-// against results of thin-film theory that involve the whole step, not one
-// vertex's ODE: the thickness–flux relation of a steady film draining down a
-// slope (Nusselt). Each check states its tolerance and prints its numbers at
-// every resolution it runs.
+// against two results of thin-film theory that involve the whole step, not
+// one vertex's ODE: the thickness–flux relation of a steady film draining
+// down a slope (Nusselt), and the spreading of a viscous drop under its own
+// weight (the similarity solution of the lubrication equation, Huppert 1982).
+// Each check states its tolerance and prints its numbers at every
+// resolution it runs.
 #include <blot/stain/geometry/mesh_primitives.h>
 #include <blot/stain/stages/film_flow.h>
 #include <blot/stain/stain_solver.h>
@@ -189,6 +191,159 @@ TEST(FilmTheory, SteadyFilmDrainingDownASlopeCarriesTheNusseltFlux) {
       EXPECT_LE(error, 1e-5);
     }
   }
+}
+
+// ------------------------------------------------ a viscous drop spreading under its own weight
+
+/// The axisymmetric viscous gravity current of fixed volume V on a
+/// horizontal plane (Huppert 1982, "The propagation of two-dimensional and
+/// axisymmetric viscous gravity currents over a rigid horizontal surface",
+/// J. Fluid Mech. 121, 43-58): ∂H/∂t = (G/r) ∂/∂r(r H³ ∂H/∂r),
+/// G = g/(3ν), is the porous-medium equation ∂H/∂t = (G/4) ∇²(H⁴) in two dimensions, whose
+/// Barenblatt solution is
+///   H(r, t) = H_0(t) (1 − r²/R²)^{1/3},  R(t) = ξ_N (G V³ t)^{1/8},
+///   H_0(t) = 4V/(3π R²),  ξ_N = (2^{10}/(3^4 π³))^{1/8} = 0.89391...
+/// (derived: with D = G/4, m = 4, d = 2 the Barenblatt profile is
+/// (Dt)^{−1/4}(C − (3/64) r² (Dt)^{−1/4})^{1/3}; its volume 16π C^{4/3}
+/// fixes C and its edge R² = (64/3) C (Dt)^{1/4} gives ξ_N; Huppert's
+/// 0.894). The profile's second moment is ∫r²H dA / V = (3/7) R².
+double huppertConstant() { return std::pow(1024.0 / (81.0 * kPi * kPi * kPi), 1.0 / 8.0); }
+
+double huppertRadius(double volume, double nu, double t) {
+  return huppertConstant() * std::pow(kG / (3 * nu) * volume * volume * volume * t, 1.0 / 8.0);
+}
+
+struct Spreading {
+  std::vector<double> times;   ///< s
+  std::vector<double> radii;   ///< √(7/3 ⟨r²⟩) of the liquid (m): R for the similarity profile
+  double volume = 0;           ///< m³
+  double smallestDragStep = 0; ///< smallest h k over the liquid at the start (friction-dominated: ≫ 1)
+  int filmSubsteps = 0;        ///< most film sub-steps a step took
+};
+
+/// A drop of a viscous liquid (ν = `nu`) placed on a horizontal
+/// disc of radius `disc` (discMesh with `rings` rings) as the similarity
+/// profile of radius R0 and centre thickness H0 at the time t0 that profile
+/// has, sampled at the vertices and scaled so that its mass is exactly ρV,
+/// V = (3π/4) R0² H0; run from t0 to t1 with steps of h, the moment radius
+/// recorded at `samples` times spaced evenly in log t.
+Spreading spreadingDrop(int rings, double disc, double R0, double H0, double nu, double t1OverT0, double h,
+                        int samples) {
+  const TriangleMesh mesh = discMesh(rings, disc);
+  const SurfaceTopology topology(mesh.faces, static_cast<int>(mesh.vertexPositions.rows()));
+  const int n = topology.vertexCount();
+  const StainSolverDef def = frictionAndPressureOnly(nu, 0.0);
+  const double rho = def.liquid.liquidDensity;
+  StainSolver solver(topology, mesh.vertexPositions, isotropicFabricField(static_cast<int>(mesh.faces.rows()), 1e-4, 0.0),
+                     def);
+  const Vector& areas = solver.geometry().intrinsic().vertexDualAreas;
+  Spreading run;
+  run.volume = 0.75 * kPi * R0 * R0 * H0;
+  const double t0 = std::pow(R0 / huppertConstant(), 8) / (kG / (3 * nu) * std::pow(run.volume, 3));
+  {
+    StainState& state = solver.mutableState();
+    double mass = 0;
+    for (int i = 0; i < n; ++i) {
+      const double r2 = mesh.vertexPositions.row(i).squaredNorm();
+      state.solvent[i] = r2 < R0 * R0 ? rho * H0 * std::cbrt(1 - r2 / (R0 * R0)) : 0.0;
+      mass += areas[i] * state.solvent[i];
+    }
+    state.solvent *= rho * run.volume / mass;
+  }
+  const auto momentRadius = [&] {
+    double mass = 0, moment = 0;
+    for (int i = 0; i < n; ++i) {
+      const double m = areas[i] * solver.state().solvent[i];
+      mass += m;
+      moment += m * mesh.vertexPositions.row(i).squaredNorm();
+    }
+    return std::sqrt(7.0 / 3.0 * moment / mass);
+  };
+  run.smallestDragStep = 1e300;
+  for (int i = 0; i < n; ++i)
+    if (solver.state().solvent[i] > 0)
+      run.smallestDragStep =
+          std::min(run.smallestDragStep, h * filmDragRate(filmThickness(solver.state(), i, def.liquid), def.liquid));
+  double t = t0;
+  run.times.push_back(t);
+  run.radii.push_back(momentRadius());
+  for (int s = 1; s <= samples; ++s) {
+    const double target = t0 * std::pow(t1OverT0, static_cast<double>(s) / samples);
+    const int steps = std::max(1, static_cast<int>(std::lround((target - t) / h)));
+    const double step = (target - t) / steps;  // land on the sample time
+    for (int k = 0; k < steps; ++k) {
+      const StepReport r = solver.step(step, mesh.vertexPositions);
+      EXPECT_TRUE(r.ok()) << r.message;
+      if (!r.ok()) return run;
+      run.filmSubsteps = std::max(run.filmSubsteps, solver.profile().filmSubsteps);
+    }
+    t = target;
+    run.times.push_back(t);
+    run.radii.push_back(momentRadius());
+  }
+  return run;
+}
+
+/// Least-squares slope of log R against log t over the samples from index `from` on.
+double growthExponent(const Spreading& run, size_t from) {
+  double sx = 0, sy = 0, sxx = 0, sxy = 0;
+  const double count = static_cast<double>(run.times.size() - from);
+  for (size_t k = from; k < run.times.size(); ++k) {
+    const double x = std::log(run.times[k]), y = std::log(run.radii[k]);
+    sx += x;
+    sy += y;
+    sxx += x * x;
+    sxy += x * y;
+  }
+  return (count * sxy - sx * sy) / (count * sxx - sx * sx);
+}
+
+TEST(FilmTheory, ViscousDropSpreadsLikeTheLubricationSimilaritySolution) {
+  // A drop 3 cm in radius and 2 mm thick at its centre of a liquid with
+  // ν = 1e-2 m²/s (a honey) on a horizontal cloth, no slip (λ = 0: the
+  // lubrication equation above exactly), friction and pressure only, from
+  // the similarity profile at its own time t0 (65 s) to 16 t0, steps of 2 s:
+  // friction dominates (h k ≥ 1.4e4 over the drop at the start; the
+  // relaxation time H²/(3ν) is 1e-4 s against t0). The radius is measured by
+  // the liquid's second moment, R = √(7/3 ⟨r²⟩), which is the front radius
+  // for the similarity profile and, unlike the outermost wet vertex, not
+  // quantized by the mesh.
+  //
+  // Measured (disc of 8 cm, 20, 40, 80 rings, ring spacing R0/7.5 to
+  // R0/30): R(16 t0) against ξ_N (G V³ t)^{1/8} is +2.0 %, +1.0 %, +0.54 %
+  // (the front runs ahead; first order, the error ratio 1.96 and 1.87); the
+  // growth exponent fitted over 4-16 t0 is 0.1247, 0.1273, 0.1261. The
+  // sampled start is off by +0.6 %, −1.7 %, −0.7 % in R (where the rings
+  // fall against the profile's (R − r)^{1/3} edge), which is why the
+  // exponent is fitted after 4 t0, once that has relaxed. Tolerances: error
+  // ≤ 1 % at 80 rings and at least 1.6 times smaller with each halving of
+  // the spacing; exponent within 0.004 of 1/8 at every resolution.
+  const double disc = 0.08, R0 = 0.03, H0 = 2e-3, nu = 1e-2, h = 2.0;
+  const double span = 16.0;  // t1 / t0
+  std::printf("Huppert's constant xi_N = (2^10/(3^4 pi^3))^(1/8) = %.6f\n", huppertConstant());
+  double previousError = 0;
+  for (const int rings : {20, 40, 80}) {
+    const Spreading run = spreadingDrop(rings, disc, R0, H0, nu, span, h, 8);
+    const double t1 = run.times.back();
+    const double expected = huppertRadius(run.volume, nu, t1);
+    const double error = (run.radii.back() - expected) / expected;
+    const double startError = (run.radii.front() - R0) / R0;
+    const double exponent = growthExponent(run, 4);  // from 4 t0 on
+    std::printf("%d rings (dr = %.4f m = R0/%.1f): h k >= %.2e, %d film sub-steps; R(t0) %.5f m (%+.2e), "
+                "R(16 t0) %.5f m, Huppert %.5f m, error %+.3e; growth exponent (4-16 t0) %.5f (1/8)",
+                rings, disc / rings, R0 * rings / disc, run.smallestDragStep, run.filmSubsteps, run.radii.front(),
+                startError, run.radii.back(), expected, error, exponent);
+    if (previousError != 0) std::printf(", error ratio %.2f (order %.2f)", previousError / error,
+                                        std::log2(std::abs(previousError / error)));
+    std::printf("\n");
+    EXPECT_GT(run.smallestDragStep, 1e3);
+    EXPECT_NEAR(exponent, 0.125, 0.004);
+    if (previousError != 0) {
+      EXPECT_GT(previousError / error, 1.6) << "no first-order convergence";
+    }
+    previousError = error;
+  }
+  EXPECT_LE(std::abs(previousError), 0.01);
 }
 
 }  // namespace
