@@ -152,6 +152,68 @@ RestrictedCosts velocityCosts(const DiffusionSystems& systems, int rows, int rin
           cgAllowed ? cgCost(iterations, rows, ring, entriesPerRow) : kNever};
 }
 
+// Whether every array diffuse() reads or writes is sized for the state's #V
+// vertices (the CG's pair vectors 2 #V, the chunk partials for #V rows).
+bool sizesMatch(const Vector& areas, const DiffusionScratch& scratch, const StainState& state,
+                const std::vector<char>* wet) {
+  const Eigen::Index n = state.solvent.size();
+  return !(areas.size() != n || state.solute.size() != n || state.velocities.size() != n ||
+           scratch.rhs.size() != n || scratch.solution.size() != n || scratch.complexRhs.size() != n ||
+           scratch.complexSolution.size() != n || scratch.densityX.size() != 2 * n ||
+           scratch.velocityX.size() != 2 * n || static_cast<Eigen::Index>(scratch.densityMarks.size()) != n ||
+           static_cast<Eigen::Index>(scratch.krylovPartials.size()) <
+               (n + kKrylovChunkRows - 1) / kKrylovChunkRows * kKrylovPartialsPerChunk ||
+           (wet != nullptr && static_cast<Eigen::Index>(wet->size()) != n));
+}
+
+// Flushes the far tail and restores the exact mass (design note) of the
+// two fields in dx (pairs), over the active rows only: values below
+// kIterativeTolerance × max |x_c| become zero, then x_c is scaled by
+// mass[c] / Σ A_i x_c,i where both are positive. Chunked like the CG's sums
+// (the same bits for any thread count).
+void flushAndRestoreOnSupport(const Vector& areas, const double mass[2], const ActiveSet& densityActive,
+                              double* partials, double* dx) {
+  const int* list = densityActive.list();
+  const int count = densityActive.size();
+  const int chunks = (count + kKrylovChunkRows - 1) / kKrylovChunkRows;
+  const bool threaded = count >= kKrylovParallelRows;
+  for (int c = 0; c < 2; ++c) {
+    double largest = 0.0;  // a max: the same in any order
+    threads::runLoop(threaded, [&] {
+      decltype(largest) largestHere = threads::lowest<decltype(largest)>();
+#pragma omp for schedule(static) nowait
+      for (int k = 0; k < count; ++k) largestHere = std::max(largestHere, std::abs(dx[2 * list[k] + c]));
+#pragma omp critical(blot_threads_combine)
+      {
+        largest = std::max(largest, largestHere);
+      }
+    });
+    const double floor = kIterativeTolerance * largest;
+    threads::runLoop(threaded, [&] {
+#pragma omp for schedule(static)
+      for (int chunk = 0; chunk < chunks; ++chunk) {
+        CompensatedSum solved;
+        const int end = std::min(count, (chunk + 1) * kKrylovChunkRows);
+        for (int k = chunk * kKrylovChunkRows; k < end; ++k) {
+          double& v = dx[2 * list[k] + c];
+          if (std::abs(v) < floor) v = 0.0;
+          solved.add(areas[list[k]] * v);
+        }
+        partials[chunk] = solved.value();
+      }
+    });
+    CompensatedSum solved;
+    for (int chunk = 0; chunk < chunks; ++chunk) solved.add(partials[chunk]);
+    if (mass[c] > 0.0 && solved.value() > 0.0) {
+      const double scale = mass[c] / solved.value();
+      threads::runLoop(threaded, [&] {
+#pragma omp for schedule(static)
+        for (int k = 0; k < count; ++k) dx[2 * list[k] + c] *= scale;
+      });
+    }
+  }
+}
+
 }  // namespace
 
 double velocityCostOnBand(const DiffusionSystems& systems, int rows) {
@@ -175,13 +237,7 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
 
   const Eigen::Index n = state.solvent.size();
   const Vector& areas = geometry.vertexDualAreas;
-  if (areas.size() != n || state.solute.size() != n || state.velocities.size() != n ||
-      scratch.rhs.size() != n || scratch.solution.size() != n || scratch.complexRhs.size() != n ||
-      scratch.complexSolution.size() != n || scratch.densityX.size() != 2 * n || scratch.velocityX.size() != 2 * n ||
-      static_cast<Eigen::Index>(scratch.densityMarks.size()) != n ||
-      static_cast<Eigen::Index>(scratch.krylovPartials.size()) <
-          (n + kKrylovChunkRows - 1) / kKrylovChunkRows * kKrylovPartialsPerChunk ||
-      (wet != nullptr && static_cast<Eigen::Index>(wet->size()) != n)) {
+  if (!sizesMatch(areas, scratch, state, wet)) {
     report.status = SolverStatus::SizeMismatch;
     return report;
   }
@@ -260,51 +316,7 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
       densityActive.clearMarks();
       densityActive = ActiveSet(scratch.densityActive, scratch.densityMarks);
     }
-    if (densityOnSupport) {
-      // Flush the far tail and restore the exact mass (design note), over
-      // the active rows only.
-      // Chunked like the CG's sums (the same bits for any thread count).
-      const int* list = densityActive.list();
-      const int count = densityActive.size();
-      const int chunks = (count + kKrylovChunkRows - 1) / kKrylovChunkRows;
-      double* partials = scratch.krylovPartials.data();
-      const bool threaded = count >= kKrylovParallelRows;
-      for (int c = 0; c < 2; ++c) {
-        double largest = 0.0;  // a max: the same in any order
-        threads::runLoop(threaded, [&] {
-          decltype(largest) largestHere = threads::lowest<decltype(largest)>();
-#pragma omp for schedule(static) nowait
-          for (int k = 0; k < count; ++k) largestHere = std::max(largestHere, std::abs(dx[2 * list[k] + c]));
-#pragma omp critical(blot_threads_combine)
-          {
-            largest = std::max(largest, largestHere);
-          }
-        });
-        const double floor = kIterativeTolerance * largest;
-        threads::runLoop(threaded, [&] {
-#pragma omp for schedule(static)
-          for (int chunk = 0; chunk < chunks; ++chunk) {
-            CompensatedSum solved;
-            const int end = std::min(count, (chunk + 1) * kKrylovChunkRows);
-            for (int k = chunk * kKrylovChunkRows; k < end; ++k) {
-              double& v = dx[2 * list[k] + c];
-              if (std::abs(v) < floor) v = 0.0;
-              solved.add(areas[list[k]] * v);
-            }
-            partials[chunk] = solved.value();
-          }
-        });
-        CompensatedSum solved;
-        for (int chunk = 0; chunk < chunks; ++chunk) solved.add(partials[chunk]);
-        if (mass[c] > 0.0 && solved.value() > 0.0) {
-          const double scale = mass[c] / solved.value();
-          threads::runLoop(threaded, [&] {
-#pragma omp for schedule(static)
-            for (int k = 0; k < count; ++k) dx[2 * list[k] + c] *= scale;
-          });
-        }
-      }
-    }
+    if (densityOnSupport) flushAndRestoreOnSupport(areas, mass, densityActive, scratch.krylovPartials.data(), dx);
   }
   // Direct solves in place: σ_f into scratch.solution, σ_s into scratch.rhs,
   // both in one pass over the factor when both are held (the same bits as
