@@ -445,6 +445,41 @@ LadderResult diffuseVelocity(const DiffusionInputs& in, const std::vector<char>*
   return climbLadder(costs, active, work, rkl, cg, factor, field, report.fallbacks);
 }
 
+// Writes the densities' solution into the state: from densityX on the
+// support's rows (the set then released), or else the direct solve's with its
+// mass restored, listing the vertices written in DiffusionScratch::directSupport
+// (report.directSupportVertices of them: 0 when no density was solved).
+// Returns min(0, the least density written), what the limiter tests.
+double commitDensities(bool densityOnSupport, bool solvent, bool solute, const MassRestore restores[2],
+                       ActiveSet& densityActive, DiffusionScratch& scratch, StainState& state,
+                       DiffusionReport& report) {
+  double* dx = scratch.densityX.data();
+  double minimum = 0.0;
+  if (densityOnSupport) {
+    const int* list = densityActive.list();
+    for (int k = 0; k < densityActive.size(); ++k) {
+      const int i = list[k];
+      state.solvent[i] = dx[2 * i];
+      state.solute[i] = dx[2 * i + 1];
+      minimum = std::min(minimum, std::min(dx[2 * i], dx[2 * i + 1]));
+    }
+    // The CG vectors' invariant: zero outside the active set.
+    releaseActive(densityActive, {dx, scratch.densityR.data(), scratch.densityP.data()});
+  } else {
+    int* listed = scratch.directSupport.data();
+    int count = 0;
+    if (solvent)
+      minimum = std::min(minimum, commitRestored(scratch.solution, restores[0], state.solvent, scratch.directMarks,
+                                                 listed, count));
+    if (solute)
+      minimum = std::min(minimum, commitRestored(scratch.rhs, restores[1], state.solute, scratch.directMarks,
+                                                 listed, count));
+    for (int k = 0; k < count; ++k) scratch.directMarks[static_cast<size_t>(listed[k])] = 0;
+    report.directSupportVertices = count;
+  }
+  return minimum;
+}
+
 }  // namespace
 
 double velocityCostOnBand(const DiffusionSystems& systems, int rows) {
@@ -518,28 +553,8 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
   }
 
   // Commit (copies, not swaps: the state's arrays keep their addresses).
-  double minimum = 0.0;
-  if (densityOnSupport) {
-    const int* list = densityActive.list();
-    for (int k = 0; k < densityActive.size(); ++k) {
-      const int i = list[k];
-      state.solvent[i] = dx[2 * i];
-      state.solute[i] = dx[2 * i + 1];
-      minimum = std::min(minimum, std::min(dx[2 * i], dx[2 * i + 1]));
-    }
-    abandonDensities();  // the CG vectors' invariant: zero outside the active set
-  } else {
-    int* listed = scratch.directSupport.data();
-    int count = 0;
-    if (solvent)
-      minimum = std::min(minimum, commitRestored(scratch.solution, restores[0], state.solvent, scratch.directMarks,
-                                                 listed, count));
-    if (solute)
-      minimum = std::min(minimum, commitRestored(scratch.rhs, restores[1], state.solute, scratch.directMarks,
-                                                 listed, count));
-    for (int k = 0; k < count; ++k) scratch.directMarks[static_cast<size_t>(listed[k])] = 0;
-    report.directSupportVertices = count;
-  }
+  const double minimum =
+      commitDensities(densityOnSupport, solvent, solute, restores, densityActive, scratch, state, report);
   if (velocityOnBand) {
     const int* list = velocityActive.list();
     for (int k = 0; k < velocityActive.size(); ++k) {
