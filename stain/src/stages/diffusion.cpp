@@ -291,7 +291,7 @@ LadderResult climbLadder(const LadderCosts& costs, ActiveSet& active, const Pair
       releaseActive(active, {work.x, work.r, work.p});
       ++fallbacks;
     } else {
-      active.clearMarks();  // the factor is predicted cheaper; nothing wrote `work`
+      active.clearMarks();  // the factor predicted cheaper, or the only method left; `work` untouched
     }
   }
   field.method = DiffusionMethod::Direct;
