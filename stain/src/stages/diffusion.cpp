@@ -152,6 +152,334 @@ RestrictedCosts velocityCosts(const DiffusionSystems& systems, int rows, int rin
           cgAllowed ? cgCost(iterations, rows, ring, entriesPerRow) : kNever};
 }
 
+// Whether every array diffuse() reads or writes is sized for the state's #V
+// vertices (the CG's pair vectors 2 #V, the chunk partials for #V rows).
+bool sizesMatch(const Vector& areas, const DiffusionScratch& scratch, const StainState& state,
+                const std::vector<char>* wet) {
+  const Eigen::Index n = state.solvent.size();
+  return !(areas.size() != n || state.solute.size() != n || state.velocities.size() != n ||
+           scratch.rhs.size() != n || scratch.solution.size() != n || scratch.complexRhs.size() != n ||
+           scratch.complexSolution.size() != n || scratch.densityX.size() != 2 * n ||
+           scratch.velocityX.size() != 2 * n || static_cast<Eigen::Index>(scratch.densityMarks.size()) != n ||
+           static_cast<Eigen::Index>(scratch.krylovPartials.size()) <
+               (n + kKrylovChunkRows - 1) / kKrylovChunkRows * kKrylovPartialsPerChunk ||
+           (wet != nullptr && static_cast<Eigen::Index>(wet->size()) != n));
+}
+
+// Flushes the far tail and restores the exact mass (design note) of the
+// two fields in dx (pairs), over the active rows only: values below
+// kIterativeTolerance × max |x_c| become zero, then x_c is scaled by
+// mass[c] / Σ A_i x_c,i where both are positive. Chunked like the CG's sums
+// (the same bits for any thread count).
+void flushAndRestoreOnSupport(const Vector& areas, const double mass[2], const ActiveSet& densityActive,
+                              double* partials, double* dx) {
+  const int* list = densityActive.list();
+  const int count = densityActive.size();
+  const int chunks = (count + kKrylovChunkRows - 1) / kKrylovChunkRows;
+  const bool threaded = count >= kKrylovParallelRows;
+  for (int c = 0; c < 2; ++c) {
+    double largest = 0.0;  // a max: the same in any order
+    threads::runLoop(threaded, [&] {
+      decltype(largest) largestHere = threads::lowest<decltype(largest)>();
+#pragma omp for schedule(static) nowait
+      for (int k = 0; k < count; ++k) largestHere = std::max(largestHere, std::abs(dx[2 * list[k] + c]));
+#pragma omp critical(blot_threads_combine)
+      {
+        largest = std::max(largest, largestHere);
+      }
+    });
+    const double floor = kIterativeTolerance * largest;
+    threads::runLoop(threaded, [&] {
+#pragma omp for schedule(static)
+      for (int chunk = 0; chunk < chunks; ++chunk) {
+        CompensatedSum solved;
+        const int end = std::min(count, (chunk + 1) * kKrylovChunkRows);
+        for (int k = chunk * kKrylovChunkRows; k < end; ++k) {
+          double& v = dx[2 * list[k] + c];
+          if (std::abs(v) < floor) v = 0.0;
+          solved.add(areas[list[k]] * v);
+        }
+        partials[chunk] = solved.value();
+      }
+    });
+    CompensatedSum solved;
+    for (int chunk = 0; chunk < chunks; ++chunk) solved.add(partials[chunk]);
+    if (mass[c] > 0.0 && solved.value() > 0.0) {
+      const double scale = mass[c] / solved.value();
+      threads::runLoop(threaded, [&] {
+#pragma omp for schedule(static)
+        for (int k = 0; k < count; ++k) dx[2 * list[k] + c] *= scale;
+      });
+    }
+  }
+}
+
+// One field's restricted solve as the cost model predicts it on the
+// liquid's rows: RKL2, CG and the whole-mesh factor (kNever where a method
+// may not run); `considered` is false where no restricted solve is tried
+// (the factor solves).
+struct LadderCosts {
+  double rkl = kNever, cg = kNever, direct = kNever;
+  bool considered = false;
+};
+
+// The report's counts for one field (the densities' or the velocity's).
+struct FieldReport {
+  DiffusionMethod& method;
+  int& iterations;
+  int& stages;
+  double& predictedCost;
+  int& activeVertices;
+};
+
+// A field's pair vectors (2 #V each, zero outside the active set between
+// calls) that a restricted solve leaves non-zero on the active rows: the
+// iterate (the solution), the residual and the search direction.
+struct PairWork {
+  double* x;
+  double* r;
+  double* p;
+};
+
+struct LadderResult {
+  SolverStatus status = SolverStatus::Ok;
+  bool onSupport = false;  // the solution is in PairWork::x on the active rows
+};
+
+// The solver ladder, the same for the densities and the velocity: the cost
+// model's cheapest method runs (RKL2 on a tie, then CG; a kNever cost never),
+// and a CG that stalls falls back to the factor (counted in `fallbacks`).
+// runRkl / runCg / runFactor are the field's RKL2 step, CG solve and direct
+// solve. On the support the active set is kept for the caller to commit and
+// release; otherwise it is released (marks removed, `work` zero again) and,
+// unless the restricted solve met a non-finite value (NonFinite), the factor
+// has run and its status is returned.
+template <typename RunRkl, typename RunCg, typename RunFactor>
+LadderResult climbLadder(const LadderCosts& costs, ActiveSet& active, const PairWork& work, const RunRkl& runRkl,
+                         const RunCg& runCg, const RunFactor& runFactor, FieldReport field, int& fallbacks) {
+  LadderResult result;
+  if (costs.considered) {
+    const double cheapest = std::min({costs.rkl, costs.cg, costs.direct});
+    field.predictedCost = cheapest < kNever ? cheapest : 0;
+    if (costs.rkl <= costs.cg && costs.rkl <= costs.direct && costs.rkl < kNever) {
+      const RklOutcome outcome = runRkl();
+      field.stages = outcome.stages;
+      field.activeVertices = active.size();
+      if (!outcome.finite) {
+        releaseActive(active, {work.x, work.r, work.p});
+        result.status = SolverStatus::NonFinite;
+        return result;
+      }
+      field.method = DiffusionMethod::SuperTimeStepping;
+      result.onSupport = true;
+      return result;
+    }
+    if (costs.cg <= costs.direct && costs.cg < kNever) {
+      const KrylovOutcome outcome = runCg();
+      field.iterations = outcome.iterations;
+      field.activeVertices = active.size();
+      if (!outcome.finite) {
+        releaseActive(active, {work.x, work.r, work.p});
+        result.status = SolverStatus::NonFinite;
+        return result;
+      }
+      if (outcome.converged) {
+        field.method = DiffusionMethod::ConjugateGradient;
+        result.onSupport = true;
+        return result;
+      }
+      releaseActive(active, {work.x, work.r, work.p});
+      ++fallbacks;
+    } else {
+      active.clearMarks();  // the factor predicted cheaper, or the only method left; `work` untouched
+    }
+  }
+  field.method = DiffusionMethod::Direct;
+  result.status = runFactor();
+  return result;
+}
+
+// What diffuse() hands each field's ladder.
+struct DiffusionInputs {
+  const StepContext& ctx;
+  const IntrinsicGeometry& geometry;
+  DiffusionSystems& systems;
+  DiffusionScratch& scratch;
+  const StainState& state;
+  double entriesPerRow;       // of the scalar system (the cost model's row cost)
+  int factorizationsBefore;   // systems.factorizationCount() when diffuse() began
+};
+
+// The densities' ladder, solvent and solute as one pair field (densityX). On
+// their support (when scalarIterative()), which r0 = −h L σ (and L σ for
+// RKL2's first stage) reaches one ring further: RKL2 or CG, then the far
+// tail's flush and the mass restore. By the factor, in place: σ_f into
+// scratch.solution, σ_s into scratch.rhs, both in one pass over the factor
+// when both are held (the same bits as two solves); their tails flushed and
+// the restoring factors into `restores` (solvent, solute), applied at commit.
+LadderResult diffuseDensities(const DiffusionInputs& in, bool solvent, bool solute, ActiveSet& active,
+                              MassRestore restores[2], DiffusionReport& report) {
+  DiffusionSystems& systems = in.systems;
+  DiffusionScratch& scratch = in.scratch;
+  const Vector& areas = in.geometry.vertexDualAreas;
+  const SparseMatrix& system = systems.scalarSystem();
+  const int vertices = static_cast<int>(areas.size());
+  const double* x0[2] = {in.state.solvent.data(), in.state.solute.data()};
+  double mass[2] = {0.0, 0.0};  // written by the restricted solve
+  const PairWork work{scratch.densityX.data(), scratch.densityR.data(), scratch.densityP.data()};
+  LadderCosts costs;
+  if (systems.scalarIterative()) {
+    for (int i = 0; i < vertices; ++i) {
+      if (x0[0][i] != 0.0 || x0[1][i] != 0.0) active.add(i);
+    }
+    const int ring = active.grow(system.outerIndexPtr(), system.innerIndexPtr());
+    const int stages = systems.scalarStages();
+    const int rows = active.size();
+    const int iterations = predictedCgIterations(systems.scalarStiffnessRatio());
+    costs.rkl = stages > 0 ? rklCost(stages, rows, ring, in.entriesPerRow) : kNever;
+    costs.cg = systems.scalarCgAllowed() ? cgCost(iterations, rows, ring, in.entriesPerRow) : kNever;
+    costs.direct = systems.solverChoice() == DiffusionSolverChoice::Auto
+                       ? directCost(vertices, int(solvent) + int(solute))
+                       : kNever;
+    costs.considered = true;
+  }
+  const auto rkl = [&] {
+    return rkl2Step<false>(in.geometry.densityStiffness, areas.data(), x0, 1, systems.scalarStages(), in.ctx.h,
+                           work.x, work.r, work.p, active, true, mass, scratch.krylovPartials.data());
+  };
+  const auto cg = [&] {
+    return pairConjugateGradients<false>(system.outerIndexPtr(), system.innerIndexPtr(), system.valuePtr(),
+                                         systems.scalarInverseDiagonal().data(), areas.data(), x0, 1, work.x,
+                                         work.r, work.p, scratch.densityQ.data(), active, mass,
+                                         scratch.krylovPartials.data());
+  };
+  const auto factor = [&] {
+    const double solventMass = solvent ? massTimesSummed(areas, in.state.solvent, scratch.solution) : 0.0;
+    const double soluteMass = solute ? massTimesSummed(areas, in.state.solute, scratch.rhs) : 0.0;
+    const SolverStatus status = systems.solveScalarInPlace(solvent ? scratch.solution : scratch.rhs,
+                                                           solvent && solute ? &scratch.rhs : nullptr);
+    report.factorizations = systems.factorizationCount() - in.factorizationsBefore;
+    if (status != SolverStatus::Ok) return status;
+    if (solvent) restores[0] = flushTail(areas, solventMass, scratch.solution);
+    if (solute) restores[1] = flushTail(areas, soluteMass, scratch.rhs);
+    return status;
+  };
+  const FieldReport field{report.densityMethod, report.densityIterations, report.densityStages,
+                          report.densityPredictedCost, report.densityActiveVertices};
+  const LadderResult result = climbLadder(costs, active, work, rkl, cg, factor, field, report.fallbacks);
+  if (result.onSupport) flushAndRestoreOnSupport(areas, mass, active, scratch.krylovPartials.data(), work.x);
+  return result;
+}
+
+// The velocity's ladder, Re and Im as one pair field (velocityX). On the wet
+// region (`wet`, a fixed domain whose unmarked neighbours keep their values)
+// or, without it, on the velocity's support growing with the solve, when
+// vectorIterative() and the caller did not choose the factor: RKL2 or CG
+// (on the band with the symmetric Gauss–Seidel preconditioner, on a growing
+// support with Jacobi's, which reaches one ring per iteration). By the
+// factor: the whole mesh into scratch.complexSolution.
+LadderResult diffuseVelocity(const DiffusionInputs& in, const std::vector<char>* wet, bool velocityByFactor,
+                             ActiveSet& active, DiffusionReport& report) {
+  DiffusionSystems& systems = in.systems;
+  DiffusionScratch& scratch = in.scratch;
+  const Vector& areas = in.geometry.vertexDualAreas;
+  const ComplexSparseMatrix& system = systems.vectorSystem();
+  const int vertices = static_cast<int>(areas.size());
+  const Complex* u0 = in.state.velocities.data();
+  // std::complex<double> is two doubles (re, im) by the standard's array rule.
+  const double* u0Pairs = reinterpret_cast<const double*>(u0);
+  const double* x0[2] = {u0Pairs, u0Pairs + 1};
+  double mass[2] = {0.0, 0.0};  // written by the restricted solve
+  const PairWork work{scratch.velocityX.data(), scratch.velocityR.data(), scratch.velocityP.data()};
+  LadderCosts costs;
+  if (systems.vectorIterative() && !velocityByFactor) {
+    int ring = 0;
+    if (wet != nullptr) {
+      for (int i = 0; i < vertices; ++i) {
+        if ((*wet)[static_cast<size_t>(i)]) active.add(i);
+      }
+    } else {
+      for (int i = 0; i < vertices; ++i) {
+        if (u0[i] != Complex(0.0)) active.add(i);
+      }
+      ring = active.grow(system.outerIndexPtr(), system.innerIndexPtr());
+    }
+    // The band was sized for a restricted solve (StainSolver chose it): the
+    // factor is not a candidate here. Without a band the support grows with
+    // the solve like the densities', and Auto allows CG only up to their
+    // ratio (kIterativeStiffnessRatio); past it the factor solves.
+    const bool cgHere = systems.vectorCgAllowed() &&
+                        (wet != nullptr || systems.solverChoice() != DiffusionSolverChoice::Auto ||
+                         systems.vectorStiffnessRatio() <= kIterativeStiffnessRatio);
+    const RestrictedCosts restricted =
+        velocityCosts(systems, active.size(), ring, cgHere, in.entriesPerRow, wet != nullptr);
+    costs.rkl = restricted.rkl;
+    costs.cg = restricted.cg;
+    costs.considered = true;
+  }
+  const auto rkl = [&] {
+    return rkl2Step<true>(in.geometry.velocityStiffness, areas.data(), x0, 2, systems.vectorStages(), in.ctx.h,
+                          work.x, work.r, work.p, active, wet == nullptr, mass, scratch.krylovPartials.data());
+  };
+  const auto cg = [&] {
+    const int* vo = system.outerIndexPtr();
+    const int* vi = system.innerIndexPtr();
+    const double* values = reinterpret_cast<const double*>(system.valuePtr());
+    const double* inverseDiagonal = systems.vectorInverseDiagonal().data();
+    return wet != nullptr
+               ? bandConjugateGradients(vo, vi, values, inverseDiagonal, areas.data(), u0Pairs, active, work.x,
+                                        work.r, work.p, scratch.velocityT.data(), scratch.velocityQ.data(),
+                                        scratch.velocityRows)
+               : pairConjugateGradients<true>(vo, vi, values, inverseDiagonal, areas.data(), x0, 2, work.x, work.r,
+                                              work.p, scratch.velocityQ.data(), active, mass,
+                                              scratch.krylovPartials.data());
+  };
+  const auto factor = [&] {
+    massTimes(areas, in.state.velocities, scratch.complexRhs);
+    const SolverStatus status = systems.solveVector(scratch.complexRhs, scratch.complexSolution);
+    report.factorizations = systems.factorizationCount() - in.factorizationsBefore;
+    return status;
+  };
+  const FieldReport field{report.velocityMethod, report.velocityIterations, report.velocityStages,
+                          report.velocityPredictedCost, report.velocityActiveVertices};
+  return climbLadder(costs, active, work, rkl, cg, factor, field, report.fallbacks);
+}
+
+// Writes the densities' solution into the state: from densityX on the
+// support's rows (the set then released), or else the direct solve's with its
+// mass restored, listing the vertices written in DiffusionScratch::directSupport
+// (report.directSupportVertices of them: 0 when no density was solved).
+// Returns min(0, the least density written), what the limiter tests.
+double commitDensities(bool densityOnSupport, bool solvent, bool solute, const MassRestore restores[2],
+                       ActiveSet& densityActive, DiffusionScratch& scratch, StainState& state,
+                       DiffusionReport& report) {
+  double* dx = scratch.densityX.data();
+  double minimum = 0.0;
+  if (densityOnSupport) {
+    const int* list = densityActive.list();
+    for (int k = 0; k < densityActive.size(); ++k) {
+      const int i = list[k];
+      state.solvent[i] = dx[2 * i];
+      state.solute[i] = dx[2 * i + 1];
+      minimum = std::min(minimum, std::min(dx[2 * i], dx[2 * i + 1]));
+    }
+    // The CG vectors' invariant: zero outside the active set.
+    releaseActive(densityActive, {dx, scratch.densityR.data(), scratch.densityP.data()});
+  } else {
+    int* listed = scratch.directSupport.data();
+    int count = 0;
+    if (solvent)
+      minimum = std::min(minimum, commitRestored(scratch.solution, restores[0], state.solvent, scratch.directMarks,
+                                                 listed, count));
+    if (solute)
+      minimum = std::min(minimum, commitRestored(scratch.rhs, restores[1], state.solute, scratch.directMarks,
+                                                 listed, count));
+    for (int k = 0; k < count; ++k) scratch.directMarks[static_cast<size_t>(listed[k])] = 0;
+    report.directSupportVertices = count;
+  }
+  return minimum;
+}
+
 }  // namespace
 
 double velocityCostOnBand(const DiffusionSystems& systems, int rows) {
@@ -175,13 +503,7 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
 
   const Eigen::Index n = state.solvent.size();
   const Vector& areas = geometry.vertexDualAreas;
-  if (areas.size() != n || state.solute.size() != n || state.velocities.size() != n ||
-      scratch.rhs.size() != n || scratch.solution.size() != n || scratch.complexRhs.size() != n ||
-      scratch.complexSolution.size() != n || scratch.densityX.size() != 2 * n || scratch.velocityX.size() != 2 * n ||
-      static_cast<Eigen::Index>(scratch.densityMarks.size()) != n ||
-      static_cast<Eigen::Index>(scratch.krylovPartials.size()) <
-          (n + kKrylovChunkRows - 1) / kKrylovChunkRows * kKrylovPartialsPerChunk ||
-      (wet != nullptr && static_cast<Eigen::Index>(wet->size()) != n)) {
+  if (!sizesMatch(areas, scratch, state, wet)) {
     report.status = SolverStatus::SizeMismatch;
     return report;
   }
@@ -195,257 +517,44 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
   const bool solvent = switches.densityDiffusion && !allZero(state.solvent);
   const bool solute = switches.densityDiffusion && !allZero(state.solute);
   const bool velocity = switches.velocityDiffusion && !allZero(state.velocities);
-
-  // Densities on their support (CG or RKL2, both fields in one pass) into
-  // densityX, on densityActive; or the whole-mesh factor below.
   const SparseMatrix& scalarSystem = systems.scalarSystem();
   const double entriesPerRow = n > 0 ? static_cast<double>(scalarSystem.nonZeros()) / static_cast<double>(n) : 0.0;
+  const DiffusionInputs inputs{ctx, geometry, systems, scratch, state, entriesPerRow, systems.factorizationCount()};
+
   ActiveSet densityActive(scratch.densityActive, scratch.densityMarks);
+  MassRestore restores[2];  // solvent, solute (after a direct solve)
   bool densityOnSupport = false;
-  double* dx = scratch.densityX.data();
-  if ((solvent || solute) && systems.scalarIterative()) {
-    const int vertices = static_cast<int>(n);
-    const double* s0 = state.solvent.data();
-    const double* s1 = state.solute.data();
-    for (int i = 0; i < vertices; ++i) {
-      if (s0[i] != 0.0 || s1[i] != 0.0) densityActive.add(i);
+  if (solvent || solute) {
+    const LadderResult densities = diffuseDensities(inputs, solvent, solute, densityActive, restores, report);
+    if (densities.status != SolverStatus::Ok) {
+      report.status = densities.status;
+      return report;
     }
-    // r0 = −h L σ (and L σ for RKL2's first stage) reaches one ring further.
-    const int ring = densityActive.grow(scalarSystem.outerIndexPtr(), scalarSystem.innerIndexPtr());
-    const double* x0[2] = {s0, s1};
-    double mass[2];
-    const int stages = systems.scalarStages();
-    const int rows = densityActive.size();
-    const int iterations = predictedCgIterations(systems.scalarStiffnessRatio());
-    const double rkl = stages > 0 ? rklCost(stages, rows, ring, entriesPerRow) : kNever;
-    const double cg = systems.scalarCgAllowed() ? cgCost(iterations, rows, ring, entriesPerRow) : kNever;
-    const double direct = systems.solverChoice() == DiffusionSolverChoice::Auto
-                              ? directCost(vertices, int(solvent) + int(solute))
-                              : kNever;
-    report.densityPredictedCost = std::min({rkl, cg, direct});
-    if (rkl <= cg && rkl <= direct && rkl < kNever) {
-      const RklOutcome outcome =
-          rkl2Step<false>(geometry.densityStiffness, areas.data(), x0, 1, stages, ctx.h, dx, scratch.densityR.data(),
-                          scratch.densityP.data(), densityActive, true, mass, scratch.krylovPartials.data());
-      report.densityStages = outcome.stages;
-      report.densityActiveVertices = densityActive.size();
-      if (!outcome.finite) {
-        releaseActive(densityActive, {dx, scratch.densityR.data(), scratch.densityP.data()});
-        report.status = SolverStatus::NonFinite;
-        return report;
-      }
-      densityOnSupport = true;
-      report.densityMethod = DiffusionMethod::SuperTimeStepping;
-    } else if (cg <= direct && cg < kNever) {
-      const KrylovOutcome outcome = pairConjugateGradients<false>(
-          scalarSystem.outerIndexPtr(), scalarSystem.innerIndexPtr(), scalarSystem.valuePtr(),
-          systems.scalarInverseDiagonal().data(), areas.data(), x0, 1, dx, scratch.densityR.data(),
-          scratch.densityP.data(), scratch.densityQ.data(), densityActive, mass, scratch.krylovPartials.data());
-      report.densityIterations = outcome.iterations;
-      report.densityActiveVertices = densityActive.size();
-      if (!outcome.finite) {
-        releaseActive(densityActive, {dx, scratch.densityR.data(), scratch.densityP.data()});
-        report.status = SolverStatus::NonFinite;
-        return report;
-      }
-      if (outcome.converged) {
-        densityOnSupport = true;
-        report.densityMethod = DiffusionMethod::ConjugateGradient;
-      } else {
-        releaseActive(densityActive, {dx, scratch.densityR.data(), scratch.densityP.data()});
-        densityActive = ActiveSet(scratch.densityActive, scratch.densityMarks);
-        ++report.fallbacks;
-      }
-    } else {  // the factor is predicted cheaper
-      densityActive.clearMarks();
-      densityActive = ActiveSet(scratch.densityActive, scratch.densityMarks);
-    }
-    if (densityOnSupport) {
-      // Flush the far tail and restore the exact mass (design note), over
-      // the active rows only.
-      // Chunked like the CG's sums (the same bits for any thread count).
-      const int* list = densityActive.list();
-      const int count = densityActive.size();
-      const int chunks = (count + kKrylovChunkRows - 1) / kKrylovChunkRows;
-      double* partials = scratch.krylovPartials.data();
-      const bool threaded = count >= kKrylovParallelRows;
-      for (int c = 0; c < 2; ++c) {
-        double largest = 0.0;  // a max: the same in any order
-        threads::runLoop(threaded, [&] {
-          decltype(largest) largestHere = threads::lowest<decltype(largest)>();
-#pragma omp for schedule(static) nowait
-          for (int k = 0; k < count; ++k) largestHere = std::max(largestHere, std::abs(dx[2 * list[k] + c]));
-#pragma omp critical(blot_threads_combine)
-          {
-            largest = std::max(largest, largestHere);
-          }
-        });
-        const double floor = kIterativeTolerance * largest;
-        threads::runLoop(threaded, [&] {
-#pragma omp for schedule(static)
-          for (int chunk = 0; chunk < chunks; ++chunk) {
-            CompensatedSum solved;
-            const int end = std::min(count, (chunk + 1) * kKrylovChunkRows);
-            for (int k = chunk * kKrylovChunkRows; k < end; ++k) {
-              double& v = dx[2 * list[k] + c];
-              if (std::abs(v) < floor) v = 0.0;
-              solved.add(areas[list[k]] * v);
-            }
-            partials[chunk] = solved.value();
-          }
-        });
-        CompensatedSum solved;
-        for (int chunk = 0; chunk < chunks; ++chunk) solved.add(partials[chunk]);
-        if (mass[c] > 0.0 && solved.value() > 0.0) {
-          const double scale = mass[c] / solved.value();
-          threads::runLoop(threaded, [&] {
-#pragma omp for schedule(static)
-            for (int k = 0; k < count; ++k) dx[2 * list[k] + c] *= scale;
-          });
-        }
-      }
-    }
-  }
-  // Direct solves in place: σ_f into scratch.solution, σ_s into scratch.rhs,
-  // both in one pass over the factor when both are held (the same bits as
-  // two solves).
-  const int factorizationsBefore = systems.factorizationCount();
-  MassRestore solventRestore, soluteRestore;
-  if (!densityOnSupport && (solvent || solute)) {
-    report.densityMethod = DiffusionMethod::Direct;
-    const double solventMass = solvent ? massTimesSummed(areas, state.solvent, scratch.solution) : 0.0;
-    const double soluteMass = solute ? massTimesSummed(areas, state.solute, scratch.rhs) : 0.0;
-    report.status = systems.solveScalarInPlace(solvent ? scratch.solution : scratch.rhs,
-                                               solvent && solute ? &scratch.rhs : nullptr);
-    report.factorizations = systems.factorizationCount() - factorizationsBefore;
-    if (report.status != SolverStatus::Ok) return report;
-    if (solvent) solventRestore = flushTail(areas, solventMass, scratch.solution);
-    if (solute) soluteRestore = flushTail(areas, soluteMass, scratch.rhs);
+    densityOnSupport = densities.onSupport;
   }
   // A failed velocity solve must leave the densities as they were: undo the
   // CG bookkeeping before returning.
+  double* dx = scratch.densityX.data();
   const auto abandonDensities = [&] {
     if (densityOnSupport) releaseActive(densityActive, {dx, scratch.densityR.data(), scratch.densityP.data()});
   };
 
-  // Velocity on the wet region (or its support): CG or RKL2 into velocityX.
-  const ComplexSparseMatrix& vectorSystem = systems.vectorSystem();
   ActiveSet velocityActive(scratch.velocityActive, scratch.velocityMarks);
   bool velocityOnBand = false;
   double* ux = scratch.velocityX.data();
-  if (velocity && systems.vectorIterative() && !velocityByFactor) {
-    const int vertices = static_cast<int>(n);
-    const Complex* u0 = state.velocities.data();
-    int ring = 0;
-    if (wet != nullptr) {
-      for (int i = 0; i < vertices; ++i) {
-        if ((*wet)[static_cast<size_t>(i)]) velocityActive.add(i);
-      }
-    } else {
-      for (int i = 0; i < vertices; ++i) {
-        if (u0[i] != Complex(0.0)) velocityActive.add(i);
-      }
-      ring = velocityActive.grow(vectorSystem.outerIndexPtr(), vectorSystem.innerIndexPtr());
-    }
-    // std::complex<double> is two doubles (re, im) by the standard's array rule.
-    const double* u0Pairs = reinterpret_cast<const double*>(u0);
-    const double* x0[2] = {u0Pairs, u0Pairs + 1};
-    double mass[2];
-    // The band was sized for a restricted solve (StainSolver chose it): the
-    // factor is not a candidate here. Without a band the support grows with
-    // the solve like the densities', and Auto allows CG only up to their
-    // ratio (kIterativeStiffnessRatio); past it the factor solves below.
-    const int stages = systems.vectorStages();
-    const int rows = velocityActive.size();
-    const bool cgHere = systems.vectorCgAllowed() &&
-                        (wet != nullptr || systems.solverChoice() != DiffusionSolverChoice::Auto ||
-                         systems.vectorStiffnessRatio() <= kIterativeStiffnessRatio);
-    const auto [rkl, cg] = velocityCosts(systems, rows, ring, cgHere, entriesPerRow, wet != nullptr);
-    report.velocityPredictedCost = std::min(rkl, cg);
-    if (rkl >= kNever && cg >= kNever) {
-      releaseActive(velocityActive, {ux, scratch.velocityR.data(), scratch.velocityP.data()});
-      report.velocityPredictedCost = 0;
-    } else if (rkl <= cg) {
-      const RklOutcome outcome =
-          rkl2Step<true>(geometry.velocityStiffness, areas.data(), x0, 2, stages, ctx.h, ux, scratch.velocityR.data(),
-                         scratch.velocityP.data(), velocityActive, wet == nullptr, mass, scratch.krylovPartials.data());
-      report.velocityStages = outcome.stages;
-      report.velocityActiveVertices = velocityActive.size();
-      if (!outcome.finite) {
-        releaseActive(velocityActive, {ux, scratch.velocityR.data(), scratch.velocityP.data()});
-        abandonDensities();
-        report.status = SolverStatus::NonFinite;
-        return report;
-      }
-      velocityOnBand = true;
-      report.velocityMethod = DiffusionMethod::SuperTimeStepping;
-    } else {
-      // On the band (a fixed domain) with the symmetric Gauss–Seidel
-      // preconditioner; a support that grows with the solve keeps Jacobi's,
-      // which reaches one ring per iteration.
-      const int* vo = vectorSystem.outerIndexPtr();
-      const int* vi = vectorSystem.innerIndexPtr();
-      const double* values = reinterpret_cast<const double*>(vectorSystem.valuePtr());
-      const KrylovOutcome outcome =
-          wet != nullptr
-              ? bandConjugateGradients(vo, vi, values, systems.vectorInverseDiagonal().data(), areas.data(), u0Pairs,
-                                       velocityActive, ux, scratch.velocityR.data(), scratch.velocityP.data(),
-                                       scratch.velocityT.data(), scratch.velocityQ.data(), scratch.velocityRows)
-              : pairConjugateGradients<true>(vo, vi, values, systems.vectorInverseDiagonal().data(), areas.data(), x0,
-                                             2, ux, scratch.velocityR.data(), scratch.velocityP.data(),
-                                             scratch.velocityQ.data(), velocityActive, mass,
-                                             scratch.krylovPartials.data());
-      report.velocityIterations = outcome.iterations;
-      report.velocityActiveVertices = velocityActive.size();
-      if (!outcome.finite) {
-        releaseActive(velocityActive, {ux, scratch.velocityR.data(), scratch.velocityP.data()});
-        abandonDensities();
-        report.status = SolverStatus::NonFinite;
-        return report;
-      }
-      if (outcome.converged) {
-        velocityOnBand = true;
-        report.velocityMethod = DiffusionMethod::ConjugateGradient;
-      } else {
-        releaseActive(velocityActive, {ux, scratch.velocityR.data(), scratch.velocityP.data()});
-        ++report.fallbacks;
-      }
-    }
-  }
-  if (velocity && !velocityOnBand) {
-    report.velocityMethod = DiffusionMethod::Direct;
-    massTimes(areas, state.velocities, scratch.complexRhs);
-    report.status = systems.solveVector(scratch.complexRhs, scratch.complexSolution);
-    report.factorizations = systems.factorizationCount() - factorizationsBefore;
-    if (report.status != SolverStatus::Ok) {
+  if (velocity) {
+    const LadderResult velocities = diffuseVelocity(inputs, wet, velocityByFactor, velocityActive, report);
+    if (velocities.status != SolverStatus::Ok) {
       abandonDensities();
+      report.status = velocities.status;
       return report;
     }
+    velocityOnBand = velocities.onSupport;
   }
 
   // Commit (copies, not swaps: the state's arrays keep their addresses).
-  double minimum = 0.0;
-  if (densityOnSupport) {
-    const int* list = densityActive.list();
-    for (int k = 0; k < densityActive.size(); ++k) {
-      const int i = list[k];
-      state.solvent[i] = dx[2 * i];
-      state.solute[i] = dx[2 * i + 1];
-      minimum = std::min(minimum, std::min(dx[2 * i], dx[2 * i + 1]));
-    }
-    abandonDensities();  // the CG vectors' invariant: zero outside the active set
-  } else {
-    int* listed = scratch.directSupport.data();
-    int count = 0;
-    if (solvent)
-      minimum = std::min(minimum, commitRestored(scratch.solution, solventRestore, state.solvent, scratch.directMarks,
-                                                 listed, count));
-    if (solute)
-      minimum = std::min(minimum, commitRestored(scratch.rhs, soluteRestore, state.solute, scratch.directMarks,
-                                                 listed, count));
-    for (int k = 0; k < count; ++k) scratch.directMarks[static_cast<size_t>(listed[k])] = 0;
-    report.directSupportVertices = count;
-  }
+  const double minimum =
+      commitDensities(densityOnSupport, solvent, solute, restores, densityActive, scratch, state, report);
   if (velocityOnBand) {
     const int* list = velocityActive.list();
     for (int k = 0; k < velocityActive.size(); ++k) {
