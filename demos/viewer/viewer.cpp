@@ -764,7 +764,7 @@ class Viewer {
     // MassBudget::fields: each part a bar against its group's total, then the
     // totals and the relative errors on a line each.
     MassBudgetEntries m;
-    blot::stain::MassBudget::fields(stats.massBudget, m);
+    stats.massBudget.visit(m);
     for (const auto& e : m.entries)
       if (e.field.role == blot::stain::FieldRole::Part)
         bar(e.field.label, 1e3 * e.value, 1e3 * std::max(m.total(e.field.group), 1e-30), "g");
