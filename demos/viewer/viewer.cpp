@@ -286,6 +286,13 @@ double lastStageTime(const blot::engine::EngineStatistics& s, blot::stain::Stage
   return s.lastProfile.time(stage);
 }
 
+/// A field's label on a panel: its own, or its key with ' ' for '_'.
+std::string panelLabel(const blot::stain::OutputField& f) {
+  std::string text = *f.label != '\0' ? f.label : f.key;
+  std::replace(text.begin(), text.end(), '_', ' ');
+  return text;
+}
+
 /// The mass budget's values as MassBudget::fields lists them, for its panel.
 struct MassBudgetEntries {
   struct Entry {
@@ -765,10 +772,10 @@ class Viewer {
     // MassBudget::fields: each part a bar against its group's total, then the
     // totals and the relative errors on a line each.
     MassBudgetEntries m;
-    blot::stain::MassBudget::fields(stats.massBudget, m);
+    stats.massBudget.visit(m);
     for (const auto& e : m.entries)
       if (e.field.role == blot::stain::FieldRole::Part)
-        bar(e.field.label, 1e3 * e.value, 1e3 * std::max(m.total(e.field.group), 1e-30), "g");
+        bar(panelLabel(e.field).c_str(), 1e3 * e.value, 1e3 * std::max(m.total(e.field.group), 1e-30), "g");
     std::string added = "added", errors = "error";
     bool anyAdded = false, firstTotal = true;
     char text[64];

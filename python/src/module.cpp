@@ -81,7 +81,7 @@ class PyDictWriter {
   void record(const blot::stain::OutputField& f, const Record& nested) {
     if (!f.goesTo(blot::stain::kPythonOutput)) return;
     PyDictWriter inner;
-    Record::fields(nested, inner);
+    nested.visit(inner);
     dict[f.key] = inner.dict;
   }
   void perStage(const blot::stain::OutputField& f, const std::array<double, blot::stain::kStageCount>& values,
@@ -107,7 +107,7 @@ class PyDictWriter {
 template <class Record>
 py::dict pythonDict(const Record& record) {
   PyDictWriter writer;
-  Record::fields(record, writer);
+  record.visit(writer);
   return writer.dict;
 }
 

@@ -52,7 +52,7 @@ struct OutputField {
   const char* name = "";        ///< the C++ member's name, camelCase (C struct members are checked against it)
   const char* key = "";         ///< snake_case key in Python dicts and JSON
   const char* unit = "";        ///< SI unit ("kg", "ms", "s"; "" for counts and ratios)
-  const char* label = "";       ///< short label in the viewer's panels ("" : the key)
+  const char* label = "";       ///< short label in the viewer's panels ("": the key, '_' read as ' ')
   const char* group = nullptr;  ///< JSON: the object it sits in ("solvent"), nullptr: at the top
   const char* groupKey = nullptr;  ///< its key inside `group` ("free", "relative_error")
   const char* jsonKey = nullptr;   ///< JSON key when it differs from `key`; for perStage, the keys' prefix
@@ -81,16 +81,16 @@ struct OutputField {
     f.role = role_;
     return f;
   }
-  /// A part of `group_`'s total, shown as `label_`, under keyInGroup in JSON.
-  constexpr OutputField partOf(const char* group_, const char* keyInGroup, const char* label_) const {
-    return inGroup(group_, keyInGroup).as(FieldRole::Part).labelled(label_);
+  /// A part of `group_`'s total, under keyInGroup in JSON.
+  constexpr OutputField partOf(const char* group_, const char* keyInGroup) const {
+    return inGroup(group_, keyInGroup).as(FieldRole::Part);
   }
   /// The total of `group_` (the parts' sum), under keyInGroup in JSON.
   constexpr OutputField totalOf(const char* group_, const char* keyInGroup) const {
     return inGroup(group_, keyInGroup).as(FieldRole::Total);
   }
   /// The relative error of `group_`'s balance, under keyInGroup in JSON.
-  constexpr OutputField errorOf(const char* group_, const char* keyInGroup) const {
+  constexpr OutputField errorOf(const char* group_, const char* keyInGroup = "relative_error") const {
     return inGroup(group_, keyInGroup).as(FieldRole::Error);
   }
   /// Kept out of the outputs in `targets` (OutputTarget bits).

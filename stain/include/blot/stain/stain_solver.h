@@ -117,22 +117,18 @@ struct MassBudget {
   template <class Visitor> void visit(Visitor& v) const { fields(*this, v); }
   template <class Self, class Visitor>
   static constexpr void fields(Self& s, Visitor& v) {
-    v.field(outputField("freeSolvent", "free_solvent", "kg").partOf("solvent", "free", "free solvent"), s.freeSolvent);
-    v.field(outputField("absorbedSolvent", "absorbed_solvent", "kg").partOf("solvent", "absorbed", "absorbed solvent"),
-            s.absorbedSolvent);
-    v.field(outputField("evaporatedSolvent", "evaporated_solvent", "kg").partOf("solvent", "evaporated", "evaporated"),
+    constexpr auto kg = [](const char* name, const char* key) { return outputField(name, key, "kg"); };
+    v.field(kg("freeSolvent", "free_solvent").partOf("solvent", "free"), s.freeSolvent);
+    v.field(kg("absorbedSolvent", "absorbed_solvent").partOf("solvent", "absorbed"), s.absorbedSolvent);
+    v.field(kg("evaporatedSolvent", "evaporated_solvent").partOf("solvent", "evaporated").labelled("evaporated"),
             s.evaporatedSolvent);
-    v.field(outputField("addedSolvent", "added_solvent", "kg").totalOf("solvent", "added"), s.addedSolvent);
-    v.field(outputField("freeSolute", "free_solute", "kg").partOf("solute", "free", "free solute"), s.freeSolute);
-    v.field(outputField("absorbedSolute", "absorbed_solute", "kg").partOf("solute", "absorbed", "absorbed solute"),
-            s.absorbedSolute);
-    v.field(outputField("adsorbedSolute", "adsorbed_solute", "kg").partOf("solute", "adsorbed", "adsorbed solute"),
-            s.adsorbedSolute);
-    v.field(outputField("addedSolute", "added_solute", "kg").totalOf("solute", "added"), s.addedSolute);
-    v.computed(outputField("solventError", "solvent_error").errorOf("solvent", "relative_error"),
-               [&s] { return s.solventError(); });
-    v.computed(outputField("soluteError", "solute_error").errorOf("solute", "relative_error"),
-               [&s] { return s.soluteError(); });
+    v.field(kg("addedSolvent", "added_solvent").totalOf("solvent", "added"), s.addedSolvent);
+    v.field(kg("freeSolute", "free_solute").partOf("solute", "free"), s.freeSolute);
+    v.field(kg("absorbedSolute", "absorbed_solute").partOf("solute", "absorbed"), s.absorbedSolute);
+    v.field(kg("adsorbedSolute", "adsorbed_solute").partOf("solute", "adsorbed"), s.adsorbedSolute);
+    v.field(kg("addedSolute", "added_solute").totalOf("solute", "added"), s.addedSolute);
+    v.computed(outputField("solventError", "solvent_error").errorOf("solvent"), [&s] { return s.solventError(); });
+    v.computed(outputField("soluteError", "solute_error").errorOf("solute"), [&s] { return s.soluteError(); });
   }
 };
 static_assert(describesEveryMember<MassBudget>(), "MassBudget changed: list the new field in MassBudget::fields");

@@ -55,7 +55,7 @@ class JsonWriter {
     nlohmann::json& inner = slot(f);
     inner = nlohmann::json::object();
     JsonWriter writer(inner, steps_, mean_ || f.perStep);
-    Record::fields(nested, writer);
+    nested.visit(writer);
   }
   void perStage(const stain::OutputField& f, const std::array<double, stain::kStageCount>& values, stain::Stage first,
                 stain::Stage last) {
@@ -85,7 +85,7 @@ template <class Record>
 nlohmann::json outputJson(const Record& record, double steps) {
   nlohmann::json out = nlohmann::json::object();
   output_json_detail::JsonWriter writer(out, steps, false);
-  Record::fields(record, writer);
+  record.visit(writer);
   return out;
 }
 
