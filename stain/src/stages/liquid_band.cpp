@@ -161,15 +161,14 @@ void sizeRingTables(const SurfaceTopology& topology, LiquidBand& band) {
 }
 
 // Vertex v's ring entries of band.ringTransports (exp(iθ_vj), eq. 6) and its
-// band.distances[v].shortestEdge and .starRadius (m, intrinsic), filled once
-// per intrinsic rebuild (band.ringRebuildCounts[v]). Without edge lengths the
+// band.distances[v].shortestEdge and .starRadius (m, intrinsic), filled now
+// (fillVertexTables: once per intrinsic rebuild). Without edge lengths the
 // shortest edge is 0 (the band then covers the component: the distance to
 // cover is infinite); without face areas the star radius is 0 (no foot point
 // is then taken to be in its star). The velocity advection keeps its own copy
 // of the transports: the band is built before it.
-void fillVertexTables(const SurfaceTopology& topology, const IntrinsicGeometry& intrinsic, int v, LiquidBand& band) {
-  int& filledFrom = band.ringRebuildCounts[static_cast<size_t>(v)];
-  if (filledFrom == intrinsic.rebuildCount) return;
+void fillVertexTablesNow(const SurfaceTopology& topology, const IntrinsicGeometry& intrinsic, int v,
+                         LiquidBand& band) {
   const bool haveLengths = intrinsic.edgeLengths.size() > 0;
   const bool haveAreas = haveLengths && intrinsic.faceAreas.size() == topology.faceCount();
   const std::vector<int>& offsets = topology.ringOffsets();
@@ -193,7 +192,15 @@ void fillVertexTables(const SurfaceTopology& topology, const IntrinsicGeometry& 
   }
   band.distances[static_cast<size_t>(v)].shortestEdge = shortest;
   band.distances[static_cast<size_t>(v)].starRadius = starRadius;
-  filledFrom = intrinsic.rebuildCount;
+  band.ringRebuildCounts[static_cast<size_t>(v)] = intrinsic.rebuildCount;
+}
+
+// fillVertexTablesNow unless vertex v's tables are from this intrinsic
+// rebuild already (band.ringRebuildCounts[v]).
+inline void fillVertexTables(const SurfaceTopology& topology, const IntrinsicGeometry& intrinsic, int v,
+                             LiquidBand& band) {
+  if (band.ringRebuildCounts[static_cast<size_t>(v)] == intrinsic.rebuildCount) return;
+  fillVertexTablesNow(topology, intrinsic, v, band);
 }
 
 // What one growLiquidBand call reads, with the flags of what the geometry
@@ -229,7 +236,7 @@ BandSurface bandSurface(const LiquidBandInputs& inputs, const SurfaceTopology& t
 }
 
 // v_k = (p_k^t − p_k^{t−h}) / h: vertex k's velocity over the last step (3, m/s, world).
-Vector3 surfaceVelocity(const BandSurface& surface, int k) {
+inline Vector3 surfaceVelocity(const BandSurface& surface, int k) {
   const ExtrinsicGeometry& extrinsic = surface.extrinsic;
   return (extrinsic.positions.row(k) - extrinsic.previousPositions.row(k)).transpose() * surface.invH;
 }
@@ -237,36 +244,12 @@ Vector3 surfaceVelocity(const BandSurface& surface, int k) {
 // |tangential part of g − p̈_k| + filmAcceleration (m/s²): the kick the body
 // forces give vertex k's u per unit time (the normal part is lost, the liquid
 // stays on the surface).
-double tangentialKick(const BandSurface& surface, int k) {
+inline double tangentialKick(const BandSurface& surface, int k) {
   Vector3 a = surface.inputs.gravity;
   if (surface.inertia) a -= surface.extrinsic.vertexAccelerations.row(k).transpose();
   if (!surface.haveFrames) return a.norm() + surface.inputs.filmAcceleration;
   const Vector3 z = surface.extrinsic.frames[static_cast<size_t>(k)].col(2);
   return (a - a.dot(z) * z).norm() + surface.inputs.filmAcceleration;
-}
-
-// P_i / A_i (1/m): the barycentric dual half-edges around vertex i (|c_T − m_ij|
-// for each of its faces' two edges at i, from the positions at t) over its dual
-// area; infinite where the area is not positive.
-double dualPerimeterOverArea(const BandSurface& surface, int i) {
-  const std::vector<int>& offsets = surface.topology.ringOffsets();
-  const std::vector<int>& ringFaces = surface.topology.ringFaces();
-  const std::vector<signed char>& ringCorners = surface.topology.ringCorners();
-  const Triangles& faces = surface.topology.faces();
-  const RowVectors3& positions = surface.extrinsic.positions;
-  double perimeter = 0.0;
-  for (int m = offsets[static_cast<size_t>(i)]; m < offsets[static_cast<size_t>(i) + 1]; ++m) {
-    const int f = ringFaces[static_cast<size_t>(m)];
-    if (f < 0) continue;
-    const int corner = ringCorners[static_cast<size_t>(m)];
-    const Vector3 pi = positions.row(i).transpose();
-    const Vector3 pj = positions.row(faces(f, (corner + 1) % 3)).transpose();
-    const Vector3 pk = positions.row(faces(f, (corner + 2) % 3)).transpose();
-    // c_T − m_ij = (2 p_k − p_i − p_j) / 6, and the same with j and k swapped.
-    perimeter += ((2.0 * pk - pi - pj).norm() + (2.0 * pj - pi - pk).norm()) / 6.0;
-  }
-  const double area = surface.intrinsic.vertexDualAreas[i];
-  return area > 0.0 ? perimeter / area : std::numeric_limits<double>::infinity();
 }
 
 // Sub-step rings: the density advection moves liquid one ring a sub-step and
@@ -278,6 +261,41 @@ double dualPerimeterOverArea(const BandSurface& surface, int i) {
 // computed) bounds the levels: no liquid gets past level ceil(d · factor). It
 // is computed when a level past 1 is first decided (a band without one, e.g. a
 // wet set covering the mesh, never pays for it).
+double courantFactor(const BandSurface& surface, const LiquidBand& band, int wetCount) {
+  double largest = std::numeric_limits<double>::infinity();
+  if (surface.havePositions) {
+    const std::vector<int>& offsets = surface.topology.ringOffsets();
+    const std::vector<int>& ringFaces = surface.topology.ringFaces();
+    const std::vector<signed char>& ringCorners = surface.topology.ringCorners();
+    const Triangles& faces = surface.topology.faces();
+    const RowVectors3& positions = surface.extrinsic.positions;
+    const Vector& areas = surface.intrinsic.vertexDualAreas;
+    largest = 0.0;
+    for (int k = 0; k < wetCount; ++k) {
+      const int i = band.vertices[static_cast<size_t>(k)];
+      // P_i: Σ over i's faces of the two barycentric dual half-edges at i,
+      // |c_T − m_ij| for each of the face's edges at i (positions at t).
+      double perimeter = 0.0;
+      for (int m = offsets[static_cast<size_t>(i)]; m < offsets[static_cast<size_t>(i) + 1]; ++m) {
+        const int f = ringFaces[static_cast<size_t>(m)];
+        if (f < 0) continue;
+        const int corner = ringCorners[static_cast<size_t>(m)];
+        const Vector3 pi = positions.row(i).transpose();
+        const Vector3 pj = positions.row(faces(f, (corner + 1) % 3)).transpose();
+        const Vector3 pk = positions.row(faces(f, (corner + 2) % 3)).transpose();
+        // c_T − m_ij = (2 p_k − p_i − p_j) / 6, and the same with j and k swapped.
+        perimeter += ((2.0 * pk - pi - pj).norm() + (2.0 * pj - pi - pk).norm()) / 6.0;
+      }
+      const double area = areas[i];
+      largest = std::max(largest, area > 0.0 ? perimeter / area : std::numeric_limits<double>::infinity());
+    }
+  }
+  // NaN too: no limit from the sub-steps.
+  return largest < std::numeric_limits<double>::infinity() ? largest * (1.0 + 1e-9)
+                                                           : std::numeric_limits<double>::infinity();
+}
+
+// The Courant factor computed on first use, and the sub-step distances it gives.
 class SubStepReach {
  public:
   SubStepReach(const BandSurface& surface, const LiquidBand& band, int wetCount)
@@ -287,15 +305,7 @@ class SubStepReach {
   // in reach (a step with u = 0 moves nothing, and takes no sub-step).
   double distanceTo(int level) {
     if (courantFactor_ < 0.0) {
-      double largest = std::numeric_limits<double>::infinity();
-      if (surface_.havePositions) {
-        largest = 0.0;
-        for (int k = 0; k < wetCount_; ++k)
-          largest = std::max(largest, dualPerimeterOverArea(surface_, band_.vertices[static_cast<size_t>(k)]));
-      }
-      // NaN too: no limit from the sub-steps.
-      courantFactor_ = largest < std::numeric_limits<double>::infinity() ? largest * (1.0 + 1e-9)
-                                                                         : std::numeric_limits<double>::infinity();
+      courantFactor_ = courantFactor(surface_, band_, wetCount_);
     }
     return static_cast<double>(level - 1) / courantFactor_;
   }
