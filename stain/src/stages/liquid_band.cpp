@@ -214,7 +214,6 @@ struct BandSurface {
   bool moving;         ///< frame velocities enter the extension (p at t − h and t, frames at t)
   bool inertia;        ///< p̈ enters the kick
   bool haveFrames;     ///< frames at t exist (else the kick is not projected)
-  bool havePositions;  ///< positions at t exist (else no sub-step limit)
   double invH;         ///< 1/h (1/s)
 };
 
@@ -231,7 +230,6 @@ BandSurface bandSurface(const LiquidBandInputs& inputs, const SurfaceTopology& t
                          extrinsic.positions.rows() == n && haveFrames,
                      inputs.useAccelerations && extrinsic.vertexAccelerations.rows() == n,
                      haveFrames,
-                     extrinsic.positions.rows() == n,
                      1.0 / inputs.h};
 }
 
@@ -261,15 +259,16 @@ inline double tangentialKick(const BandSurface& surface, int k) {
 // computed) bounds the levels: no liquid gets past level ceil(d · factor). It
 // is computed when a level past 1 is first decided (a band without one, e.g. a
 // wet set covering the mesh, never pays for it).
-double courantFactor(const BandSurface& surface, const LiquidBand& band, int wetCount) {
+double courantFactor(const SurfaceTopology& topology, const IntrinsicGeometry& intrinsic,
+                     const ExtrinsicGeometry& extrinsic, const LiquidBand& band, int wetCount) {
   double largest = std::numeric_limits<double>::infinity();
-  if (surface.havePositions) {
-    const std::vector<int>& offsets = surface.topology.ringOffsets();
-    const std::vector<int>& ringFaces = surface.topology.ringFaces();
-    const std::vector<signed char>& ringCorners = surface.topology.ringCorners();
-    const Triangles& faces = surface.topology.faces();
-    const RowVectors3& positions = surface.extrinsic.positions;
-    const Vector& areas = surface.intrinsic.vertexDualAreas;
+  if (extrinsic.positions.rows() == topology.vertexCount()) {
+    const std::vector<int>& offsets = topology.ringOffsets();
+    const std::vector<int>& ringFaces = topology.ringFaces();
+    const std::vector<signed char>& ringCorners = topology.ringCorners();
+    const Triangles& faces = topology.faces();
+    const RowVectors3& positions = extrinsic.positions;
+    const Vector& areas = intrinsic.vertexDualAreas;
     largest = 0.0;
     for (int k = 0; k < wetCount; ++k) {
       const int i = band.vertices[static_cast<size_t>(k)];
@@ -298,20 +297,23 @@ double courantFactor(const BandSurface& surface, const LiquidBand& band, int wet
 // The Courant factor computed on first use, and the sub-step distances it gives.
 class SubStepReach {
  public:
-  SubStepReach(const BandSurface& surface, const LiquidBand& band, int wetCount)
-      : surface_(surface), band_(band), wetCount_(wetCount) {}
+  SubStepReach(const SurfaceTopology& topology, const IntrinsicGeometry& intrinsic,
+               const ExtrinsicGeometry& extrinsic, const LiquidBand& band, int wetCount)
+      : topology_(topology), intrinsic_(intrinsic), extrinsic_(extrinsic), band_(band), wetCount_(wetCount) {}
   // The least d (m) at which liquid can get to level ≥ 2 in the sub-steps:
   // ceil(d · factor) ≥ level, i.e. d · factor > level − 1. Level 1 is always
   // in reach (a step with u = 0 moves nothing, and takes no sub-step).
   double distanceTo(int level) {
     if (courantFactor_ < 0.0) {
-      courantFactor_ = courantFactor(surface_, band_, wetCount_);
+      courantFactor_ = courantFactor(topology_, intrinsic_, extrinsic_, band_, wetCount_);
     }
     return static_cast<double>(level - 1) / courantFactor_;
   }
 
  private:
-  const BandSurface& surface_;
+  const SurfaceTopology& topology_;
+  const IntrinsicGeometry& intrinsic_;
+  const ExtrinsicGeometry& extrinsic_;
   const LiquidBand& band_;  // its wet set (level 0) is fixed during the growth
   int wetCount_;
   double courantFactor_ = -1.0;  // not computed yet
@@ -637,7 +639,7 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
   const BandSurface surface = bandSurface(inputs, topology, intrinsic, extrinsic);
   SpeedBound bound;
   const double wetStarRadius = weighWetSet(surface, wetCount, bound, band, state);
-  SubStepReach subSteps(surface, band, wetCount);
+  SubStepReach subSteps(topology, intrinsic, extrinsic, band, wetCount);
   const RingAttempt last = growRings(surface, wetStarRadius, toPrepare, subSteps, bound, band, state);
   band.speedBound = bound.speed(inputs.h);
   markReachAndRows(topology, wetCount, last.distance, last.everything, subSteps, band);
