@@ -145,313 +145,462 @@ void shrinkBandToWetSet(LiquidBand& band) {
   band.rings = band.reachRings = band.haloCount = band.interiorCount = 0;
 }
 
-void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topology,
-                    const IntrinsicGeometry& intrinsic, const ExtrinsicGeometry& extrinsic, LiquidBand& band,
-                    StainState& state, SurfaceGeometry* toPrepare) {
+namespace {
+
+// Sizes band.ringTransports (one entry per SurfaceTopology::ringNeighbors
+// entry) and band.ringRebuildCounts (#V) for the topology; allocates on the
+// first call only (LiquidBand::resize with ringEntries sizes them at build).
+void sizeRingTables(const SurfaceTopology& topology, LiquidBand& band) {
   const int n = topology.vertexCount();
-  const std::vector<int>& offsets = topology.ringOffsets();
   const std::vector<int>& neighbors = topology.ringNeighbors();
   if (band.ringTransports.size() != static_cast<Eigen::Index>(neighbors.size()) ||
-      band.ringRebuildCounts.size() != static_cast<size_t>(n)) {  // first call only
+      band.ringRebuildCounts.size() != static_cast<size_t>(n)) {
     band.ringTransports.resize(static_cast<Eigen::Index>(neighbors.size()));
     band.ringRebuildCounts.assign(static_cast<size_t>(n), -1);
   }
+}
+
+// Vertex v's ring entries of band.ringTransports (exp(iθ_vj), eq. 6) and its
+// band.distances[v].shortestEdge and .starRadius (m, intrinsic), filled now
+// (fillVertexTables: once per intrinsic rebuild). Without edge lengths the
+// shortest edge is 0 (the band then covers the component: the distance to
+// cover is infinite); without face areas the star radius is 0 (no foot point
+// is then taken to be in its star). The velocity advection keeps its own copy
+// of the transports: the band is built before it.
+void fillVertexTablesNow(const SurfaceTopology& topology, const IntrinsicGeometry& intrinsic, int v,
+                         LiquidBand& band) {
+  const bool haveLengths = intrinsic.edgeLengths.size() > 0;
+  const bool haveAreas = haveLengths && intrinsic.faceAreas.size() == topology.faceCount();
+  const std::vector<int>& offsets = topology.ringOffsets();
   const std::vector<int>& ringEdges = topology.ringEdges();
   const std::vector<int>& ringFaces = topology.ringFaces();
   const std::vector<signed char>& ringCorners = topology.ringCorners();
-  const Triangles& faces = topology.faces();
   const Eigen::MatrixX3i& faceEdges = topology.faceEdges();
-  const bool haveLengths = intrinsic.edgeLengths.size() > 0;
-  const bool haveAreas = haveLengths && intrinsic.faceAreas.size() == topology.faceCount();
-  // Vertex v's ring entries of ringTransports and its shortest edge (m,
-  // intrinsic; 0 without a metric, whose band then covers the component: the
-  // distance to cover is infinite), filled once per rebuild (the velocity
-  // advection keeps its own copy of the transports: the band is built before it).
-  const auto fillVertexTables = [&](int v) {
-    int& filledFrom = band.ringRebuildCounts[static_cast<size_t>(v)];
-    if (filledFrom == intrinsic.rebuildCount) return;
-    double shortest = haveLengths ? std::numeric_limits<double>::infinity() : 0.0;
-    fillRingTransports(topology, intrinsic.edgeTransportAngles, v, band.ringTransports.data());
-    // Each triangle's altitude from v, twice its area over the edge opposite
-    // v (without areas 0: no foot point is then taken to be in its star).
-    double starRadius = haveAreas ? std::numeric_limits<double>::infinity() : 0.0;
-    if (haveLengths) {
-      for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m) {
-        shortest = std::min(shortest, intrinsic.edgeLengths[ringEdges[static_cast<size_t>(m)]]);
-        const int f = ringFaces[static_cast<size_t>(m)];
-        if (!haveAreas || f < 0) continue;
-        const int corner = ringCorners[static_cast<size_t>(m)];
-        const double opposite = intrinsic.edgeLengths[faceEdges(f, (corner + 1) % 3)];
-        starRadius = std::min(starRadius, opposite > 0.0 ? 2.0 * intrinsic.faceAreas[f] / opposite : 0.0);
-      }
-    }
-    band.distances[static_cast<size_t>(v)].shortestEdge = shortest;
-    band.distances[static_cast<size_t>(v)].starRadius = starRadius;
-    filledFrom = intrinsic.rebuildCount;
-  };
-  const int wetCount = band.wetCount();
-  if (wetCount == 0) return;
-
-  const Vector& areas = intrinsic.vertexDualAreas;
-  const bool moving = inputs.surfaceMoved && extrinsic.previousPositions.rows() == n &&
-                      extrinsic.positions.rows() == n && extrinsic.frames.size() == static_cast<size_t>(n);
-  const bool inertia = inputs.useAccelerations && extrinsic.vertexAccelerations.rows() == n;
-  const double invH = 1.0 / inputs.h;
-  const auto surfaceVelocity = [&](int k) -> Vector3 {
-    return (extrinsic.positions.row(k) - extrinsic.previousPositions.row(k)).transpose() * invH;
-  };
-  // Tangential part of g − p̈_i (m/s²): the kick the body forces give vertex
-  // i's u per unit time (the normal part is lost, the liquid stays on the
-  // surface).
-  const bool haveFrames = extrinsic.frames.size() == static_cast<size_t>(n);
-  const auto kick = [&](int k) {
-    Vector3 a = inputs.gravity;
-    if (inertia) a -= extrinsic.vertexAccelerations.row(k).transpose();
-    if (!haveFrames) return a.norm() + inputs.filmAcceleration;
-    const Vector3 z = extrinsic.frames[static_cast<size_t>(k)].col(2);
-    return (a - a.dot(z) * z).norm() + inputs.filmAcceleration;
-  };
-
-  // U = max |u| as √(max |u|²): one root per decision instead of a hypot
-  // per vertex (glibc's hypot, with its rounding-mode guard, was a tenth of
-  // this function's time on a 10K cloth).
-  double speedSquared = 0.0, acceleration = 0.0;
-  double wetStarRadius = std::numeric_limits<double>::infinity();  // the wet set's least
-  // Sub-step rings: the density advection moves liquid one ring a sub-step
-  // and takes n = ceil(max over the wet set of h outflow_i / A_i) of them.
-  // Its flux through the dual edge of ij is ½(U_i + U_j)·N_ij with
-  // |N_ij| ≤ Σ over the edge's faces of |c_T − m_ij| (the barycentric dual
-  // edge, surface_geometry.h), so h outflow_i / A_i ≤ d · P_i / A_i, P_i the
-  // sum of those lengths around i. courantFactor = max P_i / A_i over the
-  // wet set (1/m, 1e-9 over for rounding; infinite where it cannot be
-  // computed): no liquid gets past level ceil(d · courantFactor). Computed
-  // when a level past 1 is first decided (a band without one, e.g. a wet
-  // set covering the mesh, never pays for it).
-  const bool havePositions = extrinsic.positions.rows() == n;
-  const auto& positions = extrinsic.positions;
-  double courantFactor = -1.0;  // not computed yet
-  const auto dualPerimeterOverArea = [&](int i) {
-    double perimeter = 0.0;  // Σ over i's faces of the two dual half-edges at i
-    for (int m = offsets[static_cast<size_t>(i)]; m < offsets[static_cast<size_t>(i) + 1]; ++m) {
+  double shortest = haveLengths ? std::numeric_limits<double>::infinity() : 0.0;
+  fillRingTransports(topology, intrinsic.edgeTransportAngles, v, band.ringTransports.data());
+  // Each triangle's altitude from v: twice its area over the edge opposite v.
+  double starRadius = haveAreas ? std::numeric_limits<double>::infinity() : 0.0;
+  if (haveLengths) {
+    for (int m = offsets[static_cast<size_t>(v)]; m < offsets[static_cast<size_t>(v) + 1]; ++m) {
+      shortest = std::min(shortest, intrinsic.edgeLengths[ringEdges[static_cast<size_t>(m)]]);
       const int f = ringFaces[static_cast<size_t>(m)];
-      if (f < 0) continue;
+      if (!haveAreas || f < 0) continue;
       const int corner = ringCorners[static_cast<size_t>(m)];
-      const Vector3 pi = positions.row(i).transpose();
-      const Vector3 pj = positions.row(faces(f, (corner + 1) % 3)).transpose();
-      const Vector3 pk = positions.row(faces(f, (corner + 2) % 3)).transpose();
-      // c_T − m_ij = (2 p_k − p_i − p_j) / 6, and the same with j and k swapped.
-      perimeter += ((2.0 * pk - pi - pj).norm() + (2.0 * pj - pi - pk).norm()) / 6.0;
+      const double opposite = intrinsic.edgeLengths[faceEdges(f, (corner + 1) % 3)];
+      starRadius = std::min(starRadius, opposite > 0.0 ? 2.0 * intrinsic.faceAreas[f] / opposite : 0.0);
     }
-    const double area = areas[i];
-    return area > 0.0 ? perimeter / area : std::numeric_limits<double>::infinity();
-  };
+  }
+  band.distances[static_cast<size_t>(v)].shortestEdge = shortest;
+  band.distances[static_cast<size_t>(v)].starRadius = starRadius;
+  band.ringRebuildCounts[static_cast<size_t>(v)] = intrinsic.rebuildCount;
+}
+
+// fillVertexTablesNow unless vertex v's tables are from this intrinsic
+// rebuild already (band.ringRebuildCounts[v]).
+inline void fillVertexTables(const SurfaceTopology& topology, const IntrinsicGeometry& intrinsic, int v,
+                             LiquidBand& band) {
+  if (band.ringRebuildCounts[static_cast<size_t>(v)] == intrinsic.rebuildCount) return;
+  fillVertexTablesNow(topology, intrinsic, v, band);
+}
+
+// What one growLiquidBand call reads, with the flags of what the geometry
+// provides, gathered once.
+struct BandSurface {
+  const LiquidBandInputs& inputs;
+  const SurfaceTopology& topology;
+  const IntrinsicGeometry& intrinsic;
+  const ExtrinsicGeometry& extrinsic;
+  bool haveLengths;    ///< intrinsic edge lengths exist (else d is infinite)
+  bool moving;         ///< frame velocities enter the extension (p at t − h and t, frames at t)
+  bool inertia;        ///< p̈ enters the kick
+  bool haveFrames;     ///< frames at t exist (else the kick is not projected)
+  double invH;         ///< 1/h (1/s)
+};
+
+BandSurface bandSurface(const LiquidBandInputs& inputs, const SurfaceTopology& topology,
+                        const IntrinsicGeometry& intrinsic, const ExtrinsicGeometry& extrinsic) {
+  const int n = topology.vertexCount();
+  const bool haveFrames = extrinsic.frames.size() == static_cast<size_t>(n);
+  return BandSurface{inputs,
+                     topology,
+                     intrinsic,
+                     extrinsic,
+                     intrinsic.edgeLengths.size() > 0,
+                     inputs.surfaceMoved && extrinsic.previousPositions.rows() == n &&
+                         extrinsic.positions.rows() == n && haveFrames,
+                     inputs.useAccelerations && extrinsic.vertexAccelerations.rows() == n,
+                     haveFrames,
+                     1.0 / inputs.h};
+}
+
+// v_k = (p_k^t − p_k^{t−h}) / h: vertex k's velocity over the last step (3, m/s, world).
+inline Vector3 surfaceVelocity(const BandSurface& surface, int k) {
+  const ExtrinsicGeometry& extrinsic = surface.extrinsic;
+  return (extrinsic.positions.row(k) - extrinsic.previousPositions.row(k)).transpose() * surface.invH;
+}
+
+// |tangential part of g − p̈_k| + filmAcceleration (m/s²): the kick the body
+// forces give vertex k's u per unit time (the normal part is lost, the liquid
+// stays on the surface).
+inline double tangentialKick(const BandSurface& surface, int k) {
+  Vector3 a = surface.inputs.gravity;
+  if (surface.inertia) a -= surface.extrinsic.vertexAccelerations.row(k).transpose();
+  if (!surface.haveFrames) return a.norm() + surface.inputs.filmAcceleration;
+  const Vector3 z = surface.extrinsic.frames[static_cast<size_t>(k)].col(2);
+  return (a - a.dot(z) * z).norm() + surface.inputs.filmAcceleration;
+}
+
+// Sub-step rings: the density advection moves liquid one ring a sub-step and
+// takes n = ceil(max over the wet set of h outflow_i / A_i) of them. Its flux
+// through the dual edge of ij is ½(U_i + U_j)·N_ij with |N_ij| ≤ Σ over the
+// edge's faces of |c_T − m_ij| (the barycentric dual edge, surface_geometry.h),
+// so h outflow_i / A_i ≤ d · P_i / A_i. The Courant factor max P_i / A_i over
+// the wet set (1/m, 1e-9 over for rounding; infinite where it cannot be
+// computed) bounds the levels: no liquid gets past level ceil(d · factor). It
+// is computed when a level past 1 is first decided (a band without one, e.g. a
+// wet set covering the mesh, never pays for it).
+double courantFactor(const SurfaceTopology& topology, const IntrinsicGeometry& intrinsic,
+                     const ExtrinsicGeometry& extrinsic, const LiquidBand& band, int wetCount) {
+  double largest = std::numeric_limits<double>::infinity();
+  if (extrinsic.positions.rows() == topology.vertexCount()) {
+    const std::vector<int>& offsets = topology.ringOffsets();
+    const std::vector<int>& ringFaces = topology.ringFaces();
+    const std::vector<signed char>& ringCorners = topology.ringCorners();
+    const Triangles& faces = topology.faces();
+    const RowVectors3& positions = extrinsic.positions;
+    const Vector& areas = intrinsic.vertexDualAreas;
+    largest = 0.0;
+    for (int k = 0; k < wetCount; ++k) {
+      const int i = band.vertices[static_cast<size_t>(k)];
+      // P_i: Σ over i's faces of the two barycentric dual half-edges at i,
+      // |c_T − m_ij| for each of the face's edges at i (positions at t).
+      double perimeter = 0.0;
+      for (int m = offsets[static_cast<size_t>(i)]; m < offsets[static_cast<size_t>(i) + 1]; ++m) {
+        const int f = ringFaces[static_cast<size_t>(m)];
+        if (f < 0) continue;
+        const int corner = ringCorners[static_cast<size_t>(m)];
+        const Vector3 pi = positions.row(i).transpose();
+        const Vector3 pj = positions.row(faces(f, (corner + 1) % 3)).transpose();
+        const Vector3 pk = positions.row(faces(f, (corner + 2) % 3)).transpose();
+        // c_T − m_ij = (2 p_k − p_i − p_j) / 6, and the same with j and k swapped.
+        perimeter += ((2.0 * pk - pi - pj).norm() + (2.0 * pj - pi - pk).norm()) / 6.0;
+      }
+      const double area = areas[i];
+      largest = std::max(largest, area > 0.0 ? perimeter / area : std::numeric_limits<double>::infinity());
+    }
+  }
+  // NaN too: no limit from the sub-steps.
+  return largest < std::numeric_limits<double>::infinity() ? largest * (1.0 + 1e-9)
+                                                           : std::numeric_limits<double>::infinity();
+}
+
+// The Courant factor computed on first use, and the sub-step distances it gives.
+class SubStepReach {
+ public:
+  SubStepReach(const SurfaceTopology& topology, const IntrinsicGeometry& intrinsic,
+               const ExtrinsicGeometry& extrinsic, const LiquidBand& band, int wetCount)
+      : topology_(topology), intrinsic_(intrinsic), extrinsic_(extrinsic), band_(band), wetCount_(wetCount) {}
+  // The least d (m) at which liquid can get to level ≥ 2 in the sub-steps:
+  // ceil(d · factor) ≥ level, i.e. d · factor > level − 1. Level 1 is always
+  // in reach (a step with u = 0 moves nothing, and takes no sub-step).
+  double distanceTo(int level) {
+    if (courantFactor_ < 0.0) {
+      courantFactor_ = courantFactor(topology_, intrinsic_, extrinsic_, band_, wetCount_);
+    }
+    return static_cast<double>(level - 1) / courantFactor_;
+  }
+
+ private:
+  const SurfaceTopology& topology_;
+  const IntrinsicGeometry& intrinsic_;
+  const ExtrinsicGeometry& extrinsic_;
+  const LiquidBand& band_;  // its wet set (level 0) is fixed during the growth
+  int wetCount_;
+  double courantFactor_ = -1.0;  // not computed yet
+};
+
+// U = max |u| + h max kick over the vertices seen so far, kept as max |u|²
+// (m²/s²) and max kick (m/s²): one root per decision instead of a hypot per
+// vertex (glibc's hypot, with its rounding-mode guard, was a tenth of the
+// band's time on a 10K cloth).
+struct SpeedBound {
+  double speedSquared = 0.0;
+  double acceleration = 0.0;
+  void add(const BandSurface& surface, const StainState& state, int i) {
+    speedSquared = std::max(speedSquared, std::norm(state.velocities[i]));
+    acceleration = std::max(acceleration, tangentialKick(surface, i));
+  }
+  double speed(double h) const { return std::sqrt(speedSquared) + h * acceleration; }
+};
+
+// d = h U (m), the farthest a foot point lies from its vertex; infinite
+// without a metric or when not finite.
+double footDistance(const BandSurface& surface, const SpeedBound& bound) {
+  const double d = surface.inputs.h * bound.speed(surface.inputs.h);
+  return surface.haveLengths && std::isfinite(d) ? d : std::numeric_limits<double>::infinity();
+}
+
+// Level 0: extension weights A_i (σ_f + σ_s)⁺ (m² by density), the distance
+// labels at 0, the vertex tables, and the wet set's speed bound. Returns the
+// wet set's least star radius (m).
+double weighWetSet(const BandSurface& surface, int wetCount, SpeedBound& bound, LiquidBand& band,
+                   const StainState& state) {
+  const Vector& areas = surface.intrinsic.vertexDualAreas;
+  double wetStarRadius = std::numeric_limits<double>::infinity();
   for (int k = 0; k < wetCount; ++k) {
     const int i = band.vertices[static_cast<size_t>(k)];
     const size_t ii = static_cast<size_t>(i);
     band.weights[i] = areas[i] * (std::max(state.solvent[i], 0.0) + std::max(state.solute[i], 0.0));
-    speedSquared = std::max(speedSquared, std::norm(state.velocities[i]));
-    acceleration = std::max(acceleration, kick(i));
-    fillVertexTables(i);
+    bound.add(surface, state, i);
+    fillVertexTables(surface.topology, surface.intrinsic, i, band);
     LiquidBand::Distances& labels = band.distances[ii];
     labels.fromWet = labels.fromReach = labels.nearestWet = labels.nearestReach = 0.0;
     wetStarRadius = std::min(wetStarRadius, labels.starRadius);
   }
-  // The least d at which liquid can get to level L ≥ 2 in the sub-steps:
-  // ceil(d · courantFactor) ≥ L, i.e. d · courantFactor > L − 1. Level 1 is
-  // always in reach (a step with u = 0 moves nothing, and takes no sub-step).
-  const auto subStepDistance = [&](int level) {
-    if (courantFactor < 0.0) {
-      double largest = std::numeric_limits<double>::infinity();
-      if (havePositions) {
-        largest = 0.0;
-        for (int k = 0; k < wetCount; ++k)
-          largest = std::max(largest, dualPerimeterOverArea(band.vertices[static_cast<size_t>(k)]));
-      }
-      // NaN too: no limit from the sub-steps.
-      courantFactor = largest < std::numeric_limits<double>::infinity() ? largest * (1.0 + 1e-9)
-                                                                        : std::numeric_limits<double>::infinity();
-    }
-    return static_cast<double>(level - 1) / courantFactor;
-  };
-  const double wetSpeedSquared = speedSquared, wetAcceleration = acceleration;
+  return wetStarRadius;
+}
 
-  // Distance labels (growLiquidBand's comment in the header): a vertex is a
-  // reach centre if wet or nearestWet < d, in the reach set if wet or next to
-  // a reach centre of the level below, and it lets the band grow past it if
-  // in the reach set or nearestReach < d. Decisions are taken with the d of
-  // the moment; U only grows, so a "no" whose label is below the final d is
-  // wrong: the rings are then grown again from the wet set with the final d
-  // (`rejected`).
-  const auto distanceFor = [&](double bound) {
-    const double d = inputs.h * bound;
-    return haveLengths && std::isfinite(d) ? d : std::numeric_limits<double>::infinity();
-  };
-  bool everything = inputs.coverComponent;
+// One attempt at the rings. Distance labels (growLiquidBand's comment in the
+// header): a vertex is a reach centre if wet or nearestWet < d, in the reach
+// set if wet or next to a reach centre of the level below, and it lets the
+// band grow past it if in the reach set or nearestReach < d. Decisions are
+// taken with the d of the moment; U only grows, so a "no" whose label is
+// below the final d is wrong: the rings are then grown again from the wet set
+// with the final d (`rejected`).
+struct RingAttempt {
+  double distance = 0.0;  ///< d (m) of the moment
+  /// The least label a "no" compared against d: the answer changes only if
+  /// the final d exceeds it.
+  double rejected = std::numeric_limits<double>::infinity();
+  double starLimit = 0.0;   ///< the reach set's least star radius so far (m)
+  bool everything = false;  ///< covering the component
+  bool inStars = false;     ///< foot points taken to be in their stars
+};
+
+// Whether band vertex v, in the reach set, is a reach centre: wet, or its
+// nearestWet < d (a "no" is noted in attempt.rejected).
+bool isReachCentre(const LiquidBand& band, int v, RingAttempt& attempt) {
+  const size_t vv = static_cast<size_t>(v);
+  if (band.levels[vv] == 0 || band.distances[vv].nearestWet < attempt.distance) return true;
+  attempt.rejected = std::min(attempt.rejected, band.distances[vv].nearestWet);
+  return false;
+}
+
+// Whether the band grows past vertex v: covering the component, v in the
+// reach set, or (foot points not in their stars) its nearestReach < d (a "no"
+// is noted in attempt.rejected; with the stars it holds while d < starLimit,
+// checked by the caller).
+bool letsGrow(const LiquidBand& band, int v, RingAttempt& attempt) {
+  const size_t vv = static_cast<size_t>(v);
+  if (attempt.everything || band.reachMask[vv] != 0) return true;
+  if (attempt.inStars) return false;
+  if (band.distances[vv].nearestReach < attempt.distance) return true;
+  attempt.rejected = std::min(attempt.rejected, band.distances[vv].nearestReach);
+  return false;
+}
+
+// Ring growth: appends to band.vertices, at `level`, every vertex outside the
+// band next to a vertex of band.vertices[begin, end) (the level below) that
+// lets the band grow, in discovery order; those it grows past are rows of the
+// velocity solve (diffusionMask 1, unless wet).
+void growRing(const SurfaceTopology& topology, int level, int begin, int end, RingAttempt& attempt,
+              LiquidBand& band) {
+  const std::vector<int>& offsets = topology.ringOffsets();
+  const std::vector<int>& neighbors = topology.ringNeighbors();
+  for (int k = begin; k < end; ++k) {
+    const int i = band.vertices[static_cast<size_t>(k)];
+    if (!letsGrow(band, i, attempt)) continue;
+    if (band.diffusionMask[static_cast<size_t>(i)] == 0) band.diffusionMask[static_cast<size_t>(i)] = 1;
+    for (int m = offsets[static_cast<size_t>(i)]; m < offsets[static_cast<size_t>(i) + 1]; ++m) {
+      const int j = neighbors[static_cast<size_t>(m)];
+      if (band.levels[static_cast<size_t>(j)] >= 0) continue;
+      band.levels[static_cast<size_t>(j)] = level;
+      band.vertices.push_back(j);
+    }
+  }
+}
+
+// Velocity extension onto band vertex i at `level` ≥ 1 (growLiquidBand's
+// comment in the header, "Extension"): u_i (m/s, i's frame at t) and its
+// extension weight from its neighbours at the levels below, its distance
+// labels (m) and whether it is in the reach set (reachMask; a "no" is noted in
+// attempt.rejected, a reach vertex's star radius in attempt.starLimit). A
+// soaked vertex gets u = 0 and weight 0.
+void extendVelocity(const BandSurface& surface, int level, int i, SubStepReach& subSteps, RingAttempt& attempt,
+                    LiquidBand& band, StainState& state) {
+  const std::vector<int>& offsets = surface.topology.ringOffsets();
+  const std::vector<int>& neighbors = surface.topology.ringNeighbors();
+  const size_t ii = static_cast<size_t>(i);
+  Complex weighted(0.0, 0.0), plain(0.0, 0.0);
+  double weightSum = 0.0;
+  int count = 0;
+  bool inReach = false;
+  double fromWet = std::numeric_limits<double>::infinity(), fromReach = fromWet;
+  double nearestWet = fromWet, nearestReach = fromWet;
+  const Vector3 vi = surface.moving ? surfaceVelocity(surface, i) : Vector3::Zero();
+  const Matrix3* frame = surface.moving ? &surface.extrinsic.frames[ii] : nullptr;
+  fillVertexTables(surface.topology, surface.intrinsic, i, band);
+  const double shortest = band.distances[ii].shortestEdge;
+  for (int m = offsets[ii]; m < offsets[ii + 1]; ++m) {
+    const int j = neighbors[static_cast<size_t>(m)];
+    const size_t jj = static_cast<size_t>(j);
+    const int lj = band.levels[jj];
+    if (lj < 0 || lj >= level) continue;
+    Complex carried = band.ringTransports(m) * state.velocities[j];
+    if (surface.moving) {
+      const Vector3 change = surfaceVelocity(surface, j) - vi;
+      carried += Complex(frame->col(0).dot(change), frame->col(1).dot(change));
+    }
+    const double w = band.weights[j];
+    weighted += w * carried;
+    plain += carried;
+    weightSum += w;
+    ++count;
+    // Crossing from j to i covers at least the shorter of their shortest edges.
+    const LiquidBand::Distances& from = band.distances[jj];
+    const double step = std::min(from.shortestEdge, shortest);
+    nearestWet = std::min(nearestWet, from.fromWet);
+    fromWet = std::min(fromWet, from.fromWet + step);
+    if (!attempt.everything) {  // covering the component, only the reach set is needed
+      nearestReach = std::min(nearestReach, from.fromReach);
+      fromReach = std::min(fromReach, from.fromReach + step);
+      if (!inReach && band.reachMask[jj] != 0 && isReachCentre(band, j, attempt)) inReach = true;
+    }
+  }
+  // count >= 1: i was found from a vertex of the level below. A soaked
+  // vertex's liquid moves with the cloth: u = 0, and no weight.
+  const bool soaked = band.soakedMask[ii] != 0;
+  state.velocities[i] = soaked ? Complex(0.0, 0.0)
+                        : weightSum > 0.0 ? weighted / weightSum
+                                          : plain / static_cast<double>(count);
+  band.weights[i] = soaked ? 0.0 : weightSum / static_cast<double>(count);
+  // Past the sub-steps' rings no liquid gets there, whatever the labels say.
+  if (inReach && level > 1) {
+    const double needed = subSteps.distanceTo(level);
+    if (!(needed < attempt.distance)) {
+      inReach = false;
+      attempt.rejected = std::min(attempt.rejected, needed);
+    }
+  }
+  band.reachMask[ii] = inReach ? 1 : 0;
+  LiquidBand::Distances& labels = band.distances[ii];
+  if (inReach) attempt.starLimit = std::min(attempt.starLimit, labels.starRadius);
+  labels.fromWet = fromWet;
+  labels.fromReach = inReach ? 0.0 : fromReach;
+  labels.nearestWet = nearestWet;
+  labels.nearestReach = nearestReach;
+}
+
+// The new ring band.vertices[end, ringEnd) at `level`: prepared in toPrepare
+// (when given), marked in the band (and the halo at level 1), its velocities
+// extended vertex by vertex in discovery order, each joining the speed bound.
+void extendRing(const BandSurface& surface, int level, int end, int ringEnd, SurfaceGeometry* toPrepare,
+                SubStepReach& subSteps, RingAttempt& attempt, SpeedBound& bound, LiquidBand& band,
+                StainState& state) {
+  const std::vector<int>& offsets = surface.topology.ringOffsets();
+  if (toPrepare != nullptr) toPrepare->prepareVertices(band.vertices.data() + end, ringEnd - end);
+  for (int k = end; k < ringEnd; ++k) {
+    const int i = band.vertices[static_cast<size_t>(k)];
+    const size_t ii = static_cast<size_t>(i);
+    // What a vertex two ahead reads once a step, cold after the cloth's
+    // step: its ring table, its distance labels and its frame at t.
+    if (k + 2 < ringEnd) {
+      const size_t ahead = static_cast<size_t>(band.vertices[static_cast<size_t>(k) + 2]);
+      const char* table = reinterpret_cast<const char*>(band.ringTransports.data() + offsets[ahead]);
+      __builtin_prefetch(table);
+      __builtin_prefetch(table + 64);
+      __builtin_prefetch(&band.distances[ahead]);
+      if (surface.moving) {
+        const char* frame = reinterpret_cast<const char*>(&surface.extrinsic.frames[ahead]);
+        __builtin_prefetch(frame);
+        __builtin_prefetch(frame + sizeof(Matrix3) - 1);
+      }
+    }
+    band.bandMask[ii] = 1;
+    if (level == 1) band.haloMask[ii] = 1;
+    extendVelocity(surface, level, i, subSteps, attempt, band, state);
+    bound.add(surface, state, i);
+  }
+}
+
+// Grows the rings around the wet set and extends u onto them, attempt after
+// attempt (growLiquidBand's comment in the header): first with the foot
+// points in their stars where that can hold, then by the distance labels,
+// grown again from the wet set while a "no" was decided below the final d,
+// covering the component after two tries (attempt.everything on return).
+// Returns the final attempt with its d; bound holds the final U.
+RingAttempt growRings(const BandSurface& surface, double wetStarRadius, SurfaceGeometry* toPrepare,
+                      SubStepReach& subSteps, SpeedBound& bound, LiquidBand& band, StainState& state) {
+  const SpeedBound wetBound = bound;
+  RingAttempt attempt;
+  attempt.everything = surface.inputs.coverComponent;
   // First with the foot points in their stars (the reach set's one ring),
   // kept if the final d is below the reach set's least star radius; not tried
   // where the wet set's own d already reaches its least star radius (d only
   // grows and the radius only shrinks as the band grows).
-  bool inStars = !everything && distanceFor(std::sqrt(speedSquared) + inputs.h * acceleration) < wetStarRadius;
+  attempt.inStars = !attempt.everything && footDistance(surface, bound) < wetStarRadius;
   band.footInStar = false;
-  double distance = 0.0;
-  for (int attempt = 0;; ++attempt) {
-    distance = distanceFor(std::sqrt(speedSquared) + inputs.h * acceleration);
-    // The least label a "no" compared against d: the answer changes only if
-    // the final d exceeds it.
-    double rejected = std::numeric_limits<double>::infinity();
-    double starLimit = wetStarRadius;  // the reach set's least star radius so far
-    const auto isReachCentre = [&](int v) {
-      const size_t vv = static_cast<size_t>(v);
-      if (band.levels[vv] == 0 || band.distances[vv].nearestWet < distance) return true;
-      rejected = std::min(rejected, band.distances[vv].nearestWet);
-      return false;
-    };
-    const auto letsGrow = [&](int v) {
-      const size_t vv = static_cast<size_t>(v);
-      if (everything || band.reachMask[vv] != 0) return true;
-      if (inStars) return false;  // holds while d < starLimit (checked at the end)
-      if (band.distances[vv].nearestReach < distance) return true;
-      rejected = std::min(rejected, band.distances[vv].nearestReach);
-      return false;
-    };
+  for (int tries = 0;; ++tries) {
+    attempt.distance = footDistance(surface, bound);
+    attempt.rejected = std::numeric_limits<double>::infinity();
+    attempt.starLimit = wetStarRadius;
     while (true) {
       const int level = band.rings + 1;
       const int begin = band.rings == 0 ? 0 : band.ringEnds[static_cast<size_t>(band.rings) - 1];
       const int end = band.ringEnds[static_cast<size_t>(band.rings)];
-      for (int k = begin; k < end; ++k) {
-        const int i = band.vertices[static_cast<size_t>(k)];
-        if (!letsGrow(i)) continue;
-        // Its neighbours all join the band: a row of the velocity solve.
-        if (band.diffusionMask[static_cast<size_t>(i)] == 0) band.diffusionMask[static_cast<size_t>(i)] = 1;
-        for (int m = offsets[static_cast<size_t>(i)]; m < offsets[static_cast<size_t>(i) + 1]; ++m) {
-          const int j = neighbors[static_cast<size_t>(m)];
-          if (band.levels[static_cast<size_t>(j)] >= 0) continue;
-          band.levels[static_cast<size_t>(j)] = level;
-          band.vertices.push_back(j);
-        }
-      }
+      growRing(surface.topology, level, begin, end, attempt, band);
       const int ringEnd = static_cast<int>(band.vertices.size());
       if (ringEnd == end) break;
-      if (toPrepare != nullptr) toPrepare->prepareVertices(band.vertices.data() + end, ringEnd - end);
-      for (int k = end; k < ringEnd; ++k) {
-        const int i = band.vertices[static_cast<size_t>(k)];
-        const size_t ii = static_cast<size_t>(i);
-        // What a vertex two ahead reads once a step, cold after the cloth's
-        // step: its ring table, its distance labels and its frame at t.
-        if (k + 2 < ringEnd) {
-          const size_t ahead = static_cast<size_t>(band.vertices[static_cast<size_t>(k) + 2]);
-          const char* table = reinterpret_cast<const char*>(band.ringTransports.data() + offsets[ahead]);
-          __builtin_prefetch(table);
-          __builtin_prefetch(table + 64);
-          __builtin_prefetch(&band.distances[ahead]);
-          if (moving) {
-            const char* frame = reinterpret_cast<const char*>(&extrinsic.frames[ahead]);
-            __builtin_prefetch(frame);
-            __builtin_prefetch(frame + sizeof(Matrix3) - 1);
-          }
-        }
-        band.bandMask[ii] = 1;
-        if (level == 1) band.haloMask[ii] = 1;
-        Complex weighted(0.0, 0.0), plain(0.0, 0.0);
-        double weightSum = 0.0;
-        int count = 0;
-        bool inReach = false;
-        double fromWet = std::numeric_limits<double>::infinity(), fromReach = fromWet;
-        double nearestWet = fromWet, nearestReach = fromWet;
-        const Vector3 vi = moving ? surfaceVelocity(i) : Vector3::Zero();
-        const Matrix3* frame = moving ? &extrinsic.frames[ii] : nullptr;
-        fillVertexTables(i);
-        const double shortest = band.distances[ii].shortestEdge;
-        for (int m = offsets[ii]; m < offsets[ii + 1]; ++m) {
-          const int j = neighbors[static_cast<size_t>(m)];
-          const size_t jj = static_cast<size_t>(j);
-          const int lj = band.levels[jj];
-          if (lj < 0 || lj >= level) continue;
-          Complex carried = band.ringTransports(m) * state.velocities[j];
-          if (moving) {
-            const Vector3 change = surfaceVelocity(j) - vi;
-            carried += Complex(frame->col(0).dot(change), frame->col(1).dot(change));
-          }
-          const double w = band.weights[j];
-          weighted += w * carried;
-          plain += carried;
-          weightSum += w;
-          ++count;
-          // Crossing from j to i covers at least the shorter of their shortest edges.
-          const LiquidBand::Distances& from = band.distances[jj];
-          const double step = std::min(from.shortestEdge, shortest);
-          nearestWet = std::min(nearestWet, from.fromWet);
-          fromWet = std::min(fromWet, from.fromWet + step);
-          if (!everything) {  // covering the component, only the reach set is needed
-            nearestReach = std::min(nearestReach, from.fromReach);
-            fromReach = std::min(fromReach, from.fromReach + step);
-            if (!inReach && band.reachMask[jj] != 0 && isReachCentre(j)) inReach = true;
-          }
-        }
-        // count >= 1: i was found from a vertex of the level below. A soaked
-        // vertex's liquid moves with the cloth: u = 0, and no weight.
-        const bool soaked = band.soakedMask[ii] != 0;
-        state.velocities[i] = soaked ? Complex(0.0, 0.0)
-                              : weightSum > 0.0 ? weighted / weightSum
-                                                : plain / static_cast<double>(count);
-        band.weights[i] = soaked ? 0.0 : weightSum / static_cast<double>(count);
-        // Past the sub-steps' rings no liquid gets there, whatever the labels say.
-        if (inReach && level > 1) {
-          const double needed = subStepDistance(level);
-          if (!(needed < distance)) {
-            inReach = false;
-            rejected = std::min(rejected, needed);
-          }
-        }
-        band.reachMask[ii] = inReach ? 1 : 0;
-        LiquidBand::Distances& labels = band.distances[ii];
-        if (inReach) starLimit = std::min(starLimit, labels.starRadius);
-        labels.fromWet = fromWet;
-        labels.fromReach = inReach ? 0.0 : fromReach;
-        labels.nearestWet = nearestWet;
-        labels.nearestReach = nearestReach;
-        speedSquared = std::max(speedSquared, std::norm(state.velocities[i]));
-        acceleration = std::max(acceleration, kick(i));
-      }
+      extendRing(surface, level, end, ringEnd, toPrepare, subSteps, attempt, bound, band, state);
       band.ringEnds.push_back(ringEnd);
       band.rings = level;
-      distance = distanceFor(std::sqrt(speedSquared) + inputs.h * acceleration);
-      if (inStars && !(distance < starLimit)) break;  // the stars cannot hold: to the labels
+      attempt.distance = footDistance(surface, bound);
+      // The stars cannot hold: to the labels.
+      if (attempt.inStars && !(attempt.distance < attempt.starLimit)) break;
     }
-    if (inStars) {
-      if (!(rejected < distance) && distance < starLimit) {
+    if (attempt.inStars) {
+      if (!(attempt.rejected < attempt.distance) && attempt.distance < attempt.starLimit) {
         band.footInStar = true;
-        break;
+        return attempt;
       }
       // Grown again by the labels from the wet set's speed bound: what the
       // band would have been without the star rule.
       shrinkBandToWetSet(band);  // not counted in regrowths: those are the labels'
-      inStars = false;
-      speedSquared = wetSpeedSquared;
-      acceleration = wetAcceleration;
-      --attempt;  // not a try towards covering the component
+      attempt.inStars = false;
+      bound = wetBound;
+      --tries;  // not a try towards covering the component
       continue;
     }
     // Every "no" holds with the final d: the band is complete. Otherwise grow
     // it again with the final d (the speed bound is kept); after two tries,
     // cover the component (the reach set is then marked again below).
-    if (!(rejected < distance) || everything) break;
+    if (!(attempt.rejected < attempt.distance) || attempt.everything) return attempt;
     shrinkBandToWetSet(band);
     ++band.regrowths;
-    if (attempt == 1) everything = true;
+    if (tries == 1) attempt.everything = true;
   }
+}
 
-  band.speedBound = std::sqrt(speedSquared) + inputs.h * acceleration;
+// Marking, over the grown band with the final d (m): the reach set again when
+// covering the component (everything; level by level, as the growth would
+// have with the final d), reachRings, and the velocity solve's rows
+// (diffusionMask: a vertex with a neighbour outside the band is its boundary
+// data instead; none when the band is the component) with interiorCount and
+// haloCount.
+void markReachAndRows(const SurfaceTopology& topology, int wetCount, double distance, bool everything,
+                      SubStepReach& subSteps, LiquidBand& band) {
+  const std::vector<int>& offsets = topology.ringOffsets();
+  const std::vector<int>& neighbors = topology.ringNeighbors();
   band.reachRings = 0;
   band.interiorCount = wetCount;  // wet vertices are rows of the velocity solve
-  int deepestCentre = 0;  // deepest level of a reach centre so far (marking again)
+  int deepestCentre = 0;          // deepest level of a reach centre so far (marking again)
   for (int k = wetCount; k < band.size(); ++k) {
     const int i = band.vertices[static_cast<size_t>(k)];
     const size_t ii = static_cast<size_t>(i);
     const int level = band.levels[ii];
     if (everything && level > deepestCentre + 1) {
       band.reachMask[ii] = 0;  // no reach centre at the level below
-    } else if (everything) {  // the reach set again, with the final d, level by level
+    } else if (everything) {
       char inReach = 0;
       for (int m = offsets[ii]; m < offsets[ii + 1] && inReach == 0; ++m) {
         const size_t jj = static_cast<size_t>(neighbors[static_cast<size_t>(m)]);
@@ -460,14 +609,12 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
           inReach = 1;
         }
       }
-      if (inReach != 0 && level > 1 && !(subStepDistance(level) < distance)) inReach = 0;
+      if (inReach != 0 && level > 1 && !(subSteps.distanceTo(level) < distance)) inReach = 0;
       band.reachMask[ii] = inReach;
       if (inReach != 0 && band.distances[ii].nearestWet < distance) deepestCentre = level;
     }
     if (band.reachMask[ii] != 0) band.reachRings = std::max(band.reachRings, level);
-    // A vertex with a neighbour outside the band is the velocity solve's
-    // boundary data (none when the band is the component); those the band
-    // grew past are marked already.
+    // Those the band grew past are marked already.
     char interior = 1;
     for (int m = offsets[ii]; m < offsets[ii + 1] && !everything && band.diffusionMask[ii] == 0; ++m) {
       if (band.levels[static_cast<size_t>(neighbors[static_cast<size_t>(m)])] < 0) {
@@ -479,6 +626,23 @@ void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topol
     band.interiorCount += interior;
   }
   band.haloCount = band.rings >= 1 ? band.ringEnds[1] - band.ringEnds[0] : 0;
+}
+
+}  // namespace
+
+void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topology,
+                    const IntrinsicGeometry& intrinsic, const ExtrinsicGeometry& extrinsic, LiquidBand& band,
+                    StainState& state, SurfaceGeometry* toPrepare) {
+  sizeRingTables(topology, band);  // first call only
+  const int wetCount = band.wetCount();
+  if (wetCount == 0) return;
+  const BandSurface surface = bandSurface(inputs, topology, intrinsic, extrinsic);
+  SpeedBound bound;
+  const double wetStarRadius = weighWetSet(surface, wetCount, bound, band, state);
+  SubStepReach subSteps(topology, intrinsic, extrinsic, band, wetCount);
+  const RingAttempt last = growRings(surface, wetStarRadius, toPrepare, subSteps, bound, band, state);
+  band.speedBound = bound.speed(inputs.h);
+  markReachAndRows(topology, wetCount, last.distance, last.everything, subSteps, band);
 }
 
 }  // namespace blot::stain

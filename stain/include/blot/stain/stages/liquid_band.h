@@ -183,6 +183,10 @@ void settleSoakedVelocities(const LiquidBand& band, StainState& state, const Cha
   }
 }
 
+/// Drops every level but the wet set (its masks and levels reset), so that
+/// growLiquidBand grows the band again, e.g. over the whole component.
+void shrinkBandToWetSet(LiquidBand& band);
+
 /// Grows the band marked by markWetVertices ring by ring and extends the
 /// velocity onto it: state.velocities on band vertices outside the wet set
 /// are overwritten; wet ones and vertices outside the band are untouched.
@@ -245,10 +249,6 @@ void settleSoakedVelocities(const LiquidBand& band, StainState& state, const Cha
 /// vertices are prepared (SurfaceGeometry::prepareVertices) before their
 /// frames and p̈ are read, so a geometry in VertexRefresh::OnDemand computes
 /// exactly the band; the wet set must be prepared by the caller.
-/// Drops every level but the wet set (its masks and levels reset), so that
-/// growLiquidBand grows the band again, e.g. over the whole component.
-void shrinkBandToWetSet(LiquidBand& band);
-
 void growLiquidBand(const LiquidBandInputs& inputs, const SurfaceTopology& topology,
                     const IntrinsicGeometry& intrinsic, const ExtrinsicGeometry& extrinsic, LiquidBand& band,
                     StainState& state, SurfaceGeometry* toPrepare = nullptr);
