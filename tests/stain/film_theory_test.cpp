@@ -9,6 +9,8 @@
 #include <blot/stain/stages/film_flow.h>
 #include <blot/stain/stain_solver.h>
 
+#include "sanitized_build.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -316,13 +318,17 @@ TEST(FilmTheory, ViscousDropSpreadsLikeTheLubricationSimilaritySolution) {
   // sampled start is off by +0.6 %, −1.7 %, −0.7 % in R (where the rings
   // fall against the profile's (R − r)^{1/3} edge), which is why the
   // exponent is fitted after 4 t0, once that has relaxed. Tolerances: error
-  // ≤ 1 % at 80 rings and at least 1.6 times smaller with each halving of
+  // ≤ 1 % at 80 rings (1.2 % at 40 in the sanitized build, which stops
+  // there) and at least 1.6 times smaller with each halving of
   // the spacing; exponent within 0.004 of 1/8 at every resolution.
   const double disc = 0.08, R0 = 0.03, H0 = 2e-3, nu = 1e-2, h = 2.0;
   const double span = 16.0;  // t1 / t0
   std::printf("Huppert's constant xi_N = (2^10/(3^4 pi^3))^(1/8) = %.6f\n", huppertConstant());
   double previousError = 0;
-  for (const int rings : {20, 40, 80}) {
+  // The sanitized build (10-20 times slower) runs the two coarser levels only:
+  // the finest, with its 23 film sub-steps a step, is most of this test's time.
+  const std::vector<int> levels = test::kSanitizedBuild ? std::vector<int>{20, 40} : std::vector<int>{20, 40, 80};
+  for (const int rings : levels) {
     const Spreading run = spreadingDrop(rings, disc, R0, H0, nu, span, h, 8);
     const double t1 = run.times.back();
     const double expected = huppertRadius(run.volume, nu, t1);
@@ -343,7 +349,7 @@ TEST(FilmTheory, ViscousDropSpreadsLikeTheLubricationSimilaritySolution) {
     }
     previousError = error;
   }
-  EXPECT_LE(std::abs(previousError), 0.01);
+  EXPECT_LE(std::abs(previousError), test::kSanitizedBuild ? 0.012 : 0.01);
 }
 
 }  // namespace
