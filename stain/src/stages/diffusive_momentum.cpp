@@ -6,6 +6,8 @@
 
 #include <algorithm>
 
+#include "stages/ring_stiffness.h"
+
 namespace blot::stain {
 
 void DiffusiveMomentumScratch::resize(int vertexCount, int ringEntries) {
@@ -15,26 +17,6 @@ void DiffusiveMomentumScratch::resize(int vertexCount, int ringEntries) {
   done.assign(static_cast<size_t>(vertexCount), 0);
   stiffnessEntries.assign(static_cast<size_t>(ringEntries), -1);
 }
-
-namespace {
-
-// Vertex i's ring entries' positions in the stiffness's column i (its
-// pattern is the topology's and never changes; filled on first use, and
-// again should a check find it stale).
-void fillStiffnessEntries(const SurfaceTopology& topology, const SparseMatrix& L, int i, std::vector<int>& entries) {
-  const std::vector<int>& offsets = topology.ringOffsets();
-  const std::vector<int>& neighbors = topology.ringNeighbors();
-  const int* outer = L.outerIndexPtr();
-  const int* inner = L.innerIndexPtr();
-  for (int m = offsets[static_cast<size_t>(i)]; m < offsets[static_cast<size_t>(i) + 1]; ++m) {
-    const int j = neighbors[static_cast<size_t>(m)];
-    int k = outer[i];
-    while (k < outer[i + 1] && inner[k] != j) ++k;
-    entries[static_cast<size_t>(m)] = k < outer[i + 1] ? k : -1;  // −1: no entry (a zero-area ring)
-  }
-}
-
-}  // namespace
 
 int carryMomentumWithDiffusion(const StepContext& ctx, const SurfaceTopology& topology,
                                const IntrinsicGeometry& intrinsic, const ExtrinsicGeometry* moving, LiquidBand& band,
