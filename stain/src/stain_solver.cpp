@@ -988,12 +988,7 @@ StepReport StainSolver::runStages() {
     if (!runStage(Stage::AdvectDensity, on.densityAdvection, report, [&] { recordAdvection(advectDensities(sub, topology, intrinsic, extrinsic, band_.wetMask, densityScratch_, state_, &geometry_.restEdgeFrameNormals(), &reach, among)); }))
       return report;
   }
-  if (!runStage(Stage::Diffuse, on.densityDiffusion || on.velocityDiffusion, report, [&] { const SolverStatus status = recordDiffusion(diffuse(ctx, intrinsic, systems_, diffusionScratch_, state_, &band_.diffusionMask, velocityByFactor_));
-                                                                                       // The liquid the density diffusion moved carries its u (band vertices: noted above).
-                                                                                       if (status == SolverStatus::Ok && on.densityDiffusion) carryMomentumWithDiffusion(ctx, topology, intrinsic, surfaceMoved_ && (on.linearInertia || on.coriolis) ? &extrinsic : nullptr, band_, momentumScratch_, state_, &diffusedPastReach_);
-                                                                                       // The viscosity and the carried momentum are velocity terms too: the wall again, on every band vertex (liquid that reached the wall this step included), so no u the step hands on points off the mesh.
-                                                                                       if (status == SolverStatus::Ok) applyBoundaryWall(ctx, topology, intrinsic, band, state_, among);
-                                                                                       return status; }) ||
+  if (!runStage(Stage::Diffuse, on.densityDiffusion || on.velocityDiffusion, report, [&] { return diffuseLiquid(ctx, among); }) ||
       !runStage(Stage::Interact, on.absorption || on.adsorption || on.evaporation, report, [&] { noteChanged(band_.absorbingVertices.data(), static_cast<int>(band_.absorbingVertices.size()));
                                                                                                    withDiffusedLiquidInReach([&] { interact(ctx, topology, intrinsic, reach, state_, &evaporatedMass_, interactionVertices(), &band_.soakedMask); });
                                                                                                    evaporationWritten_ = on.evaporation;
@@ -1001,6 +996,25 @@ StepReport StainSolver::runStages() {
     return report;
   // clang-format on
   return finishStep();
+}
+
+SolverStatus StainSolver::diffuseLiquid(const StepContext& ctx, const std::vector<int>* among) {
+  const PhysicsSwitches& on = ctx.switches;
+  const SurfaceTopology& topology = geometry_.topology();
+  const IntrinsicGeometry& intrinsic = geometry_.intrinsic();
+  const SolverStatus status =
+      recordDiffusion(diffuse(ctx, intrinsic, systems_, diffusionScratch_, state_, &band_.diffusionMask, velocityByFactor_));
+  if (status != SolverStatus::Ok) return status;
+  // The liquid the density diffusion moved carries its u (band vertices: noted above).
+  if (on.densityDiffusion)
+    carryMomentumWithDiffusion(ctx, topology, intrinsic,
+                               surfaceMoved_ && (on.linearInertia || on.coriolis) ? &geometry_.extrinsic() : nullptr,
+                               band_, momentumScratch_, state_, &diffusedPastReach_);
+  // The viscosity and the carried momentum are velocity terms too: the wall
+  // again, on every band vertex (liquid that reached the wall this step
+  // included), so no u the step hands on points off the mesh.
+  applyBoundaryWall(ctx, topology, intrinsic, band_.bandMask, state_, among);
+  return status;
 }
 
 FilmEnergy StainSolver::liquidEnergy() const {

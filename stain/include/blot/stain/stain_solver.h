@@ -378,6 +378,9 @@ class StainSolver {
   /// also notes what the solves wrote and lists diffusedPastReach_).
   void recordAdvection(const DensityAdvectionReport& report);
   SolverStatus recordDiffusion(const DiffusionReport& report);
+  /// Stage Diffuse: the density and velocity diffusion, then what the
+  /// diffusion's fluxes carry (momentum) and the wall.
+  SolverStatus diffuseLiquid(const StepContext& ctx, const std::vector<int>* among);
   /// Stage Validate: every value finite, no negative density; then the
   /// step counts (time, step number).
   StepReport finishStep();
