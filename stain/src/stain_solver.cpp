@@ -245,6 +245,7 @@ const StainSolverDef& checkedDefinition(const StainSolverDef& def) {
   positive("liquid.liquidDensity", liquid.liquidDensity);
   positive("liquid.kinematicViscosity", liquid.kinematicViscosity);
   nonNegative("liquid.slipLength", liquid.slipLength);
+  nonNegative("liquid.molecularDiffusivity", liquid.molecularDiffusivity);
   const std::string threadRange = "a count in [0, " + std::to_string(kMaxThreads) + "] (0: the OpenMP default)";
   require(def.threads >= 0 && def.threads <= kMaxThreads, "threads", def.threads, threadRange.c_str());
   for (int k = 0; k < 3; ++k)
@@ -287,6 +288,7 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   interactionScratch_.reserve(static_cast<size_t>(n));
   diffusedPastReach_.reserve(static_cast<size_t>(n));
   momentumScratch_.resize(n, static_cast<int>(topology.ringNeighbors().size()));
+  soluteScratch_.resize(n, static_cast<int>(topology.ringNeighbors().size()));
   strainTestVertices_.reserve(static_cast<size_t>(n));
   strainTestMarks_.assign(static_cast<size_t>(n), 0);
   surfaceVelocityScratch_ = RowVectors3::Zero(n, 3);
@@ -698,6 +700,7 @@ PhysicsSwitches StainSolver::activeTerms(bool surfaceMoved, bool anyLiquid) cons
   active.velocityAdvection = any && on.velocityAdvection;
   active.densityAdvection = any && on.densityAdvection;
   active.densityDiffusion = any && on.densityDiffusion;
+  active.soluteWithSolvent = any && on.soluteWithSolvent;
   active.velocityDiffusion = any && on.velocityDiffusion;
   active.absorption = any && on.absorption && liquid.absorptionRate > 0;
   active.adsorption = any && on.adsorption && liquid.desorptionRate > 0;
@@ -1002,9 +1005,19 @@ SolverStatus StainSolver::diffuseLiquid(const StepContext& ctx, const std::vecto
   const PhysicsSwitches& on = ctx.switches;
   const SurfaceTopology& topology = geometry_.topology();
   const IntrinsicGeometry& intrinsic = geometry_.intrinsic();
+  // In the film model the diffusion moves the solution and its flux carries
+  // the solute (solute_transport.h); with no solute there is nothing to carry.
+  const bool carrySolute = on.densityDiffusion && on.soluteWithSolvent &&
+                           std::any_of(band_.vertices.begin(), band_.vertices.end(),
+                                       [&](int i) { return state_.solute[i] != 0.0; });
+  if (carrySolute) holdLiquidForSoluteTransport(band_.vertices, state_, soluteScratch_);
   const SolverStatus status =
       recordDiffusion(diffuse(ctx, intrinsic, systems_, diffusionScratch_, state_, &band_.diffusionMask, velocityByFactor_));
-  if (status != SolverStatus::Ok) return status;
+  if (status != SolverStatus::Ok) return status;  // the step is undone: the held liquid with it
+  if (carrySolute) {
+    carrySoluteWithSolvent(ctx, topology, intrinsic, band_.vertices, diffusedPastReach_, soluteScratch_, state_);
+    profile_.markRan(StepTerm::SoluteWithSolvent);
+  }
   // The liquid the density diffusion moved carries its u (band vertices: noted above).
   if (on.densityDiffusion)
     carryMomentumWithDiffusion(ctx, topology, intrinsic,

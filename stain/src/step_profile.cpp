@@ -54,7 +54,8 @@ Stage stageOf(StepTerm term) {
     case StepTerm::DensityDiffusionDirect:
     case StepTerm::VelocityDiffusionKrylov:
     case StepTerm::VelocityDiffusionDirect:
-    case StepTerm::Factorization: return Stage::Diffuse;
+    case StepTerm::Factorization:
+    case StepTerm::SoluteWithSolvent: return Stage::Diffuse;
     case StepTerm::Absorption:
     case StepTerm::Adsorption:
     case StepTerm::Evaporation: return Stage::Interact;
@@ -92,6 +93,7 @@ const char* stepTermName(StepTerm term) {
     case StepTerm::Evaporation: return "evaporation";
     case StepTerm::Sources: return "sources";
     case StepTerm::SystemAssembly: return "system-assembly";
+    case StepTerm::SoluteWithSolvent: return "solute-with-solvent";
   }
   return "unknown";
 }

@@ -459,9 +459,14 @@ double commitDensities(bool densityOnSupport, bool solvent, bool solute, const M
     const int* list = densityActive.list();
     for (int k = 0; k < densityActive.size(); ++k) {
       const int i = list[k];
+      // The pair solve carries σ_s along; it is kept only when asked for
+      // (soluteWithSolvent leaves σ_s to carrySoluteWithSolvent).
       state.solvent[i] = dx[2 * i];
-      state.solute[i] = dx[2 * i + 1];
-      minimum = std::min(minimum, std::min(dx[2 * i], dx[2 * i + 1]));
+      minimum = std::min(minimum, dx[2 * i]);
+      if (solute) {
+        state.solute[i] = dx[2 * i + 1];
+        minimum = std::min(minimum, dx[2 * i + 1]);
+      }
     }
     // The CG vectors' invariant: zero outside the active set.
     releaseActive(densityActive, {dx, scratch.densityR.data(), scratch.densityP.data()});
@@ -515,7 +520,9 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
   }
 
   const bool solvent = switches.densityDiffusion && !allZero(state.solvent);
-  const bool solute = switches.densityDiffusion && !allZero(state.solute);
+  // With soluteWithSolvent the solvent slot holds the whole free liquid and
+  // the solute is carried afterwards (carrySoluteWithSolvent).
+  const bool solute = switches.densityDiffusion && !switches.soluteWithSolvent && !allZero(state.solute);
   const bool velocity = switches.velocityDiffusion && !allZero(state.velocities);
   const SparseMatrix& scalarSystem = systems.scalarSystem();
   const double entriesPerRow = n > 0 ? static_cast<double>(scalarSystem.nonZeros()) / static_cast<double>(n) : 0.0;

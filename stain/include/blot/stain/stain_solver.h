@@ -11,6 +11,7 @@
 #include <blot/stain/stages/diffusion.h>
 #include <blot/stain/stages/diffusive_momentum.h>
 #include <blot/stain/stages/liquid_band.h>
+#include <blot/stain/stages/solute_transport.h>
 #include <blot/stain/stages/sources.h>
 #include <blot/stain/stain_state.h>
 #include <blot/stain/step_context.h>
@@ -379,7 +380,7 @@ class StainSolver {
   void recordAdvection(const DensityAdvectionReport& report);
   SolverStatus recordDiffusion(const DiffusionReport& report);
   /// Stage Diffuse: the density and velocity diffusion, then what the
-  /// diffusion's fluxes carry (momentum) and the wall.
+  /// diffusion's fluxes carry (solute, momentum) and the wall.
   SolverStatus diffuseLiquid(const StepContext& ctx, const std::vector<int>* among);
   /// Stage Validate: every value finite, no negative density; then the
   /// step counts (time, step number).
@@ -427,6 +428,7 @@ class StainSolver {
   /// processes them with the reach set (marked in it while it runs).
   std::vector<int> diffusedPastReach_;
   DiffusiveMomentumScratch momentumScratch_;  // carryMomentumWithDiffusion's
+  SoluteTransportScratch soluteScratch_;      // carrySoluteWithSolvent's
   FilmScratch filmScratch_;  // #V: −∇φ* and g_n H on the film vertices (filmAccelerations), this step's
   RowVectors3 surfaceVelocityScratch_;  // addDrop: surfaceVelocity of every vertex
   bool surfaceMoved_ = false;           // this step's surface moved (refreshGeometry)

@@ -32,6 +32,11 @@ struct LiquidParameters {
   /// fibres, so the drag is 3νu/(H(H + 3λ)) and a film's front can advance
   /// (a no-slip film's cannot). 0: no slip.
   double slipLength = 1.0e-5;
+  /// D_m, the dissolved solute's molecular diffusivity in the liquid (m²/s,
+  /// ≥ 0), with PhysicsSwitches::soluteWithSolvent: the only thing that
+  /// evens out concentrations inside the liquid. A small molecule in water at
+  /// 20 °C: about 1e-9 (sucrose 5.2e-10, caffeine 6.3e-10).
+  double molecularDiffusivity = 1.0e-9;
 };
 
 /// How the Coriolis term is integrated. ExactRotation (default): after the
@@ -76,6 +81,12 @@ struct PhysicsSwitches {
   /// relative to the cloth, integrated implicitly (film_flow.h). The paper
   /// has none (off).
   bool filmFriction = false;
+  /// The density diffusion moves the free liquid as one solution and its
+  /// flux carries the dissolved solute at the sender's concentration, which
+  /// only the molecular diffusion D_m evens out (solute_transport.h). The
+  /// paper diffuses solute with the fabric's tensor as it does solvent, 10⁷
+  /// times faster than a molecule diffuses (off).
+  bool soluteWithSolvent = false;
   /// u = 0 at wet vertices without free liquid (fibre-held only) before the
   /// body forces (clearVelocityWithoutFreeLiquid). Off: their u keeps
   /// accumulating the forces.
@@ -101,13 +112,14 @@ struct PhysicsSwitches {
 };
 
 /// Sets what `model` decides (docs/scene-format.md, "physics.model"): the
-/// film terms and the evaporation boundary. Every other switch and parameter
+/// film terms, the solute's transport and the evaporation boundary. Every other switch and parameter
 /// is left as it is.
 inline void applyPhysicsModel(PhysicsModel model, PhysicsSwitches& switches, LiquidParameters& liquid) {
   const bool film = model == PhysicsModel::Film;
   switches.model = model;
   switches.filmPressure = film;
   switches.filmFriction = film;
+  switches.soluteWithSolvent = film;
   liquid.evaporationBoundary = film ? EvaporationBoundary::WetFront : EvaporationBoundary::MeshBoundary;
 }
 

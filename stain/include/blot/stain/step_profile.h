@@ -73,11 +73,12 @@ enum class StepTerm : unsigned {
   Sources = 1u << 17,            ///< Sources: held regions
   SystemAssembly = 1u << 18,     ///< Geometry: M + h L refilled (new metric or new h; factors now stale)
   FilmFriction = 1u << 19,       ///< FilmFriction: the film's drag on the fabric (free liquid)
+  SoluteWithSolvent = 1u << 20,  ///< Diffuse: the solution's flux carries its solute, plus D_m (band)
 };
 /// Number of StepTerm bits (bit k = 1u << k for k in [0, kStepTermCount)).
-/// FilmFriction is the last bit: a term added after it moves this line.
-inline constexpr int kStepTermCount = 20;
-static_assert(1u << (kStepTermCount - 1) == static_cast<unsigned>(StepTerm::FilmFriction),
+/// SoluteWithSolvent is the last bit: a term added after it moves this line.
+inline constexpr int kStepTermCount = 21;
+static_assert(1u << (kStepTermCount - 1) == static_cast<unsigned>(StepTerm::SoluteWithSolvent),
               "kStepTermCount counts the StepTerm bits up to the last one");
 
 /// Short name of one term ("gravity", "density-diffusion-krylov", ...).

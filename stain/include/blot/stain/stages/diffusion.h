@@ -271,7 +271,9 @@ struct DiffusionReport {
   int directSupportVertices = -1;
 };
 
-/// Solves for σ_f, σ_s (if the switches and state need it) and u. Densities are
+/// Solves for σ_f, σ_s (if the switches and state need it) and u; under
+/// soluteWithSolvent σ_s is left alone (the caller has put the whole free
+/// liquid in σ_f: holdLiquidForSoluteTransport). Densities are
 /// left unchanged if a solve fails (the status says why). `systems` must be
 /// assembled for ctx.h (else NotFactorized); a direct solve factorizes its
 /// system first if the factor is stale.
