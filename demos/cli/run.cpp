@@ -276,6 +276,7 @@ nlohmann::json termsJson(const engine::EngineDef& d) {
           {"sources", s.sources && !d.heldRegions.empty()},
           {"film_pressure", s.filmPressure},
           {"film_friction", s.filmFriction},
+          {"solute_with_solvent", s.soluteWithSolvent},
           {"velocity_on_free_liquid", s.velocityOnFreeLiquid},
           {"boundary_wall", s.boundaryWall},
           {"diffusive_momentum", s.diffusiveMomentum},

@@ -280,6 +280,7 @@ blot::engine::EngineDef toEngineDef(const blotEngineDef& d) {
   def.stain.liquid.slipLength = fabric.slipLength;
   def.stain.liquid.liquidDensity = d.liquid.liquidDensity;
   def.stain.liquid.kinematicViscosity = d.liquid.kinematicViscosity;
+  def.stain.liquid.molecularDiffusivity = d.liquid.molecularDiffusivity;
   def.stain.liquid.absorptionRate = d.liquid.absorptionRate;
   def.stain.liquid.saturationDensity = d.liquid.saturationDensity;
   def.stain.liquid.desorptionRate = d.liquid.desorptionRate;
@@ -348,6 +349,7 @@ blotLiquidDef blotDefaultLiquidDef(void) {
   out.evaporationRate = l.evaporationRate;
   out.liquidDensity = l.liquidDensity;
   out.kinematicViscosity = l.kinematicViscosity;
+  out.molecularDiffusivity = l.molecularDiffusivity;
   return out;
 }
 

@@ -683,6 +683,7 @@ void applyPreset(const LiquidPreset& preset, stain::LiquidParameters& l, LiquidC
   l.liquidDensity = preset.density;
   l.kinematicViscosity = preset.viscosity / preset.density;
   l.evaporationRate = preset.evaporationRate;
+  l.molecularDiffusivity = preset.molecularDiffusivity;
 }
 
 // A preset fills in its values first; every key given explicitly wins.
@@ -704,6 +705,7 @@ void parseLiquid(ObjectReader& r, stain::LiquidParameters& l, LiquidChoice& choi
   l.wetThreshold = r.number("wet_threshold", l.wetThreshold, positive());
   l.liquidDensity = r.number("liquid_density", l.liquidDensity, positive());
   l.kinematicViscosity = r.number("kinematic_viscosity", l.kinematicViscosity, closed(1e-9, 1.0));
+  l.molecularDiffusivity = r.number("molecular_diffusivity", l.molecularDiffusivity, closed(0.0, 1.0));
   r.finish();
 }
 
@@ -724,6 +726,7 @@ void parsePhysics(ObjectReader& r, stain::PhysicsSwitches& s) {
   s.sources = r.boolean("sources", s.sources);
   s.filmPressure = r.boolean("film_pressure", s.filmPressure);
   s.filmFriction = r.boolean("film_friction", s.filmFriction);
+  s.soluteWithSolvent = r.boolean("solute_with_solvent", s.soluteWithSolvent);
   s.velocityOnFreeLiquid = r.boolean("velocity_on_free_liquid", s.velocityOnFreeLiquid);
   s.boundaryWall = r.boolean("boundary_wall", s.boundaryWall);
   s.diffusiveMomentum = r.boolean("diffusive_momentum", s.diffusiveMomentum);

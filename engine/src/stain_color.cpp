@@ -77,6 +77,12 @@ const char* pigmentPresetName(PigmentPreset preset) {
 //   W = 0.089 (p_w − p_a) / Y: 20 °C water into 20 °C, 50 % RH air,
 //   0.089 · (2.34 − 1.17) kPa / 2454 kJ/kg ≈ 4.2e-5 kg/(m² s). Wine's ethanol
 //   evaporates faster at first; ignored (choice).
+// - molecular diffusivity D_m of the solute in the liquid, the CRC Handbook's
+//   values at infinite dilution, 25 °C: wine's dry extract (sugars, glycerol,
+//   acids) as glucose, 6.7e-10 m²/s; coffee's dissolved solids as sucrose,
+//   5.2e-10 (choices of the stand-in molecule); ink's dye 4.0e-10 (choice:
+//   dye molecules are larger than sugars); water carries no solute: 1.0e-9,
+//   a small molecule's (choice).
 // - wine: a dry red, 13 % vol. Density 994 (dry reds 990–997, OIV); μ 1.6 mPa s
 //   (10 wt% ethanol–water 1.5 mPa s, Khattab et al. 2012, plus the extract:
 //   choice); γ 46 mN/m (10 wt% ethanol–water 48, Vázquez et al. 1995; red
@@ -92,10 +98,10 @@ const char* pigmentPresetName(PigmentPreset preset) {
 //   water), A(1 cm) = 11/7.8/2.3 (choice: opaque in a cuvette, blue-black).
 const std::vector<LiquidPreset>& liquidPresets() {
   static const std::vector<LiquidPreset> presets{
-      {"water", 998.2, 1.002e-3, 0.07275, 0.0, 4.2e-5, {0.0, 0.0, 0.0}},
-      {"wine", 994.0, 1.6e-3, 0.046, 0.025, 4.2e-5, {1.2, 5.0, 3.5}},
-      {"coffee", 1003.0, 1.03e-3, 0.065, 0.0125, 4.2e-5, {1.0, 1.8, 3.1}},
-      {"ink", 1010.0, 1.2e-3, 0.045, 0.03, 4.2e-5, {11.0, 7.8, 2.3}},
+      {"water", 998.2, 1.002e-3, 0.07275, 0.0, 4.2e-5, 1.0e-9, {0.0, 0.0, 0.0}},
+      {"wine", 994.0, 1.6e-3, 0.046, 0.025, 4.2e-5, 6.7e-10, {1.2, 5.0, 3.5}},
+      {"coffee", 1003.0, 1.03e-3, 0.065, 0.0125, 4.2e-5, 5.2e-10, {1.0, 1.8, 3.1}},
+      {"ink", 1010.0, 1.2e-3, 0.045, 0.03, 4.2e-5, 4.0e-10, {11.0, 7.8, 2.3}},
   };
   return presets;
 }

@@ -367,7 +367,7 @@ a step of it runs on another thread raises RuntimeError.
           [](const Eigen::MatrixX3d& vertices, py::object faces, double timeStep, double diffusivity,
              double viscosity, py::object gravity, py::object angularVelocity, py::object pivot,
              py::object linearVelocity, double strainTolerance, int threads, const std::string& model,
-             py::object kinematicViscosity, py::object slipLength) {
+             py::object kinematicViscosity, py::object slipLength, py::object molecularDiffusivity) {
             EngineDef def;
             if (model == "paper") {
               blot::stain::applyPhysicsModel(blot::stain::PhysicsModel::Paper, def.stain.switches, def.stain.liquid);
@@ -376,6 +376,8 @@ a step of it runs on another thread raises RuntimeError.
             }
             if (!kinematicViscosity.is_none()) def.stain.liquid.kinematicViscosity = kinematicViscosity.cast<double>();
             if (!slipLength.is_none()) def.stain.liquid.slipLength = slipLength.cast<double>();
+            if (!molecularDiffusivity.is_none())
+              def.stain.liquid.molecularDiffusivity = molecularDiffusivity.cast<double>();
             def.mesh = meshFromArrays(vertices, faceIndices(faces, static_cast<int>(vertices.rows())));
             blot::stain::validateMesh(def.mesh, "from_mesh");
             def.timeStep = timeStep;
@@ -400,11 +402,13 @@ a step of it runs on another thread raises RuntimeError.
           py::arg("pivot") = py::none(), py::arg("linear_velocity") = py::none(),
           py::arg("strain_tolerance") = 1e-3, py::arg("threads") = 0, py::arg("model") = "film",
           py::arg("kinematic_viscosity") = py::none(), py::arg("slip_length") = py::none(),
+          py::arg("molecular_diffusivity") = py::none(),
           "An engine on your own mesh (vertices #V x 3 in m, faces #F x 3 integer indices), isotropic fabric, no "
           "files: a static surface, or a rigid motion when angular_velocity or linear_velocity is given. model: "
           "\"film\" (a thin viscous film: friction with the fabric, hydrostatic pressure) or \"paper\" (the "
           "paper's equations); kinematic_viscosity (m²/s, default water's 1e-6) and slip_length (m, default "
-          "1e-5) set the film's friction. For Bullet "
+          "1e-5) set the film's friction; molecular_diffusivity (m²/s, default 1e-9) the dissolved solute's "
+          "diffusion in the liquid (film model). For Bullet "
           "cloth, fabric patterns and every other key use a scene (from_dict / from_scene_json).")
       .def(
           "step",

@@ -353,6 +353,8 @@ INSTANTIATE_TEST_SUITE_P(
                  "drops[0].mass", "not both"},
         BadScene{"solute fraction above 1", withExtra(R"("liquid": {"preset": "ink", "solute_fraction": 2})"),
                  "liquid.solute_fraction", "[0, 1]"},
+        BadScene{"negative molecular diffusivity", withExtra(R"("liquid": {"preset": "ink", "molecular_diffusivity": -1e-9})"),
+                 "liquid.molecular_diffusivity", "[0, 1]"},
         BadScene{"texture without UVs", R"({"mesh": {"icosphere": {"radius": 1}}, "cloth": {"source": "static"}, "outputs": {"texture": {}}})",
                  "outputs.texture", "no UVs"},
         BadScene{"images camera", withExtra(R"("outputs": {"images": {"camera": "top"}})"), "outputs.images.camera",
@@ -597,6 +599,8 @@ TEST(Scene, LiquidPresetSetsItsDocumentedValues) {
       const EngineDef& def = scene.engine;
       EXPECT_DOUBLE_EQ(def.stain.liquid.liquidDensity, e.density);
       EXPECT_DOUBLE_EQ(def.stain.liquid.evaporationRate, 4.2e-5);
+      EXPECT_DOUBLE_EQ(def.stain.liquid.molecularDiffusivity, liquidPresetFromName(e.name).molecularDiffusivity);
+      EXPECT_TRUE(def.stain.switches.soluteWithSolvent);  // the film model, the default
       ASSERT_EQ(def.drops.size(), 1u);
       EXPECT_NEAR(def.drops[0].drop.soluteMass, e.soluteFraction * 5e-5, 1e-20);
       EXPECT_NEAR(def.drops[0].drop.solventMass + def.drops[0].drop.soluteMass, 5e-5, 1e-20);
@@ -624,13 +628,17 @@ TEST(Scene, ExplicitKeysOverrideTheLiquidPreset) {
       "cloth": {"source": "static"}, "fabric": {"diffusivity": 1e-4, "viscosity": 1e-5,
         "patches": [{"tensor": [[2e-4, 0], [0, 1e-4]]}]},
       "liquid": {"preset": "coffee", "evaporation_rate": 0.02, "liquid_density": 1100, "solute_fraction": 0.1,
-                 "wicking_factor": 2},
+                 "wicking_factor": 2, "molecular_diffusivity": 2e-9},
+      "physics": {"solute_with_solvent": false},
       "drops": [{"vertex": 12, "mass": 1e-4}, {"vertex": 3, "solvent_mass": 3e-5, "solute_mass": 2e-5}],
       "display": {"pigment": "ink"}})",
                                     "override.json");
   const EngineDef& def = scene.engine;
   EXPECT_DOUBLE_EQ(def.stain.liquid.evaporationRate, 0.02);
   EXPECT_DOUBLE_EQ(def.stain.liquid.liquidDensity, 1100);
+  EXPECT_DOUBLE_EQ(def.stain.liquid.molecularDiffusivity, 2e-9);
+  EXPECT_FALSE(def.stain.switches.soluteWithSolvent);  // the film model's, overridden
+  EXPECT_TRUE(def.stain.switches.filmFriction);
   EXPECT_NEAR(def.drops[0].drop.soluteMass, 1e-5, 1e-20);
   EXPECT_NEAR(def.drops[0].drop.solventMass, 9e-5, 1e-20);
   EXPECT_DOUBLE_EQ(def.drops[1].drop.soluteMass, 2e-5);

@@ -115,6 +115,7 @@ typedef struct blotLiquidDef {
   double evaporationRate;    /**< K_evap, kg/(m² s) */
   double liquidDensity;      /**< rho, kg/m³, > 0: the film's thickness is (solvent + solute) / rho */
   double kinematicViscosity; /**< nu = mu / rho, m²/s, > 0: the film's friction with the fabric */
+  double molecularDiffusivity; /**< D_m, m²/s, in [0, 1]: the dissolved solute's diffusion in the liquid (film model) */
 } blotLiquidDef;
 
 /** Everything an engine is built from. Only the mesh has no default. */

@@ -57,6 +57,7 @@ struct LiquidPreset {
   double surfaceTension;    ///< γ at 20 °C (N/m)
   double soluteFraction;    ///< solute (dissolved and suspended solids) per kg of liquid
   double evaporationRate;   ///< K_evap of a wet surface in still room air (kg/(m² s))
+  double molecularDiffusivity;  ///< D_m of the dissolved solute in the liquid (m²/s)
   /// Base-10 absorbance of a 1 cm path of the liquid per linear RGB channel,
   /// read at about 620, 520 and 420 nm.
   Eigen::Array3d absorbance1cm;
