@@ -289,6 +289,7 @@ StainSolver::StainSolver(const SurfaceTopology& topology, const RowVectors3& res
   diffusedPastReach_.reserve(static_cast<size_t>(n));
   momentumScratch_.resize(n, static_cast<int>(topology.ringNeighbors().size()));
   soluteScratch_.resize(n, static_cast<int>(topology.ringNeighbors().size()));
+  filmViscosityScratch_.resize(n, static_cast<int>(topology.ringNeighbors().size()));
   strainTestVertices_.reserve(static_cast<size_t>(n));
   strainTestMarks_.assign(static_cast<size_t>(n), 0);
   surfaceVelocityScratch_ = RowVectors3::Zero(n, 3);
@@ -614,7 +615,9 @@ void StainSolver::prepareBand() {
   // Where u lives on the free liquid only, soaked vertices (liquid the
   // fibres hold, u = 0) are filed apart: the band grows from the free liquid.
   updateWetVertices(def_.liquid.wetThreshold, state_, band_, def_.soakedApart && ctx_.switches.velocityOnFreeLiquid);
-  velocityByFactor_ = ctx_.switches.velocityDiffusion && !systems_.vectorIterative();
+  // (The film's mass-weighted viscosity has its own solve on the liquid.)
+  const bool areaWeightedViscosity = ctx_.switches.velocityDiffusion && !ctx_.switches.massWeightedViscosity;
+  velocityByFactor_ = areaWeightedViscosity && !systems_.vectorIterative();
   // The per-vertex geometry where this step reads it (the wet set now, each
   // ring as the band grows), and on the traces of liquid where a reader
   // between steps asks for them (the coupling's free relative momentum).
@@ -653,7 +656,7 @@ void StainSolver::prepareBand() {
     inputs.filmAcceleration = filmAccelerations(ctx_, geometry_.topology(), geometry_.extrinsic(), state_,
                                                 band_.wetMask, band_.vertices, filmScratch_);
   growLiquidBand(inputs, geometry_.topology(), geometry_.intrinsic(), geometry_.extrinsic(), band_, state_, &geometry_);
-  if (on.velocityDiffusion && !velocityByFactor_ && systems_.solverChoice() == DiffusionSolverChoice::Auto &&
+  if (areaWeightedViscosity && !velocityByFactor_ && systems_.solverChoice() == DiffusionSolverChoice::Auto &&
       velocityCostOnBand(systems_, band_.interiorCount) >
           velocityCostByFactor(systems_, state_.vertexCount() - band_.size())) {
     velocityByFactor_ = true;
@@ -701,6 +704,7 @@ PhysicsSwitches StainSolver::activeTerms(bool surfaceMoved, bool anyLiquid) cons
   active.densityAdvection = any && on.densityAdvection;
   active.densityDiffusion = any && on.densityDiffusion;
   active.soluteWithSolvent = any && on.soluteWithSolvent;
+  active.massWeightedViscosity = any && on.massWeightedViscosity;
   active.velocityDiffusion = any && on.velocityDiffusion;
   active.absorption = any && on.absorption && liquid.absorptionRate > 0;
   active.adsorption = any && on.adsorption && liquid.desorptionRate > 0;
@@ -1023,6 +1027,15 @@ SolverStatus StainSolver::diffuseLiquid(const StepContext& ctx, const std::vecto
     carryMomentumWithDiffusion(ctx, topology, intrinsic,
                                surfaceMoved_ && (on.linearInertia || on.coriolis) ? &geometry_.extrinsic() : nullptr,
                                band_, momentumScratch_, state_, &diffusedPastReach_);
+  // The film's viscosity, weighted by mass, on the liquid the step hands on.
+  if (on.velocityDiffusion && on.massWeightedViscosity) {
+    const FilmViscosityReport viscosity =
+        diffuseFilmVelocity(ctx, topology, intrinsic, band_.vertices, filmViscosityScratch_, state_);
+    profile_.viscousDissipation += viscosity.dissipation;
+    profile_.diffusionIterations += viscosity.iterations;
+    profile_.velocityDiffusionVertices = viscosity.vertices;
+    profile_.markRan(StepTerm::VelocityDiffusionByMass);
+  }
   // The viscosity and the carried momentum are velocity terms too: the wall
   // again, on every band vertex (liquid that reached the wall this step
   // included), so no u the step hands on points off the mesh.

@@ -55,7 +55,8 @@ Stage stageOf(StepTerm term) {
     case StepTerm::VelocityDiffusionKrylov:
     case StepTerm::VelocityDiffusionDirect:
     case StepTerm::Factorization:
-    case StepTerm::SoluteWithSolvent: return Stage::Diffuse;
+    case StepTerm::SoluteWithSolvent:
+    case StepTerm::VelocityDiffusionByMass: return Stage::Diffuse;
     case StepTerm::Absorption:
     case StepTerm::Adsorption:
     case StepTerm::Evaporation: return Stage::Interact;
@@ -94,6 +95,7 @@ const char* stepTermName(StepTerm term) {
     case StepTerm::Sources: return "sources";
     case StepTerm::SystemAssembly: return "system-assembly";
     case StepTerm::SoluteWithSolvent: return "solute-with-solvent";
+    case StepTerm::VelocityDiffusionByMass: return "velocity-diffusion-by-mass";
   }
   return "unknown";
 }

@@ -161,6 +161,9 @@ TEST(CApiTest, ACopyBeyondFloatRangeIsRefusedAndWritesNothing) {
   def.faces = faces.data();
   def.faceCount = 18;
   def.source = BLOT_MOTION_STATIC;
+  // The paper's equations: no friction or viscosity that would hold the
+  // liquid below float's range under this gravity (1e45 m/s² × 0.01 s).
+  def.model = BLOT_PHYSICS_PAPER;
   def.gravity[0] = 1e45;
   def.gravity[1] = def.gravity[2] = 0.0;
   blotEngine* engine = nullptr;

@@ -523,7 +523,8 @@ DiffusionReport diffuse(const StepContext& ctx, const IntrinsicGeometry& geometr
   // With soluteWithSolvent the solvent slot holds the whole free liquid and
   // the solute is carried afterwards (carrySoluteWithSolvent).
   const bool solute = switches.densityDiffusion && !switches.soluteWithSolvent && !allZero(state.solute);
-  const bool velocity = switches.velocityDiffusion && !allZero(state.velocities);
+  // With massWeightedViscosity u is diffused afterwards (diffuseFilmVelocity).
+  const bool velocity = switches.velocityDiffusion && !switches.massWeightedViscosity && !allZero(state.velocities);
   const SparseMatrix& scalarSystem = systems.scalarSystem();
   const double entriesPerRow = n > 0 ? static_cast<double>(scalarSystem.nonZeros()) / static_cast<double>(n) : 0.0;
   const DiffusionInputs inputs{ctx, geometry, systems, scratch, state, entriesPerRow, systems.factorizationCount()};

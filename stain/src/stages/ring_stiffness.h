@@ -1,6 +1,7 @@
 #pragma once
-// Where each ring entry of a vertex sits in the density stiffness, for the
-// passes that read the diffusion's edge fluxes (diffusive momentum, solute).
+// Where each ring entry of a vertex sits in a stiffness matrix (its pattern
+// is the topology's), for the passes that read the diffusion's edge fluxes
+// (diffusive momentum, solute) or the velocity stiffness (film viscosity).
 #include <blot/stain/geometry/surface_topology.h>
 #include <blot/stain/types.h>
 
@@ -11,8 +12,8 @@ namespace blot::stain {
 // Vertex i's ring entries' positions in the stiffness's column i (its
 // pattern is the topology's and never changes; filled on first use, and
 // again should a check find it stale).
-inline void fillStiffnessEntries(const SurfaceTopology& topology, const SparseMatrix& L, int i,
-                                 std::vector<int>& entries) {
+template <class Matrix>
+void fillStiffnessEntries(const SurfaceTopology& topology, const Matrix& L, int i, std::vector<int>& entries) {
   const std::vector<int>& offsets = topology.ringOffsets();
   const std::vector<int>& neighbors = topology.ringNeighbors();
   const int* outer = L.outerIndexPtr();

@@ -11,6 +11,7 @@
 #include <blot/stain/stages/diffusion.h>
 #include <blot/stain/stages/diffusive_momentum.h>
 #include <blot/stain/stages/liquid_band.h>
+#include <blot/stain/stages/film_viscosity.h>
 #include <blot/stain/stages/solute_transport.h>
 #include <blot/stain/stages/sources.h>
 #include <blot/stain/stain_state.h>
@@ -380,7 +381,8 @@ class StainSolver {
   void recordAdvection(const DensityAdvectionReport& report);
   SolverStatus recordDiffusion(const DiffusionReport& report);
   /// Stage Diffuse: the density and velocity diffusion, then what the
-  /// diffusion's fluxes carry (solute, momentum) and the wall.
+  /// diffusion's fluxes carry (solute, momentum), the film's mass-weighted
+  /// viscosity and the wall.
   SolverStatus diffuseLiquid(const StepContext& ctx, const std::vector<int>* among);
   /// Stage Validate: every value finite, no negative density; then the
   /// step counts (time, step number).
@@ -429,6 +431,7 @@ class StainSolver {
   std::vector<int> diffusedPastReach_;
   DiffusiveMomentumScratch momentumScratch_;  // carryMomentumWithDiffusion's
   SoluteTransportScratch soluteScratch_;      // carrySoluteWithSolvent's
+  FilmViscosityScratch filmViscosityScratch_;  // diffuseFilmVelocity's
   FilmScratch filmScratch_;  // #V: −∇φ* and g_n H on the film vertices (filmAccelerations), this step's
   RowVectors3 surfaceVelocityScratch_;  // addDrop: surfaceVelocity of every vertex
   bool surfaceMoved_ = false;           // this step's surface moved (refreshGeometry)

@@ -87,6 +87,12 @@ struct PhysicsSwitches {
   /// paper diffuses solute with the fabric's tensor as it does solvent, 10⁷
   /// times faster than a molecule diffuses (off).
   bool soluteWithSolvent = false;
+  /// The in-plane viscosity exchanges momentum in proportion to the liquid's
+  /// mass, each edge limited by its thinner end, so it conserves momentum and
+  /// only dissipates kinetic energy (film_viscosity.h). The paper weights it
+  /// by area (off), which can move speed from a trace of fast liquid into a
+  /// thick pool.
+  bool massWeightedViscosity = false;
   /// u = 0 at wet vertices without free liquid (fibre-held only) before the
   /// body forces (clearVelocityWithoutFreeLiquid). Off: their u keeps
   /// accumulating the forces.
@@ -112,7 +118,8 @@ struct PhysicsSwitches {
 };
 
 /// Sets what `model` decides (docs/scene-format.md, "physics.model"): the
-/// film terms, the solute's transport and the evaporation boundary. Every other switch and parameter
+/// film terms, the solute's transport, the viscosity's weighting and the
+/// evaporation boundary. Every other switch and parameter
 /// is left as it is.
 inline void applyPhysicsModel(PhysicsModel model, PhysicsSwitches& switches, LiquidParameters& liquid) {
   const bool film = model == PhysicsModel::Film;
@@ -120,6 +127,7 @@ inline void applyPhysicsModel(PhysicsModel model, PhysicsSwitches& switches, Liq
   switches.filmPressure = film;
   switches.filmFriction = film;
   switches.soluteWithSolvent = film;
+  switches.massWeightedViscosity = film;
   liquid.evaporationBoundary = film ? EvaporationBoundary::WetFront : EvaporationBoundary::MeshBoundary;
 }
 

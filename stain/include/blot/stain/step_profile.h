@@ -74,11 +74,12 @@ enum class StepTerm : unsigned {
   SystemAssembly = 1u << 18,     ///< Geometry: M + h L refilled (new metric or new h; factors now stale)
   FilmFriction = 1u << 19,       ///< FilmFriction: the film's drag on the fabric (free liquid)
   SoluteWithSolvent = 1u << 20,  ///< Diffuse: the solution's flux carries its solute, plus D_m (band)
+  VelocityDiffusionByMass = 1u << 21,  ///< Diffuse: u by CG with mass weights on the free liquid
 };
 /// Number of StepTerm bits (bit k = 1u << k for k in [0, kStepTermCount)).
-/// SoluteWithSolvent is the last bit: a term added after it moves this line.
-inline constexpr int kStepTermCount = 21;
-static_assert(1u << (kStepTermCount - 1) == static_cast<unsigned>(StepTerm::SoluteWithSolvent),
+/// VelocityDiffusionByMass is the last bit: a term added after it moves this line.
+inline constexpr int kStepTermCount = 22;
+static_assert(1u << (kStepTermCount - 1) == static_cast<unsigned>(StepTerm::VelocityDiffusionByMass),
               "kStepTermCount counts the StepTerm bits up to the last one");
 
 /// Short name of one term ("gravity", "density-diffusion-krylov", ...).
@@ -104,6 +105,8 @@ struct StepProfile {
   int filmSubsteps = 0;
   /// Kinetic energy the film's friction with the fabric took this step (J).
   double frictionDissipation = 0;
+  /// Kinetic energy the mass-weighted in-plane viscosity took this step (J).
+  double viscousDissipation = 0;
   int intrinsicRefreshes = 0;      ///< 1 if the metric changed enough to rebuild the operators this step
   int factorizations = 0;          ///< numeric Cholesky factorizations this step (direct solves only; 0–2)
   double maxEdgeStrain = 0;        ///< largest |ℓ/ℓ_factored − 1| this step
@@ -142,6 +145,7 @@ struct StepProfile {
     v.field(outputField("advectionSubsteps", "advection_substeps"), s.advectionSubsteps);
     v.field(outputField("filmSubsteps", "film_substeps"), s.filmSubsteps);
     v.field(outputField("frictionDissipation", "friction_dissipation", "J"), s.frictionDissipation);
+    v.field(outputField("viscousDissipation", "viscous_dissipation", "J"), s.viscousDissipation);
     v.field(outputField("intrinsicRefreshes", "intrinsic_refreshes"), s.intrinsicRefreshes);
     v.field(outputField("factorizations", "factorizations"), s.factorizations);
     v.field(outputField("maxEdgeStrain", "max_edge_strain"), s.maxEdgeStrain);

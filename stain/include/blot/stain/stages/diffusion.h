@@ -273,7 +273,8 @@ struct DiffusionReport {
 
 /// Solves for σ_f, σ_s (if the switches and state need it) and u; under
 /// soluteWithSolvent σ_s is left alone (the caller has put the whole free
-/// liquid in σ_f: holdLiquidForSoluteTransport). Densities are
+/// liquid in σ_f: holdLiquidForSoluteTransport), and under
+/// massWeightedViscosity u is (diffuseFilmVelocity). Densities are
 /// left unchanged if a solve fails (the status says why). `systems` must be
 /// assembled for ctx.h (else NotFactorized); a direct solve factorizes its
 /// system first if the factor is stale.
