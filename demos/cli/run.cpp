@@ -277,6 +277,7 @@ nlohmann::json termsJson(const engine::EngineDef& d) {
           {"film_pressure", s.filmPressure},
           {"film_friction", s.filmFriction},
           {"solute_with_solvent", s.soluteWithSolvent},
+          {"mass_weighted_viscosity", s.massWeightedViscosity},
           {"velocity_on_free_liquid", s.velocityOnFreeLiquid},
           {"boundary_wall", s.boundaryWall},
           {"diffusive_momentum", s.diffusiveMomentum},

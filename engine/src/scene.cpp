@@ -727,6 +727,7 @@ void parsePhysics(ObjectReader& r, stain::PhysicsSwitches& s) {
   s.filmPressure = r.boolean("film_pressure", s.filmPressure);
   s.filmFriction = r.boolean("film_friction", s.filmFriction);
   s.soluteWithSolvent = r.boolean("solute_with_solvent", s.soluteWithSolvent);
+  s.massWeightedViscosity = r.boolean("mass_weighted_viscosity", s.massWeightedViscosity);
   s.velocityOnFreeLiquid = r.boolean("velocity_on_free_liquid", s.velocityOnFreeLiquid);
   s.boundaryWall = r.boolean("boundary_wall", s.boundaryWall);
   s.diffusiveMomentum = r.boolean("diffusive_momentum", s.diffusiveMomentum);
