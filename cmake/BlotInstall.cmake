@@ -27,6 +27,14 @@ foreach(_dir stain/include cloth/include coupling/include engine/include engine/
 endforeach()
 
 install(EXPORT BlotTargets NAMESPACE Blot:: DESTINATION ${BLOT_INSTALL_CMAKEDIR})
+# OpenEXR is a dependency of the installed package only where it was built in.
+if(BLOT_HAVE_OPENEXR)
+  set(BLOT_FIND_OPENEXR "find_dependency(OpenEXR 3 CONFIG)  # float EXR stain maps in Blot::outputs")
+  set(BLOT_PC_OPENEXR " OpenEXR")
+else()
+  set(BLOT_FIND_OPENEXR "# built without OpenEXR: no EXR stain maps")
+  set(BLOT_PC_OPENEXR "")
+endif()
 configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/BlotConfig.cmake.in
                               ${PROJECT_BINARY_DIR}/BlotConfig.cmake
                               INSTALL_DESTINATION ${BLOT_INSTALL_CMAKEDIR})

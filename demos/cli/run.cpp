@@ -64,6 +64,7 @@ struct RunOptions {
   std::string video;          // "mp4", "gif" or "mp4,gif"
   int textureSize = 0;        // > 0: bake the stain texture at this size (square)
   bool textureEveryFrame = false;
+  std::string maps;           // "png8", "png16", "exr", comma-separated: wetness, saturation and stain maps
   bool gltf = false;
   bool gltfEveryFrame = false;
 };
@@ -340,6 +341,21 @@ void applyExportOptions(const RunOptions& o, engine::FrameExportSettings& s) {
     s.texture.width = s.texture.height = o.textureSize;
   }
   if (o.textureEveryFrame) s.texture.enabled = s.texture.everyFrame = true;
+  if (!o.maps.empty()) {
+    const std::string expected = "--maps: expected a comma-separated list of png8, png16 and exr, got '" + o.maps + "'";
+    std::stringstream list(o.maps);
+    engine::StainMapFormats formats;
+    for (std::string format; std::getline(list, format, ',');) {
+      bool* chosen = format == "png8" ? &formats.png8 : format == "png16" ? &formats.png16
+                     : format == "exr" ? &formats.exr : nullptr;
+      if (chosen == nullptr || *chosen) throw std::invalid_argument(expected);  // unknown, or named twice
+      *chosen = true;
+    }
+    if (o.maps.back() == ',') throw std::invalid_argument(expected);
+    s.texture.maps.png8 = s.texture.maps.png8 || formats.png8;
+    s.texture.maps.png16 = s.texture.maps.png16 || formats.png16;
+    s.texture.maps.exr = s.texture.maps.exr || formats.exr;
+  }
   if (o.gltf) s.gltf.enabled = true;
   if (o.gltfEveryFrame) s.gltf.enabled = s.gltf.everyFrame = true;
 }
@@ -593,7 +609,7 @@ int runScene(const RunOptions& options) {
       {"outputs", {{"directory", directory}, {"ply", plyPaths}, {"preview", previewPath}, {"preview_rest_shape", restPreviewPath}, {"summary", summaryPath},
                    {"images", exporter->files().images}, {"videos", exporter->files().videos},
                    {"textures", exporter->files().colorTextures}, {"density_maps", exporter->files().densityMaps},
-                   {"gltf", exporter->files().gltf}}}};
+                   {"stain_maps", exporter->files().stainMaps}, {"gltf", exporter->files().gltf}}}};
   summary.update(engine::statisticsJson(s));  // steps, simulated_time_s, mean_ms_per_step, mass_budget_kg, ...
   const std::string summaryText = stain::dumpJson(summary, 2) + "\n";
   stain::writeFileAtomically(summaryPath, summaryText.data(), summaryText.size());  // every write checked
@@ -625,6 +641,14 @@ void registerRunCommand(CLI::App& app, int& exitCode) {
   command->add_option("--texture", options->textureSize,
                       "Bake the final stain into the mesh's UVs at NxN texels: <name>_color.png, <name>_density.png");
   command->add_flag("--texture-every-frame", options->textureEveryFrame, "Bake the texture for every written frame");
+  command
+      ->add_option("--maps", options->maps,
+                   "png8, png16, exr (comma-separated): wetness, saturation and stain maps in the mesh's UVs at the "
+                   "--texture size (default 1024), <name>_wetness.png, <name>_wetness16.png, <name>_wetness.exr, ... "
+                   "(exr needs a build with OpenEXR)")
+      ->check([](const std::string& value) {
+        return value.empty() ? std::string("expected png8, png16 and/or exr, got an empty string") : std::string();
+      });
   command->add_flag("--gltf", options->gltf, "glTF 2.0 binary of the final frame, <out>/<name>.glb");
   command->add_flag("--gltf-every-frame", options->gltfEveryFrame, "A .glb per frame, <out>/<name>_<k>.glb");
   command->add_option("--checkpoint-every", options->checkpointEvery,

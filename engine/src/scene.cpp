@@ -864,12 +864,28 @@ void parseOutputs(ObjectReader& r, SceneOutputs& o) {
                                             "budget (about 38 bytes a texel)");
     t.padding = p.integer("padding", t.padding, closed(0, 256));
     t.densityScale = p.number("density_scale", t.densityScale, leftOpen(0, 1e6));
+    if (const json* maps = p.find("maps")) {
+      // The wetness, saturation and stain maps: a list of formats.
+      const std::string at = p.path("maps");
+      if (!maps->is_array()) r.context().fail(at, "expected a list of \"png8\", \"png16\", \"exr\", got " + describe(*maps));
+      for (std::size_t k = 0; k < maps->size(); ++k) {
+        const json& format = (*maps)[k];
+        const std::string item = at + "[" + std::to_string(k) + "]";
+        const std::string name = format.is_string() ? format.get<std::string>() : std::string();
+        bool* chosen = name == "png8" ? &t.maps.png8 : name == "png16" ? &t.maps.png16 : name == "exr" ? &t.maps.exr : nullptr;
+        if (chosen == nullptr)
+          r.context().fail(item, "expected \"png8\", \"png16\" or \"exr\", got " + describe(format));
+        if (*chosen) r.context().fail(item, "\"" + name + "\" is listed twice");
+        *chosen = true;
+      }
+    }
     p.finish();
   }
   if (const json* gltf = r.find("gltf")) {
     ObjectReader p(r.context(), *gltf, r.path("gltf"));
     o.gltf.enabled = p.boolean("enabled", true);
     o.gltf.everyFrame = p.boolean("every_frame", o.gltf.everyFrame);
+    o.gltf.glossWetness = p.number("gloss_wetness", o.gltf.glossWetness, leftOpen(0, 1e6));
     p.finish();
   }
   r.finish();
@@ -1059,7 +1075,7 @@ SceneDef parseScene(const std::string& jsonText, const std::string& sourceName, 
   if (const json* outputs = r.find("outputs")) {
     ObjectReader o(ctx, *outputs, "outputs");
     parseOutputs(o, scene.outputs);
-    if (scene.outputs.texture.enabled && def.mesh.vertexUVs.rows() == 0)
+    if ((scene.outputs.texture.enabled || scene.outputs.texture.maps.any()) && def.mesh.vertexUVs.rows() == 0)
       ctx.fail("outputs.texture", "the mesh has no UVs to bake into (use a mesh file with UVs or a \"patch\")");
   }
   r.finish();

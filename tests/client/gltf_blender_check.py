@@ -1,6 +1,6 @@
 # Imports a Blot .glb in Blender (headless) and checks what an artist gets:
-# the vertex count, the stain as a colour attribute, and the baked texture on
-# the material. Run as
+# the vertex count, the stain as a colour attribute, and the baked colour and
+# roughness (wetness) textures on the material. Run as
 #   blender -b --factory-startup --python-exit-code 1 -P gltf_blender_check.py -- FILE.glb VERTICES TEXTURE_SIZE
 # Exit code 1 (an uncaught exception) on any mismatch.
 import sys
@@ -41,10 +41,17 @@ assert lightest - darkest > 0.05, f"colour attribute is uniform ({darkest:.3f}..
 # The textured mesh's material samples the baked texture.
 material = textured[0].materials[0]
 assert material is not None and material.use_nodes, "textured mesh has no node material"
+# Two image textures: the stain colour (sRGB) and the wetness as roughness
+# (glTF's metallicRoughness texture, imported as Non-Color data).
 images = [n.image for n in material.node_tree.nodes if n.type == "TEX_IMAGE" and n.image is not None]
 assert images, f"material {material.name} has no image texture"
-width, height = images[0].size
+spaces = {image.colorspace_settings.name: image for image in images}
+assert "sRGB" in spaces, f"no sRGB image texture (colour spaces {sorted(spaces)})"
+color = spaces["sRGB"]
+width, height = color.size
 assert (width, height) == (texture_size, texture_size), f"texture is {width}x{height}, expected {texture_size}"
-assert images[0].colorspace_settings.name == "sRGB", f"texture colour space {images[0].colorspace_settings.name}"
+assert "Non-Color" in spaces, f"no Non-Color image texture for the roughness (colour spaces {sorted(spaces)})"
+bsdf = [n for n in material.node_tree.nodes if n.type == "BSDF_PRINCIPLED"]
+assert bsdf and bsdf[0].inputs["Roughness"].is_linked, "the roughness is not driven by a texture"
 print(f"blender: OK: {vertices} vertices, colour attribute '{attribute.name}' ({darkest:.3f}..{lightest:.3f}),"
-      f" texture {width}x{height} {images[0].colorspace_settings.name}")
+      f" texture {width}x{height} sRGB, roughness texture {spaces['Non-Color'].size[0]}x{spaces['Non-Color'].size[1]} Non-Color")

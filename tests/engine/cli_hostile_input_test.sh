@@ -30,6 +30,8 @@ expect 1 "--checkpoint-every -1: expected 0 (never)" -- "$blot" run "$scene" --q
 expect 1 "--frames -2: expected 0" -- "$blot" run "$scene" --quiet --out "$work/t" --frames -2
 expect 1 "--video: expected mp4, gif or mp4,gif, got 'mp4,mp4'" -- "$blot" run "$scene" --quiet --out "$work/t" --video mp4,mp4
 expect 105 "--video: expected mp4, gif or mp4,gif, got an empty string" -- "$blot" run "$scene" --quiet --out "$work/t" --video ""
+expect 1 "--maps: expected a comma-separated list of png8, png16 and exr, got 'png8,tiff'" -- "$blot" run "$scene" --quiet --out "$work/t" --maps png8,tiff
+expect 1 "--maps: expected a comma-separated list of png8, png16 and exr, got 'exr,exr'" -- "$blot" run "$scene" --quiet --out "$work/t" --maps exr,exr
 [ -e "$work/t" ] && fail "a refused run created its output folder"
 # --out: an empty string is no folder (it fell back to the scene's); under a file, the folder is named.
 expect 105 "--out: expected a folder, got an empty string" -- "$blot" run "$scene" --quiet --out ""

@@ -89,6 +89,42 @@ TEST(GltfWriter, TexturedFileReadsBackWithItsCountsColoursUvsAndTexture) {
   std::filesystem::remove(path);
 }
 
+// The wetness as roughness: a second image, the material's
+// metallicRoughnessTexture, decoded by tinygltf at its size; roughness factor
+// 1 and metallic 0 leave the texture's values as they are.
+TEST(GltfWriter, TheMetallicRoughnessTextureIsTheMaterialsSecondImage) {
+  GltfFrame f = gridFrame(true);
+  Image16 roughness;
+  roughness.width = 8;
+  roughness.height = 4;
+  roughness.channels = 3;
+  roughness.samples.assign(8 * 4 * 3, 0);
+  for (std::size_t t = 0; t < 32; ++t) {
+    roughness.samples[3 * t] = 255;
+    roughness.samples[3 * t + 1] = t < 16 ? 51 : 255;  // 0.2 (wet) above, 1 (dry) below
+  }
+  f.metallicRoughnessPng = encodeDataPng(roughness, 8);
+  const std::string path = (std::filesystem::temp_directory_path() / "blot_gltf_roughness.glb").string();
+  writeGlb(path, f);
+  const tinygltf::Model m = load(path);
+  const tinygltf::Material& material = m.materials.at(static_cast<size_t>(m.meshes[0].primitives.at(0).material));
+  EXPECT_EQ(material.pbrMetallicRoughness.baseColorTexture.index, 0);
+  ASSERT_EQ(material.pbrMetallicRoughness.metallicRoughnessTexture.index, 1);
+  EXPECT_EQ(material.pbrMetallicRoughness.metallicFactor, 0.0);
+  EXPECT_EQ(material.pbrMetallicRoughness.roughnessFactor, 1.0);
+  ASSERT_EQ(m.images.size(), 2u);
+  const tinygltf::Image& image = m.images[static_cast<size_t>(m.textures.at(1).source)];
+  EXPECT_EQ(image.width, 8);
+  EXPECT_EQ(image.height, 4);
+  ASSERT_GE(image.component, 3);
+  EXPECT_EQ(image.image.at(1), 51);  // texel (0, 0), G
+  EXPECT_EQ(image.image.at(static_cast<size_t>(image.component) * 31 + 1), 255);
+  std::filesystem::remove(path);
+  f.metallicRoughnessPng = {0xff, 0xd8, 0xff};
+  EXPECT_THROW(writeGlb(path, f), std::invalid_argument);
+  EXPECT_FALSE(std::filesystem::exists(path));
+}
+
 TEST(GltfWriter, WithoutUvsOnlyTheVertexColourMeshIsWritten) {
   const std::string path = (std::filesystem::temp_directory_path() / "blot_gltf_plain.glb").string();
   writeGlb(path, gridFrame(false));

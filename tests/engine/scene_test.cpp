@@ -357,6 +357,17 @@ INSTANTIATE_TEST_SUITE_P(
                  "liquid.molecular_diffusivity", "[0, 1]"},
         BadScene{"texture without UVs", R"({"mesh": {"icosphere": {"radius": 1}}, "cloth": {"source": "static"}, "outputs": {"texture": {}}})",
                  "outputs.texture", "no UVs"},
+        BadScene{"stain maps without UVs",
+                 R"({"mesh": {"icosphere": {"radius": 1}}, "cloth": {"source": "static"}, "outputs": {"texture": {"enabled": false, "maps": ["png8"]}}})",
+                 "outputs.texture", "no UVs"},
+        BadScene{"stain map format", withExtra(R"("outputs": {"texture": {"maps": ["png8", "tiff"]}})"),
+                 "outputs.texture.maps[1]", "expected \"png8\", \"png16\" or \"exr\", got a string \"tiff\""},
+        BadScene{"stain map format twice", withExtra(R"("outputs": {"texture": {"maps": ["exr", "exr"]}})"),
+                 "outputs.texture.maps[1]", "\"exr\" is listed twice"},
+        BadScene{"stain maps not a list", withExtra(R"("outputs": {"texture": {"maps": "exr"}})"), "outputs.texture.maps",
+                 "expected a list of"},
+        BadScene{"gloss wetness zero", withExtra(R"("outputs": {"gltf": {"gloss_wetness": 0}})"),
+                 "outputs.gltf.gloss_wetness", "got 0"},
         BadScene{"images camera", withExtra(R"("outputs": {"images": {"camera": "top"}})"), "outputs.images.camera",
                  "\"follow\", \"rest\""}),
     [](const ::testing::TestParamInfo<BadScene>& param) {
@@ -365,6 +376,20 @@ INSTANTIATE_TEST_SUITE_P(
         if (!std::isalnum(static_cast<unsigned char>(ch))) ch = '_';
       return name;
     });
+
+// The stain maps' formats and the glTF's gloss wetness; maps alone, without
+// the colour texture.
+TEST(SceneTest, StainMapsAndGlossWetnessAreRead) {
+  const SceneDef scene = parseScene(withExtra(R"("outputs": {"texture": {"enabled": false, "maps": ["png16", "exr"]},
+                                                            "gltf": {"gloss_wetness": 0.25}})"),
+                                    "scene.json", ".");
+  EXPECT_FALSE(scene.outputs.texture.enabled);
+  EXPECT_FALSE(scene.outputs.texture.maps.png8);
+  EXPECT_TRUE(scene.outputs.texture.maps.png16);
+  EXPECT_TRUE(scene.outputs.texture.maps.exr);
+  EXPECT_EQ(scene.outputs.gltf.glossWetness, 0.25);
+  EXPECT_FALSE(parseScene(kMinimal, "scene.json", ".").outputs.texture.maps.any());
+}
 
 // The loader's patch resolution override (benchmarks, regression runs): the
 // quads across the width are replaced and the height keeps the aspect ratio;

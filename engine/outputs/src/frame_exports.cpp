@@ -9,8 +9,10 @@
 // file pattern (frames written every k-th frame are not contiguous).
 #include <blot/engine/frame_exports.h>
 
+#include <blot/engine/exr_image.h>
 #include <blot/engine/gltf_writer.h>
 #include <blot/engine/image.h>
+#include <blot/engine/stain_maps.h>
 #include <blot/engine/uv_texture.h>
 
 #include <spawn.h>
@@ -69,6 +71,10 @@ FrameExporter::FrameExporter(const FrameExportSettings& settings, std::string di
   const bool hasUvs = engine.definition().mesh.vertexUVs.rows() == engine.vertexCount();
   if (settings_.texture.enabled && !hasUvs)
     throw std::invalid_argument("outputs.texture: the mesh has no UVs to bake into");
+  if (settings_.texture.maps.any() && !hasUvs)
+    throw std::invalid_argument("outputs.texture.maps (--maps): the mesh has no UVs to bake the maps into");
+  if (settings_.texture.maps.exr && !exrSupported())
+    throw MissingFeatureError("outputs.texture.maps (--maps): exr: " + exrMissingHelp());
   if (settings_.video.mp4 || settings_.video.gif) {
     settings_.images.enabled = true;
     ffmpeg_ = findOnPath("ffmpeg");
@@ -82,6 +88,11 @@ std::string FrameExporter::numbered(const std::string& kind, int frame, const st
   char digits[32];
   std::snprintf(digits, sizeof digits, "%04d", frame);
   return (std::filesystem::path(directory_) / (name_ + "_" + kind + digits + extension)).string();
+}
+
+std::string FrameExporter::texturePath(const std::string& kind, int frame, const std::string& extension) const {
+  if (settings_.texture.everyFrame) return numbered(kind + "_", frame, extension);
+  return (std::filesystem::path(directory_) / (name_ + "_" + kind + extension)).string();
 }
 
 std::string FrameExporter::imagePath(int frame) const { return numbered("frame_", frame, ".png"); }
@@ -127,20 +138,25 @@ void FrameExporter::writeFrame(int frame, const Engine& engine, bool last) {
   const Eigen::MatrixX2d& uvs = engine.definition().mesh.vertexUVs;
   const bool hasUvs = uvs.rows() == engine.vertexCount() && uvs.rows() > 0;
   const bool textureDue = settings_.texture.enabled && (settings_.texture.everyFrame || last);
+  const bool mapsDue = settings_.texture.maps.any() && (settings_.texture.everyFrame || last);
   const bool gltfDue = settings_.gltf.enabled && (settings_.gltf.everyFrame || last);
-  if (!textureDue && !gltfDue) return;
+  if (!textureDue && !mapsDue && !gltfDue) return;
   UvBakeOptions bake;
   bake.width = settings_.texture.width;
   bake.height = settings_.texture.height;
   bake.padding = settings_.texture.padding;
   Image color;
-  if (hasUvs) color = bakeVertexColorsToUv(uvs, engine.faces(), engine.colors(), bake);
+  if (hasUvs && (textureDue || gltfDue)) color = bakeVertexColorsToUv(uvs, engine.faces(), engine.colors(), bake);
+  // Wetness, saturation and stain in one bake: the maps and the glTF's roughness.
+  UvBake stainMaps;
+  if (hasUvs && (mapsDue || gltfDue))
+    stainMaps = bakeVertexValuesToUv(uvs, engine.faces(),
+                                     stainMapValues(engine.solvent(), engine.solute(), engine.absorbedSolvent(),
+                                                    engine.absorbedSolute(), engine.adsorbedSolute()),
+                                     bake);
   if (textureDue) {
-    const bool per = settings_.texture.everyFrame;
-    const std::string colorPath =
-        per ? numbered("color_", frame, ".png") : (std::filesystem::path(directory_) / (name_ + "_color.png")).string();
-    const std::string densityPath = per ? numbered("density_", frame, ".png")
-                                        : (std::filesystem::path(directory_) / (name_ + "_density.png")).string();
+    const std::string colorPath = texturePath("color", frame, ".png");
+    const std::string densityPath = texturePath("density", frame, ".png");
     writePng(color, colorPath);
     // R: all solute (free + absorbed + adsorbed), G: all solvent (free +
     // absorbed), B: adsorbed solute (the rim), A: coverage; kg/m² / density_scale.
@@ -158,6 +174,7 @@ void FrameExporter::writeFrame(int frame, const Engine& engine, bool last) {
     files_.colorTextures.push_back(colorPath);
     files_.densityMaps.push_back(densityPath);
   }
+  if (mapsDue) writeStainMaps(frame, stainMaps);
   if (gltfDue) {
     GltfFrame g;
     g.positions = engine.positions();
@@ -165,6 +182,10 @@ void FrameExporter::writeFrame(int frame, const Engine& engine, bool last) {
     if (hasUvs) {
       g.uvs = uvs;
       g.texturePng = encodePng(color);
+      GlossSettings gloss;
+      gloss.glossWetness = settings_.gltf.glossWetness;
+      g.metallicRoughnessPng =
+          encodeDataPng(metallicRoughnessMap(stainMaps, static_cast<int>(StainMap::Wetness), gloss), 8);
     }
     g.faces = engine.faces();
     g.colors = engine.colors();
@@ -173,6 +194,37 @@ void FrameExporter::writeFrame(int frame, const Engine& engine, bool last) {
                                                        : (std::filesystem::path(directory_) / (name_ + ".glb")).string();
     writeGlb(path, g);
     files_.gltf.push_back(path);
+  }
+}
+
+void FrameExporter::writeStainMaps(int frame, const UvBake& baked) {
+  const StainMapFormats& formats = settings_.texture.maps;
+  const double scale = settings_.texture.densityScale;
+  char scaleText[64];
+  std::snprintf(scaleText, sizeof scaleText, "%.17g", scale);
+  for (int m = 0; m < kStainMapCount; ++m) {
+    const std::string map = stainMapName(static_cast<StainMap>(m));
+    const std::string definition = stainMapDefinition(static_cast<StainMap>(m));
+    // PNG: grey = value / density_scale at full scale, both named in tEXt chunks.
+    const std::vector<std::string> text = {"blot:map", map + " = " + definition + " (kg/m2)",
+                                           "blot:density_scale_kg_per_m2", scaleText};
+    if (formats.png8) {
+      const std::string path = texturePath(map, frame, ".png");
+      writeDataPng(dataMapChannel(baked, m, 8, scale), 8, path, text);
+      files_.stainMaps.push_back(path);
+    }
+    if (formats.png16) {
+      const std::string path = texturePath(map + "16", frame, ".png");
+      writeDataPng(dataMapChannel(baked, m, 16, scale), 16, path, text);
+      files_.stainMaps.push_back(path);
+    }
+    // EXR: kg/m² as they are, the quantity and unit in header attributes.
+    if (formats.exr) {
+      const std::string path = texturePath(map, frame, ".exr");
+      writeExr(floatMapChannel(baked, m), path,
+               {{"blot:map", map}, {"blot:definition", definition}, {"blot:units", "kg/m^2"}});
+      files_.stainMaps.push_back(path);
+    }
   }
 }
 

@@ -52,10 +52,15 @@ void check(const std::string& path, const GltfFrame& f) {
       }
   // The texture is stored with mimeType image/png: it must be one.
   static constexpr unsigned char kPngSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
-  if (!f.texturePng.empty() &&
-      (f.texturePng.size() < sizeof kPngSignature ||
-       !std::equal(kPngSignature, kPngSignature + sizeof kPngSignature, f.texturePng.begin())))
+  const auto notPng = [](const std::vector<std::uint8_t>& bytes) {
+    return !bytes.empty() && (bytes.size() < sizeof kPngSignature ||
+                              !std::equal(kPngSignature, kPngSignature + sizeof kPngSignature, bytes.begin()));
+  };
+  if (notPng(f.texturePng))
     fail("texturePng (" + std::to_string(f.texturePng.size()) + " bytes) is not a PNG (no PNG signature)");
+  if (notPng(f.metallicRoughnessPng))
+    fail("metallicRoughnessPng (" + std::to_string(f.metallicRoughnessPng.size()) +
+         " bytes) is not a PNG (no PNG signature)");
   for (Eigen::Index t = 0; t < f.faces.rows(); ++t)
     for (int k = 0; k < 3; ++k)
       if (f.faces(t, k) < 0 || f.faces(t, k) >= n)
@@ -172,12 +177,28 @@ void writeGlb(const std::string& path, const GltfFrame& f) {
     texture.source = 0;
     texture.sampler = 0;
     model.textures.push_back(texture);
+    // Wetness as roughness: glTF reads roughness from G and metallic from B,
+    // multiplied by the factors below (both left at their meaning: metallic 0,
+    // roughness up to 1).
+    const bool glossy = !f.metallicRoughnessPng.empty();
+    if (glossy) {
+      tinygltf::Image roughness;
+      roughness.name = "stain_wetness_roughness";
+      roughness.mimeType = "image/png";
+      roughness.bufferView = b.view(f.metallicRoughnessPng.data(), f.metallicRoughnessPng.size(), 0);
+      model.images.push_back(roughness);
+      tinygltf::Texture t;
+      t.source = 1;
+      t.sampler = 0;
+      model.textures.push_back(t);
+    }
     tinygltf::Material material;
     material.name = "stain";
     material.doubleSided = true;  // cloth is seen from both sides
     material.pbrMetallicRoughness.baseColorTexture.index = 0;
     material.pbrMetallicRoughness.metallicFactor = 0.0;
     material.pbrMetallicRoughness.roughnessFactor = 1.0;
+    if (glossy) material.pbrMetallicRoughness.metallicRoughnessTexture.index = 1;
     model.materials.push_back(material);
     tinygltf::Primitive p;
     p.attributes = {{"POSITION", position}, {"NORMAL", normal}, {"TEXCOORD_0", uv}};

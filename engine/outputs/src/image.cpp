@@ -199,10 +199,11 @@ bool decodePng(const std::string& bytes, Image& image, PngStatus& status) {
   return true;
 }
 
+// A data PNG of `bitDepth` 8 or 16 (samples then 0-255 or 0-65535).
 // `rowBytes` (2 * width * channels bytes) and `texts` are the caller's, so no
 // destructor is skipped by libpng's longjmp.
-bool encodePng16(const Image16& image, std::vector<std::uint8_t>& out, PngStatus& status,
-                 const std::vector<std::string>* textPairs, std::uint8_t* rowBytes, std::vector<png_text>& texts) {
+bool encodeDataPng(const Image16& image, int bitDepth, std::vector<std::uint8_t>& out, PngStatus& status,
+                   const std::vector<std::string>* textPairs, std::uint8_t* rowBytes, std::vector<png_text>& texts) {
   PngWriteBuffer buffer{&out};
   png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &status, pngError, pngWarning);
   if (png == nullptr) return false;
@@ -214,7 +215,7 @@ bool encodePng16(const Image16& image, std::vector<std::uint8_t>& out, PngStatus
   png_set_write_fn(png, &buffer, pngWriteToBuffer, pngFlush);
   static const int kColorTypes[5] = {0, PNG_COLOR_TYPE_GRAY, PNG_COLOR_TYPE_GRAY_ALPHA, PNG_COLOR_TYPE_RGB,
                                      PNG_COLOR_TYPE_RGB_ALPHA};
-  png_set_IHDR(png, info, static_cast<png_uint_32>(image.width), static_cast<png_uint_32>(image.height), 16,
+  png_set_IHDR(png, info, static_cast<png_uint_32>(image.width), static_cast<png_uint_32>(image.height), bitDepth,
                kColorTypes[image.channels], PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT,
                PNG_FILTER_TYPE_DEFAULT);
   // Data, not colour: gamma 1.0 (linear), no sRGB chunk.
@@ -235,9 +236,13 @@ bool encodePng16(const Image16& image, std::vector<std::uint8_t>& out, PngStatus
   std::uint8_t* row = rowBytes;
   for (int y = 0; y < image.height; ++y) {
     const std::uint16_t* in = image.samples.data() + rowLength * y;
-    for (std::size_t k = 0; k < rowLength; ++k) {
-      row[2 * k] = static_cast<std::uint8_t>(in[k] >> 8);
-      row[2 * k + 1] = static_cast<std::uint8_t>(in[k] & 0xFF);
+    if (bitDepth == 8) {
+      for (std::size_t k = 0; k < rowLength; ++k) row[k] = static_cast<std::uint8_t>(in[k]);
+    } else {
+      for (std::size_t k = 0; k < rowLength; ++k) {
+        row[2 * k] = static_cast<std::uint8_t>(in[k] >> 8);
+        row[2 * k + 1] = static_cast<std::uint8_t>(in[k] & 0xFF);
+      }
     }
     png_write_row(png, row);
   }
@@ -404,20 +409,45 @@ Image readPng(const std::string& path) {
   return image;
 }
 
-void writePng16(const Image16& image, const std::string& path, const std::vector<std::string>& text) {
+namespace {
+
+// Checks `image` and encodes it; errors name `who` (the path, or the function).
+std::vector<std::uint8_t> checkedDataPng(const Image16& image, int bitDepth, const std::vector<std::string>& text,
+                                         const std::string& who) {
+  if (bitDepth != 8 && bitDepth != 16)
+    throw ImageError(who + ": data PNG bit depth " + std::to_string(bitDepth) + ", expected 8 or 16");
   if (image.width < 1 || image.height < 1 || image.channels < 1 || image.channels > 4 ||
       image.samples.size() != static_cast<std::size_t>(image.width) * image.height * image.channels)
-    throw ImageError(path + ": 16-bit image must be at least 1x1 with 1-4 channels and width*height*channels samples");
-  if (text.size() % 2 != 0) throw ImageError(path + ": PNG text must come as key, value pairs");
+    throw ImageError(who + ": " + std::to_string(bitDepth) +
+                     "-bit image must be at least 1x1 with 1-4 channels and width*height*channels samples");
+  if (bitDepth == 8)
+    for (std::size_t k = 0; k < image.samples.size(); ++k)
+      if (image.samples[k] > 255)
+        throw ImageError(who + ": sample " + std::to_string(k) + " is " + std::to_string(image.samples[k]) +
+                         ", expected 0-255 in an 8-bit PNG");
+  if (text.size() % 2 != 0) throw ImageError(who + ": PNG text must come as key, value pairs");
   std::vector<std::uint8_t> encoded;
   PngStatus status;
   std::vector<std::uint8_t> rowBytes(static_cast<std::size_t>(image.width) * image.channels * 2);
   std::vector<png_text> texts;
   texts.reserve(text.size() / 2);
-  if (!encodePng16(image, encoded, status, &text, rowBytes.data(), texts)) {
-    throw ImageError(path + ": PNG encoding failed: " + status.message);
-  }
-  writePngFile(encoded, path);
+  if (!encodeDataPng(image, bitDepth, encoded, status, &text, rowBytes.data(), texts))
+    throw ImageError(who + ": PNG encoding failed: " + status.message);
+  return encoded;
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> encodeDataPng(const Image16& image, int bitDepth, const std::vector<std::string>& text) {
+  return checkedDataPng(image, bitDepth, text, "encodeDataPng");
+}
+
+void writeDataPng(const Image16& image, int bitDepth, const std::string& path, const std::vector<std::string>& text) {
+  writePngFile(checkedDataPng(image, bitDepth, text, path), path);
+}
+
+void writePng16(const Image16& image, const std::string& path, const std::vector<std::string>& text) {
+  writeDataPng(image, 16, path, text);
 }
 
 Image16 readPng16(const std::string& path) {

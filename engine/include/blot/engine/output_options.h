@@ -53,19 +53,36 @@ struct SceneVideo {
   double fps = 24;
 };
 
+/// File formats of the wetness, saturation and stain maps (stain_maps.h);
+/// none set: no maps.
+struct StainMapFormats {
+  bool png8 = false;   ///< `<name>_<map>[_<k>].png`, 8-bit grey, value / densityScale
+  bool png16 = false;  ///< `<name>_<map>16[_<k>].png`, 16-bit grey, value / densityScale
+  bool exr = false;    ///< `<name>_<map>[_<k>].exr`, float, kg/m² (needs a build with OpenEXR)
+  bool any() const { return png8 || png16 || exr; }
+};
+
 /// The stain baked into the mesh's UV layout (needs a mesh with UVs):
-/// `<name>_color[_<k>].png` (sRGB) and `<name>_density[_<k>].png` (16-bit, linear).
+/// `<name>_color[_<k>].png` (sRGB) and `<name>_density[_<k>].png` (16-bit,
+/// linear) when enabled; the wetness, saturation and stain maps in `maps`'s
+/// formats, at the same size and frames, whether enabled or not.
 struct SceneTexture {
   bool enabled = false;
   bool everyFrame = false;  ///< each written frame, or only the last
   int width = 1024, height = 1024, padding = 4;
-  double densityScale = 5.0;  ///< kg/m² written as 65535 in the density map
+  /// kg/m² written as full scale (65535, or 255 in an 8-bit map) in the density
+  /// map and the PNG stain maps
+  double densityScale = 5.0;
+  StainMapFormats maps;
 };
 
 /// glTF 2.0 binary files (`<name>.glb`, or `<name>_<k>.glb` per frame).
 struct SceneGltf {
   bool enabled = false;
   bool everyFrame = false;
+  /// Wetness (free film σ_f + σ_s, kg/m²) at which the material's roughness
+  /// reaches its wet value (stain_maps.h, GlossSettings).
+  double glossWetness = 0.1;
 };
 
 }  // namespace blot::engine

@@ -1,12 +1,14 @@
 #pragma once
 /// What an artist keeps from a run, beside the PLY cache: a PNG per frame from
 /// a chosen camera, videos assembled from them with ffmpeg, the stain baked
-/// into the mesh's UV layout (sRGB colour PNG + 16-bit linear density map), and
-/// glTF 2.0 files. Driven by the scene's `outputs` (SceneImages, SceneVideo,
+/// into the mesh's UV layout (sRGB colour PNG + 16-bit linear density map),
+/// the wetness, saturation and stain maps (stain_maps.h; 8/16-bit PNG, float
+/// EXR), and glTF 2.0 files. Driven by the scene's `outputs` (SceneImages, SceneVideo,
 /// SceneTexture, SceneGltf); file names and formats in docs/rendering.md.
 #include <blot/engine/engine.h>
 #include <blot/engine/output_options.h>
 #include <blot/engine/renderer.h>
+#include <blot/engine/uv_texture.h>
 
 #include <functional>
 #include <optional>
@@ -25,6 +27,8 @@ struct FrameExportSettings {
 /// Every file written so far, by kind, in the order written.
 struct ExportedFiles {
   std::vector<std::string> images, colorTextures, densityMaps, gltf, videos;
+  /// Wetness, saturation and stain maps, in that order per frame and format.
+  std::vector<std::string> stainMaps;
 };
 
 /// Thrown before anything runs when a requested tool is missing (ffmpeg).
@@ -38,9 +42,11 @@ std::string findOnPath(const std::string& program);
 
 class FrameExporter {
  public:
-  /// Checks the settings against the engine's mesh (texture and glTF texture
-  /// need UVs: std::invalid_argument) and, when a video is asked for, that
-  /// ffmpeg is on PATH (MissingToolError, with how to install it).
+  /// Checks the settings against the engine's mesh (texture and stain maps
+  /// need UVs: std::invalid_argument), when a video is asked for that ffmpeg
+  /// is on PATH (MissingToolError, with how to install it), and when EXR maps
+  /// are asked for that this build has OpenEXR (MissingFeatureError, with
+  /// what to install).
   FrameExporter(const FrameExportSettings& settings, std::string directory, std::string name, const Engine& engine);
 
   /// Writes what frame `frame` calls for; `last` marks the final frame (its
@@ -64,6 +70,9 @@ class FrameExporter {
  private:
   bool imageDue(int frame, bool last) const;
   std::string numbered(const std::string& kind, int frame, const std::string& extension) const;
+  /// `<name>_<kind>_<frame>.<ext>` when the texture is written every frame, else `<name>_<kind>.<ext>`.
+  std::string texturePath(const std::string& kind, int frame, const std::string& extension) const;
+  void writeStainMaps(int frame, const UvBake& baked);
   Camera camera(const Engine& engine);
 
   FrameExportSettings settings_;

@@ -4,7 +4,9 @@
 /// One self-contained file per call (geometry, colours and texture inside):
 ///   scene 0 "stain_texture" (the default scene): node -> mesh "cloth" with
 ///     POSITION, NORMAL, TEXCOORD_0 and the material "stain" whose
-///     baseColorTexture is the baked colour texture (sRGB PNG, as glTF requires);
+///     baseColorTexture is the baked colour texture (sRGB PNG, as glTF requires)
+///     and, when given, whose metallicRoughnessTexture carries the wetness as
+///     roughness (linear PNG: wet = smooth, so viewers show a wet sheen);
 ///   scene 1 "stain_vertex_color": node -> mesh "cloth_vertex_color" with the
 ///     same POSITION/NORMAL accessors and COLOR_0 (linear float RGB, as glTF
 ///     requires) and a white, untextured material.
@@ -31,14 +33,18 @@ struct GltfFrame {
   stain::Triangles faces;        ///< #F by 3
   Eigen::MatrixX3d colors;       ///< #V by 3 linear RGB in [0, 1]
   std::vector<std::uint8_t> texturePng;  ///< the baked colour texture's PNG bytes, or empty
+  /// The material's metallicRoughness texture as PNG bytes (linear: G =
+  /// roughness, B = metallic; stain_maps.h, metallicRoughnessMap), or empty
+  /// for a uniform roughness 1; used only with texturePng.
+  std::vector<std::uint8_t> metallicRoughnessPng;
   std::string name = "cloth";
 };
 
 /// Writes `frame` as a .glb file atomically (temporary file + rename). Throws
 /// std::invalid_argument naming the array on a size mismatch, a face index out
 /// of range, a non-finite value, a colour outside [0, 1] by more than
-/// rounding (1e-9; within it the colour is clamped) or texture bytes that are
-/// not a PNG, std::runtime_error on a write failure; nothing is written on
+/// rounding (1e-9; within it the colour is clamped) or texture bytes (either
+/// texture) that are not a PNG, std::runtime_error on a write failure; nothing is written on
 /// error.
 void writeGlb(const std::string& path, const GltfFrame& frame);
 

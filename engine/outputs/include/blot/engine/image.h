@@ -84,6 +84,7 @@ std::vector<std::uint8_t> encodePng(const Image& image);
 
 /// 16-bit samples, 1 (grey), 2 (grey + alpha), 3 (RGB) or 4 (RGBA) channels,
 /// row-major, top row first: data maps (e.g. stain densities), not colours.
+/// Also holds 8-bit data maps (samples 0-255, written by writeDataPng at depth 8).
 struct Image16 {
   int width = 0, height = 0, channels = 4;
   std::vector<std::uint16_t> samples;  ///< width * height * channels
@@ -93,6 +94,14 @@ struct Image16 {
 /// with `text` as tEXt key/value pairs (even count: key, value, key, value…).
 /// Throws ImageError naming the path on a malformed image or a write failure.
 void writePng16(const Image16& image, const std::string& path, const std::vector<std::string>& text = {});
+/// The same at `bitDepth` 8 (every sample 0-255) or 16: a data PNG, marked
+/// linear (gAMA 1.0, no sRGB chunk), 1-4 channels (grey, grey + alpha, RGB,
+/// RGBA). Throws ImageError naming the path on a bad depth, a sample above
+/// 255 at depth 8, a malformed image or a write failure.
+void writeDataPng(const Image16& image, int bitDepth, const std::string& path,
+                  const std::vector<std::string>& text = {});
+/// The bytes writeDataPng would write (e.g. to embed in a glTF file).
+std::vector<std::uint8_t> encodeDataPng(const Image16& image, int bitDepth, const std::vector<std::string>& text = {});
 
 /// Reads a 16-bit, non-interlaced PNG (grey, grey+alpha, RGB, RGBA) exactly;
 /// throws ImageError naming the path for any other file.
