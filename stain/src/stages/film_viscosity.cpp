@@ -11,14 +11,14 @@ namespace blot::stain {
 
 namespace {
 
-constexpr int kMaxIterations = 500;
-constexpr double kTolerance = 1e-13;  // residual / right-hand side, max norms
+constexpr int kMaxViscosityIterations = 500;
+constexpr double kViscosityTolerance = 1e-13;  // residual / right-hand side, max norms
 
 // ā b without libgcc's complex multiply (its NaN path).
-inline Complex conjTimes(Complex a, Complex b) {
+inline Complex conjugateTimes(Complex a, Complex b) {
   return Complex(a.real() * b.real() + a.imag() * b.imag(), a.real() * b.imag() - a.imag() * b.real());
 }
-inline Complex times(Complex a, Complex b) {
+inline Complex complexTimes(Complex a, Complex b) {
   return Complex(a.real() * b.real() - a.imag() * b.imag(), a.real() * b.imag() + a.imag() * b.real());
 }
 
@@ -42,7 +42,6 @@ FilmViscosityReport diffuseFilmVelocity(const StepContext& ctx, const SurfaceTop
   const ComplexSparseMatrix& L = intrinsic.velocityStiffness;
   const std::vector<int>& offsets = topology.ringOffsets();
   const std::vector<int>& neighbors = topology.ringNeighbors();
-  const int* inner = L.innerIndexPtr();
   const Complex* values = L.valuePtr();
   const double* areas = intrinsic.vertexDualAreas.data();
   const double h = ctx.h;
@@ -70,11 +69,7 @@ FilmViscosityReport diffuseFilmVelocity(const StepContext& ctx, const SurfaceTop
     const int i = vertices[static_cast<size_t>(k)];
     const size_t ii = static_cast<size_t>(i);
     const int begin = offsets[ii], end = offsets[ii + 1];
-    if (begin < end) {
-      const int first = scratch.entries[static_cast<size_t>(begin)];
-      if (first < 0 || inner[first] != neighbors[static_cast<size_t>(begin)])
-        fillStiffnessEntries(topology, L, i, scratch.entries);
-    }
+    ensureStiffnessEntries(topology, L, i, scratch.entries);
     const double rho = liquid(i);
     double diagonal = areas[i] * rho;
     scratch.mass[k] = diagonal;
@@ -99,7 +94,7 @@ FilmViscosityReport diffuseFilmVelocity(const StepContext& ctx, const SurfaceTop
       for (int m = offsets[ii]; m < offsets[ii + 1]; ++m) {
         const Complex c = scratch.couplings[m];
         if (c == Complex(0.0, 0.0)) continue;
-        sum += times(c, v[position[static_cast<size_t>(neighbors[static_cast<size_t>(m)])]]);
+        sum += complexTimes(c, v[position[static_cast<size_t>(neighbors[static_cast<size_t>(m)])]]);
       }
       y[k] = sum;
     }
@@ -124,19 +119,19 @@ FilmViscosityReport diffuseFilmVelocity(const StepContext& ctx, const SurfaceTop
     rhsNorm = std::max(rhsNorm, std::abs(b));
     r[k] = b - q[k];
   }
-  const double target = kTolerance * rhsNorm;
+  const double target = kViscosityTolerance * rhsNorm;
   double rz = 0.0;
   for (int k = 0; k < n; ++k) {
     z[k] = r[k] / scratch.diagonal[k];
     p[k] = z[k];
-    rz += conjTimes(r[k], z[k]).real();
+    rz += conjugateTimes(r[k], z[k]).real();
   }
   report.converged = !(maxNorm(r) > target);
-  while (!report.converged && report.iterations < kMaxIterations) {
+  while (!report.converged && report.iterations < kMaxViscosityIterations) {
     ++report.iterations;
     apply(p, q);
     double pq = 0.0;
-    for (int k = 0; k < n; ++k) pq += conjTimes(p[k], q[k]).real();
+    for (int k = 0; k < n; ++k) pq += conjugateTimes(p[k], q[k]).real();
     if (!(pq > 0.0)) break;
     const double alpha = rz / pq;
     for (int k = 0; k < n; ++k) {
@@ -150,7 +145,7 @@ FilmViscosityReport diffuseFilmVelocity(const StepContext& ctx, const SurfaceTop
     double next = 0.0;
     for (int k = 0; k < n; ++k) {
       z[k] = r[k] / scratch.diagonal[k];
-      next += conjTimes(r[k], z[k]).real();
+      next += conjugateTimes(r[k], z[k]).real();
     }
     const double beta = next / rz;
     rz = next;
@@ -164,7 +159,7 @@ FilmViscosityReport diffuseFilmVelocity(const StepContext& ctx, const SurfaceTop
     const int i = vertices[static_cast<size_t>(k)];
     const Complex before = state.velocities[i];
     const Complex viscous = q[k] - scratch.mass[k] * x[k];  // h K u⁺
-    dissipation += conjTimes(x[k], viscous).real() + 0.5 * scratch.mass[k] * std::norm(x[k] - before);
+    dissipation += conjugateTimes(x[k], viscous).real() + 0.5 * scratch.mass[k] * std::norm(x[k] - before);
     state.velocities[i] = x[k];
   }
   report.dissipation = dissipation;

@@ -26,4 +26,14 @@ void fillStiffnessEntries(const SurfaceTopology& topology, const Matrix& L, int 
   }
 }
 
+// Fills vertex i's entries unless its first one is known to be current.
+template <class Matrix>
+void ensureStiffnessEntries(const SurfaceTopology& topology, const Matrix& L, int i, std::vector<int>& entries) {
+  const int begin = topology.ringOffsets()[static_cast<size_t>(i)];
+  if (begin == topology.ringOffsets()[static_cast<size_t>(i) + 1]) return;  // an isolated vertex
+  const int first = entries[static_cast<size_t>(begin)];
+  if (first < 0 || L.innerIndexPtr()[first] != topology.ringNeighbors()[static_cast<size_t>(begin)])
+    fillStiffnessEntries(topology, L, i, entries);
+}
+
 }  // namespace blot::stain

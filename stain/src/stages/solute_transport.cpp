@@ -13,8 +13,8 @@ using diffusion_internal::CompensatedSum;
 
 namespace {
 
-constexpr int kMaxSweeps = 200;
-constexpr double kSweepTolerance = 1e-15;  // relative to the largest concentration
+constexpr int kMaxSoluteSweeps = 200;
+constexpr double kSoluteSweepTolerance = 1e-15;  // relative to the largest concentration
 
 }  // namespace
 
@@ -48,7 +48,6 @@ SoluteTransportReport carrySoluteWithSolvent(const StepContext& ctx, const Surfa
   const std::vector<int>& offsets = topology.ringOffsets();
   const std::vector<int>& neighbors = topology.ringNeighbors();
   const std::vector<int>& ringEdges = topology.ringEdges();
-  const int* inner = L.innerIndexPtr();
   const double* values = L.valuePtr();
   const double* areas = intrinsic.vertexDualAreas.data();
   const double* weights = intrinsic.edgeCotanWeights.data();
@@ -92,11 +91,7 @@ SoluteTransportReport carrySoluteWithSolvent(const StepContext& ctx, const Surfa
   for (const int i : vertices) {
     const size_t ii = static_cast<size_t>(i);
     const int begin = offsets[ii], end = offsets[ii + 1];
-    if (begin < end) {
-      const int first = scratch.stiffnessEntries[static_cast<size_t>(begin)];
-      if (first < 0 || inner[first] != neighbors[static_cast<size_t>(begin)])
-        fillStiffnessEntries(topology, L, i, scratch.stiffnessEntries);
-    }
+    ensureStiffnessEntries(topology, L, i, scratch.stiffnessEntries);
     double in = 0.0, out = 0.0;
     for (int m = begin; m < end; ++m) {
       const double f = flux(i, m);
@@ -137,7 +132,7 @@ SoluteTransportReport carrySoluteWithSolvent(const StepContext& ctx, const Surfa
   for (const int i : vertices) largest = std::max(largest, c[i]);
   report.vertices = static_cast<int>(vertices.size());
   report.converged = false;
-  while (report.sweeps < kMaxSweeps && largest > 0.0) {
+  while (report.sweeps < kMaxSoluteSweeps && largest > 0.0) {
     ++report.sweeps;
     double change = 0.0;
     for (const int i : vertices) {
@@ -149,7 +144,7 @@ SoluteTransportReport carrySoluteWithSolvent(const StepContext& ctx, const Surfa
       change = std::max(change, std::abs(next - c[i]));
       c[i] = next;
     }
-    if (change <= kSweepTolerance * largest) {
+    if (change <= kSoluteSweepTolerance * largest) {
       report.converged = true;
       break;
     }
