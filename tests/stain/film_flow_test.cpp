@@ -538,8 +538,9 @@ TEST(FilmViscosity, WeightedByMassItOnlyDissipatesAndConservesMomentum) {
               mass.poolSpeed, area.startEnergy, area.finalEnergy, area.poolSpeed);
   EXPECT_LE(mass.worstGrowth, 1e-13);
   EXPECT_LT(mass.finalEnergy, mass.startEnergy);
-  EXPECT_LE(mass.momentumDrift, 1e-12);  // the solve's tolerance, 1e-13 of the right-hand side
-  EXPECT_LE(mass.dissipationError, 1e-12);
+  // 100 solves, each to 1e-11 of its right-hand side.
+  EXPECT_LE(mass.momentumDrift, 1e-10);
+  EXPECT_LE(mass.dissipationError, 1e-11);
   // Weighted by area, the pool takes speed from the trace: energy out of nothing.
   EXPECT_GT(area.finalEnergy, 2 * area.startEnergy);
   EXPECT_GT(area.poolSpeed, 10 * mass.poolSpeed);

@@ -34,13 +34,15 @@ namespace blot::stain {
 
 /// diffuseFilmVelocity's scratch, sized once (resize); a call allocates nothing.
 struct FilmViscosityScratch {
-  std::vector<int> vertices;   ///< the film vertices of a call (capacity #V)
+  std::vector<int> vertices;   ///< the film vertices of a call, in index order (capacity #V)
   std::vector<int> position;   ///< #V: index into `vertices`, −1 elsewhere
   std::vector<int> entries;    ///< per ring entry: its position in L_v's column (−1: none / not filled)
   ComplexVector x, r, z, p, q; ///< CG vectors, #V (only the first |vertices| entries used)
   Vector mass;                 ///< #V: A_i ρ_i
   Vector diagonal;             ///< #V: A_i ρ_i + h Σ_j ρ̄_ij |L_ij|
-  ComplexVector couplings;     ///< per ring entry: h ρ̄_ij L_ij (0 where j holds no free liquid)
+  ComplexVector couplings;     ///< compressed rows of the film: h ρ̄_ij L_ij (capacity: ring entries)
+  std::vector<int> columns;    ///< their columns (positions in `vertices`)
+  std::vector<int> rowStarts;  ///< #V + 1: where each row starts
   void resize(int vertexCount, int ringEntries);
 };
 
@@ -54,7 +56,7 @@ struct FilmViscosityReport {
 
 /// Solves the system above for u on the film vertices among `candidates`
 /// (those holding free liquid, ρ > 0), by conjugate gradients with Jacobi's
-/// preconditioner from u, until the residual is below 1e-13 of the right-hand
+/// preconditioner from u, until the residual is below 1e-11 of the right-hand
 /// side (max norms; at most 500 iterations). Other vertices keep their u.
 /// One thread, deterministic, no allocation.
 FilmViscosityReport diffuseFilmVelocity(const StepContext& ctx, const SurfaceTopology& topology,

@@ -33,7 +33,7 @@ struct SoluteTransportScratch {
   Vector sentShare;                   ///< #V: θ_i, the share of i's outflow that carries solute
   Vector diagonals;                   ///< #V: S_i + Σ_j d_ij
   Vector couplings;                   ///< per ring entry: what j's c adds to i's solute (kg)
-  std::vector<int> vertices;          ///< the pass's vertices, wettest first (capacity #V)
+  std::vector<int> vertices;          ///< the pass's vertices, in index order (capacity #V)
   std::vector<char> listed;           ///< #V: 1 on `vertices` during a pass
   std::vector<int> stiffnessEntries;  ///< per ring entry: its position in L's column (−1: none / not filled)
   void resize(int vertexCount, int ringEntries);
@@ -70,10 +70,10 @@ void holdLiquidForSoluteTransport(const std::vector<int>& band, StainState& stat
 /// cannot send more than passed through it). The matrix is an M-matrix,
 /// diagonally dominant by rows and columns, so c stays within the range of
 /// the concentrations it started from (a uniform c is kept to rounding) and
-/// the solute is conserved. It is solved by Gauss–Seidel, the wettest
-/// vertices first (the wicking flux runs down ρ⁺, so one sweep is nearly
-/// exact), until a sweep changes no c by more than 1e-15 relative (at most
-/// 200 sweeps). Then σ_s⁺ = c ρ⁺ × the factor that restores the solute's
+/// the solute is conserved. One concentration held everywhere is the
+/// solution as it is; otherwise symmetric Gauss–Seidel in index order solves
+/// it until a sweep changes no c by more than 1e-15 relative (at most 200
+/// sweeps). Then σ_s⁺ = c ρ⁺ × the factor that restores the solute's
 /// mass exactly (1 to rounding with exact fluxes; the positivity limiter
 /// and the restricted solves make fluxes estimates), at most ρ⁺, and
 /// σ_f⁺ = ρ⁺ − σ_s⁺. Visits `band` (held before) and `beyondBand` (vertices
