@@ -152,6 +152,8 @@ void CoupledSurface::gatherLiquid(Eigen::VectorXd& masses, Eigen::MatrixX3d* rel
 }
 
 stain::StepReport CoupledSurface::step(double h) {
+  // h before anything moves: the cloth would otherwise step with it first.
+  if (const stain::StepReport guard = stain::checkTimeStep(h); !guard.ok()) return guard;
   const Clock::time_point start = Clock::now();
   Clock::time_point mark = start;
   if (mode_ == CouplingMode::TwoWay) {

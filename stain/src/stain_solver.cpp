@@ -747,14 +747,9 @@ bool StainSolver::validStateWrittenOutside(StepReport& report) {
 }
 
 StepReport StainSolver::refreshGeometry(double h, const RowVectors3& nextPositions, const Matrix3* rigidRotation) {
-  StepReport report;
-  report.stage = Stage::Guard;
   inStep_ = false;
-  if (!(h > 0) || !std::isfinite(h)) {
-    report.status = StepStatus::InvalidArgument;
-    report.message = "time step must be finite and positive, got " + std::to_string(h);
-    return report;
-  }
+  StepReport report = checkTimeStep(h);
+  if (!report.ok()) return report;
   if (nextPositions.rows() != state_.vertexCount() || !nextPositions.allFinite()) {
     report.status = StepStatus::InvalidArgument;
     report.message = "next positions must be " + std::to_string(state_.vertexCount()) + " finite rows";

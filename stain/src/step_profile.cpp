@@ -3,7 +3,9 @@
 // here, on demand, outside it.
 #include <blot/stain/step_profile.h>
 
+#include <cmath>
 #include <sstream>
+#include <string>
 
 namespace blot::stain {
 namespace {
@@ -70,6 +72,16 @@ double StepProfile::stainTime() const {
   for (int k = static_cast<int>(kFirstStainStage); k <= static_cast<int>(kLastStainStage); ++k)
     sum += milliseconds[static_cast<size_t>(k)];
   return sum;
+}
+
+StepReport checkTimeStep(double h) {
+  StepReport report;
+  report.stage = Stage::Guard;
+  if (!(h > 0) || !std::isfinite(h)) {
+    report.status = StepStatus::InvalidArgument;
+    report.message = "time step must be finite and positive, got " + std::to_string(h);
+  }
+  return report;
 }
 
 const char* stepTermName(StepTerm term) {

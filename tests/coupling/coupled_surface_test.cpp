@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <limits>
 #include <string>
 
 #include "allocation_counter.h"  // counts every allocation while gCountAllocations is set
@@ -109,6 +110,26 @@ TEST(CoupledSurface, MoreLiquidThanANodeTakesFailsTheStepAndChangesNothing) {
   EXPECT_EQ(twoWay->motion().positions(), positions);
   EXPECT_EQ(twoWay->motion().time(), time);
   EXPECT_TRUE(blot::testing::bulletClothOf(*twoWay).isHealthy());
+}
+
+TEST(CoupledSurface, ABadTimeStepIsRefusedBeforeTheClothMoves) {
+  const test::CoupledFlag flag = test::makeCoupledFlag(8, true);
+  auto twoWay = test::makeCoupledSurface(flag, CouplingMode::TwoWay);
+  twoWay->stain().addDrop(heavyDrop({0.5, 0, 0.5}, 0.05));
+  ASSERT_EQ(twoWay->step(kFrame).status, stain::StepStatus::Ok);
+  const Eigen::MatrixX3d positions = twoWay->motion().positions();
+  const double time = twoWay->motion().time();
+  const stain::StainState state = twoWay->stain().state();
+  for (const double h : {0.0, -kFrame, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    const stain::StepReport report = twoWay->step(h);
+    EXPECT_EQ(report.status, stain::StepStatus::InvalidArgument) << h;
+    EXPECT_EQ(report.stage, stain::Stage::Guard) << h;
+    EXPECT_NE(report.message.find("time step must be finite and positive"), std::string::npos) << report.message;
+    EXPECT_EQ(twoWay->motion().positions(), positions);
+    EXPECT_EQ(twoWay->motion().time(), time);
+    EXPECT_EQ(twoWay->stain().state().solvent, state.solvent);
+  }
+  EXPECT_EQ(twoWay->step(kFrame).status, stain::StepStatus::Ok);
 }
 
 // Liquid written from outside (mutableState) on a vertex that no step has

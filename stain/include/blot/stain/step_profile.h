@@ -203,6 +203,11 @@ struct StepReport {
   bool ok() const { return status == StepStatus::Ok; }
 };
 
+/// The step size's guard, the first thing a step checks, before anything
+/// moves: Ok for a finite h > 0, else InvalidArgument at Stage::Guard naming
+/// the value.
+StepReport checkTimeStep(double h);
+
 /// Testing only: a NaN written on purpose inside a step, so that tests and
 /// `blot run --testing-inject-fault` exercise the fault path end to end (the
 /// stage check, the rollback, the report). Never set it in production.
