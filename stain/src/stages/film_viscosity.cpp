@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "numerics/threads.h"
 #include "stages/ring_stiffness.h"
 
 namespace blot::stain {
@@ -13,6 +14,9 @@ namespace {
 
 constexpr int kMaxViscosityIterations = 500;
 constexpr double kViscosityTolerance = 1e-11;  // residual / right-hand side, max norms
+// The product on the calling thread's OpenMP threads from this many film rows
+// (below it a region's start costs about what the rows do).
+constexpr int kParallelRows = 20000;
 
 // ā b without libgcc's complex multiply (its NaN path).
 inline Complex conjugateTimes(Complex a, Complex b) {
@@ -96,14 +100,18 @@ FilmViscosityReport diffuseFilmVelocity(const StepContext& ctx, const SurfaceTop
     scratch.diagonal[k] = diagonal;
   }
   starts[static_cast<size_t>(n)] = count;
-  // y = (M_ρ + h K_ρ) v on the film (v, y indexed like `vertices`).
+  // y = (M_ρ + h K_ρ) v on the film (v, y indexed like `vertices`); rows
+  // are independent, so threads give the same bits.
   const auto apply = [&](const ComplexVector& v, ComplexVector& y) {
-    for (int k = 0; k < n; ++k) {
-      Complex sum = scratch.diagonal[k] * v[k];
-      for (int c = starts[static_cast<size_t>(k)]; c < starts[static_cast<size_t>(k) + 1]; ++c)
-        sum += complexTimes(scratch.couplings[c], v[columns[static_cast<size_t>(c)]]);
-      y[k] = sum;
-    }
+    threads::runLoop(n >= kParallelRows, [&] {
+#pragma omp for schedule(static)
+      for (int k = 0; k < n; ++k) {
+        Complex sum = scratch.diagonal[k] * v[k];
+        for (int c = starts[static_cast<size_t>(k)]; c < starts[static_cast<size_t>(k) + 1]; ++c)
+          sum += complexTimes(scratch.couplings[c], v[columns[static_cast<size_t>(c)]]);
+        y[k] = sum;
+      }
+    });
   };
   const auto maxNorm = [&](const ComplexVector& v) {
     double largest = 0.0;
