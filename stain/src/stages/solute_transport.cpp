@@ -14,7 +14,7 @@ using diffusion_internal::CompensatedSum;
 namespace {
 
 constexpr int kMaxSoluteSweeps = 200;
-constexpr double kSoluteSweepTolerance = 1e-15;  // relative to the largest concentration
+constexpr double kSoluteSweepTolerance = 1e-13;  // relative to the largest concentration
 
 }  // namespace
 

@@ -72,7 +72,7 @@ void holdLiquidForSoluteTransport(const std::vector<int>& band, StainState& stat
 /// the concentrations it started from (a uniform c is kept to rounding) and
 /// the solute is conserved. One concentration held everywhere is the
 /// solution as it is; otherwise symmetric Gauss–Seidel in index order solves
-/// it until a sweep changes no c by more than 1e-15 relative (at most 200
+/// it until a sweep changes no c by more than 1e-13 relative (at most 200
 /// sweeps). Then σ_s⁺ = c ρ⁺ × the factor that restores the solute's
 /// mass exactly (1 to rounding with exact fluxes; the positivity limiter
 /// and the restricted solves make fluxes estimates), at most ρ⁺, and
